@@ -1,0 +1,155 @@
+"""Frame conventions and the one place that converts between them.
+
+fawtgym works in world NED and body FRD (as PX4 and the seed papers: ``e3`` points down, hover
+thrust acts along ``-e3`` of the body).  MuJoCo is simulated in a z-up world with a body frame
+FLU (x forward, y left, z up).  Both pairs of frames differ by the same proper rotation
+``T = diag(1, -1, -1)`` (a half turn about x), so
+
+* a world vector:   ``v_ned = T v_mj``
+* a body vector:    ``w_frd = T w_flu``
+* an attitude:      ``R_ned = T R_mj T`` (body -> world), since ``T = T^T = T^-1``.
+
+Quaternions appear only at interfaces that demand them (MuJoCo, MAVLink) and are in
+(w, x, y, z) order.  All functions accept a leading batch axis.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+#: The half turn about x that maps MuJoCo's z-up world / FLU body onto NED / FRD.
+T_MJ_NED: NDArray[np.float64] = np.diag([1.0, -1.0, -1.0])
+_SIGN = np.array([1.0, -1.0, -1.0])
+
+
+def vec_mj_to_ned(v: ArrayLike) -> NDArray[np.float64]:
+    """World (or body) vector from MuJoCo z-up/FLU to NED/FRD, shape (..., 3)."""
+    return np.asarray(v, dtype=float) * _SIGN
+
+
+def vec_ned_to_mj(v: ArrayLike) -> NDArray[np.float64]:
+    """World (or body) vector from NED/FRD to MuJoCo z-up/FLU, shape (..., 3)."""
+    return np.asarray(v, dtype=float) * _SIGN
+
+
+def rot_mj_to_ned(r_mj: ArrayLike) -> NDArray[np.float64]:
+    """Attitude R (body FLU -> world z-up) to R (body FRD -> world NED), shape (..., 3, 3)."""
+    r = np.asarray(r_mj, dtype=float)
+    return r * _SIGN[:, None] * _SIGN[None, :]
+
+
+rot_ned_to_mj = rot_mj_to_ned  # T R T is an involution
+
+
+def quat_to_rot(q: ArrayLike) -> NDArray[np.float64]:
+    """Unit quaternion (w, x, y, z), shape (..., 4), to rotation matrix (..., 3, 3).
+
+    The quaternion is normalized first; a zero quaternion raises ValueError.
+    """
+    q = np.asarray(q, dtype=float)
+    n = np.linalg.norm(q, axis=-1, keepdims=True)
+    if np.any(n == 0) or not np.all(np.isfinite(n)):
+        raise ValueError(f"quaternion must be finite and non-zero, got {q}")
+    w, x, y, z = np.moveaxis(q / n, -1, 0)
+    r = np.empty(q.shape[:-1] + (3, 3))
+    r[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    r[..., 0, 1] = 2 * (x * y - w * z)
+    r[..., 0, 2] = 2 * (x * z + w * y)
+    r[..., 1, 0] = 2 * (x * y + w * z)
+    r[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    r[..., 1, 2] = 2 * (y * z - w * x)
+    r[..., 2, 0] = 2 * (x * z - w * y)
+    r[..., 2, 1] = 2 * (y * z + w * x)
+    r[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return r
+
+
+def rot_to_quat(r: ArrayLike) -> NDArray[np.float64]:
+    """Rotation matrix (..., 3, 3) to unit quaternion (w, x, y, z) with w >= 0 (Shepperd's method)."""
+    r = np.asarray(r, dtype=float)
+    batch = r.shape[:-2]
+    r = r.reshape(-1, 3, 3)
+    tr = np.trace(r, axis1=1, axis2=2)
+    diag = np.stack([tr, r[:, 0, 0], r[:, 1, 1], r[:, 2, 2]], axis=1)
+    k = np.argmax(diag, axis=1)
+    q = np.empty((r.shape[0], 4))
+    for case in range(4):
+        m = k == case
+        if not np.any(m):
+            continue
+        rr = r[m]
+        if case == 0:
+            s = 2.0 * np.sqrt(1.0 + tr[m])
+            q[m] = np.stack([0.25 * s, (rr[:, 2, 1] - rr[:, 1, 2]) / s,
+                             (rr[:, 0, 2] - rr[:, 2, 0]) / s, (rr[:, 1, 0] - rr[:, 0, 1]) / s], axis=1)
+        elif case == 1:
+            s = 2.0 * np.sqrt(1.0 + rr[:, 0, 0] - rr[:, 1, 1] - rr[:, 2, 2])
+            q[m] = np.stack([(rr[:, 2, 1] - rr[:, 1, 2]) / s, 0.25 * s,
+                             (rr[:, 0, 1] + rr[:, 1, 0]) / s, (rr[:, 0, 2] + rr[:, 2, 0]) / s], axis=1)
+        elif case == 2:
+            s = 2.0 * np.sqrt(1.0 + rr[:, 1, 1] - rr[:, 0, 0] - rr[:, 2, 2])
+            q[m] = np.stack([(rr[:, 0, 2] - rr[:, 2, 0]) / s, (rr[:, 0, 1] + rr[:, 1, 0]) / s,
+                             0.25 * s, (rr[:, 1, 2] + rr[:, 2, 1]) / s], axis=1)
+        else:
+            s = 2.0 * np.sqrt(1.0 + rr[:, 2, 2] - rr[:, 0, 0] - rr[:, 1, 1])
+            q[m] = np.stack([(rr[:, 1, 0] - rr[:, 0, 1]) / s, (rr[:, 0, 2] + rr[:, 2, 0]) / s,
+                             (rr[:, 1, 2] + rr[:, 2, 1]) / s, 0.25 * s], axis=1)
+    q *= np.where(q[:, :1] < 0, -1.0, 1.0)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return q.reshape(batch + (4,))
+
+
+def quat_mj_to_rot_ned(q_mj: ArrayLike) -> NDArray[np.float64]:
+    """MuJoCo free-joint quaternion (w, x, y, z; FLU body -> z-up world) to R (FRD -> NED)."""
+    return rot_mj_to_ned(quat_to_rot(q_mj))
+
+
+def rot_ned_to_quat_mj(r_ned: ArrayLike) -> NDArray[np.float64]:
+    """R (FRD -> NED) to the MuJoCo free-joint quaternion (w, x, y, z)."""
+    return rot_to_quat(rot_ned_to_mj(r_ned))
+
+
+def euler_to_rot(roll: ArrayLike, pitch: ArrayLike, yaw: ArrayLike) -> NDArray[np.float64]:
+    """Z-Y-X (yaw, pitch, roll) Euler angles in radians to R (body FRD -> world NED), as PX4's Dcm."""
+    roll, pitch, yaw = (np.asarray(a, dtype=float) for a in (roll, pitch, yaw))
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    r = np.empty(np.broadcast(roll, pitch, yaw).shape + (3, 3))
+    r[..., 0, 0] = cp * cy
+    r[..., 0, 1] = sr * sp * cy - cr * sy
+    r[..., 0, 2] = cr * sp * cy + sr * sy
+    r[..., 1, 0] = cp * sy
+    r[..., 1, 1] = sr * sp * sy + cr * cy
+    r[..., 1, 2] = cr * sp * sy - sr * cy
+    r[..., 2, 0] = -sp
+    r[..., 2, 1] = sr * cp
+    r[..., 2, 2] = cr * cp
+    return r
+
+
+def rot_to_euler(r: ArrayLike) -> NDArray[np.float64]:
+    """R (FRD -> NED) to Z-Y-X Euler angles (roll, pitch, yaw), shape (..., 3)."""
+    r = np.asarray(r, dtype=float)
+    roll = np.arctan2(r[..., 2, 1], r[..., 2, 2])
+    pitch = np.arcsin(np.clip(-r[..., 2, 0], -1.0, 1.0))
+    yaw = np.arctan2(r[..., 1, 0], r[..., 0, 0])
+    return np.stack([roll, pitch, yaw], axis=-1)
+
+
+# ---- the fan-array wind tunnel (FAWT) frame of seed-000 Sec. 7.3 -------------------------------
+#: Centre of the fan array in world NED [m]: the array centre is 1.5 m above the floor.
+FAWT_ORIGIN_NED: NDArray[np.float64] = np.array([0.0, 0.0, -1.5])
+#: Rotation taking FAWT-frame vectors (x stream-wise, y span-wise, z up) to NED: x -> N, y -> -E, z -> -D.
+R_FAWT_TO_NED: NDArray[np.float64] = np.diag([1.0, -1.0, -1.0])
+#: The seed-000 hover point, x = 1.5 m in front of the array at the section centre (FAWT y = z = 0).
+FAWT_HOVER_POINT_NED: NDArray[np.float64] = FAWT_ORIGIN_NED + np.array([1.5, 0.0, 0.0])
+
+
+def fawt_to_ned(p_fawt: ArrayLike) -> NDArray[np.float64]:
+    """Point in the FAWT frame (..., 3) to world NED."""
+    return np.asarray(p_fawt, dtype=float) @ R_FAWT_TO_NED.T + FAWT_ORIGIN_NED
+
+
+def ned_to_fawt(p_ned: ArrayLike) -> NDArray[np.float64]:
+    """Point in world NED (..., 3) to the FAWT frame."""
+    return (np.asarray(p_ned, dtype=float) - FAWT_ORIGIN_NED) @ R_FAWT_TO_NED

@@ -1,0 +1,61 @@
+"""Keys and helpers for the measurement mapping the env reports in ``info["measurement"]``.
+
+A measurement is a plain mapping of arrays (so Gymnasium's vector envs can stack it), every
+entry with an optional leading batch axis:
+
+================== ========= ==========================================================
+key                shape     meaning
+================== ========= ==========================================================
+``position``       (N, 3)    b^m, world NED [m] (seed-000 eq. 39)
+``velocity``       (N, 3)    v^m, world NED [m/s]
+``attitude``       (N, 3, 3) R^m, body FRD -> world NED
+``angular_velocity`` (N, 3)  Omega^m, body FRD [rad/s] (estimator-grade, as PX4's vehicle_angular_velocity)
+``specific_force`` (N, 3)    accelerometer, body FRD [m/s^2] (R^T (a - g e3))
+``gyro``           (N, 3)    raw gyroscope, body FRD [rad/s]
+``magnetometer``   (N, 3)    magnetic field, body FRD [gauss]
+``time``           (N,)      time of the sample [s]
+================== ========= ==========================================================
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+
+POSITION = "position"
+VELOCITY = "velocity"
+ATTITUDE = "attitude"
+ANGULAR_VELOCITY = "angular_velocity"
+SPECIFIC_FORCE = "specific_force"
+GYRO = "gyro"
+MAGNETOMETER = "magnetometer"
+TIME = "time"
+
+MEASUREMENT_KEYS = (POSITION, VELOCITY, ATTITUDE, ANGULAR_VELOCITY, SPECIFIC_FORCE, GYRO, MAGNETOMETER, TIME)
+_TRAILING = {POSITION: (3,), VELOCITY: (3,), ATTITUDE: (3, 3), ANGULAR_VELOCITY: (3,), SPECIFIC_FORCE: (3,),
+             GYRO: (3,), MAGNETOMETER: (3,), TIME: ()}
+
+#: Earth magnetic field used by the simulated magnetometer, world NED [gauss] (mid-latitude, ~60 deg dip).
+EARTH_FIELD_NED = np.array([0.22, 0.0, 0.42])
+
+
+def batch_measurement(measurement: Mapping[str, object]) -> dict[str, NDArray[np.float64]]:
+    """Return the measurement with a leading batch axis on every known key (N = 1 added if absent).
+
+    Raises ValueError naming a key whose trailing shape is wrong.
+    """
+    out: dict[str, NDArray[np.float64]] = {}
+    for key, value in measurement.items():
+        arr = np.asarray(value, dtype=float)
+        trailing = _TRAILING.get(key)
+        if trailing is None:
+            out[key] = arr
+            continue
+        if arr.shape == trailing:
+            arr = arr[None, ...]
+        elif arr.shape[1:] != trailing:
+            raise ValueError(f"measurement[{key!r}] must have shape {trailing} or (N, *{trailing}), got {arr.shape}")
+        out[key] = arr
+    return out

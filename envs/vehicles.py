@@ -1,0 +1,278 @@
+"""Vehicle presets: mass properties, rotor geometry, motor and aerodynamic coefficients.
+
+Every preset is a quad X in PX4's motor order (body FRD, arm length ``l``)::
+
+    motor 1: front-right, CCW      motor 3: front-left, CW
+    motor 2: rear-left,   CCW      motor 4: rear-right, CW
+
+``rotor_directions`` is +1 for a rotor spinning counter-clockwise seen from above.  Its reaction
+torque on the body is ``+k_M T`` about FRD z (a CCW rotor yaws the body clockwise seen from above,
+which is positive yaw in FRD).
+
+Rotor model (used by :mod:`fawtgym.envs.motors`): thrust ``T = k_T w^2`` [N], reaction torque
+``k_M T`` [N m] (``k_M`` in metres), first-order speed lag with ``tau_up`` when accelerating and
+``tau_down`` when slowing, speeds limited to ``[omega_min, omega_max]`` (``omega_min`` is the
+armed idle speed).
+
+Aerodynamic coefficients (used by :mod:`fawtgym.envs.aero`):
+
+* ``rotor_drag`` k_d [N/((m/s)(rad/s))]: linear rotor (induced + blade-profile) drag,
+  ``F = -k_d w v_inplane`` per rotor (Faessler et al. 2018; PX4 Gazebo motor model).
+* ``rolling_moment`` k_r [N m/((m/s)(rad/s))]: rotor rolling/flapping moment per unit in-plane
+  airspeed and rotor speed (PX4 Gazebo motor model ``rollingMomentCoefficient``).
+* ``body_drag`` [N/(m/s)^2] per body axis: quadratic parasitic drag ``0.5 rho C_D A``.
+* ``cop_offset`` [m]: centre of pressure of the body drag relative to the CoM, body FRD.
+
+Users pass their own preset as a :class:`VehiclePreset`, a mapping (e.g. loaded from YAML), or a
+YAML/JSON path; invalid values raise ``ValueError`` naming the field.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+GRAVITY = 9.80665  #: standard gravity [m/s^2] (PX4's CONSTANTS_ONE_G)
+AIR_DENSITY = 1.225  #: ISA sea-level air density [kg/m^3]
+
+#: PX4 quad X motor order: unit arm directions in body FRD and spin directions (+1 = CCW).
+QUAD_X_ARMS = np.array([[1.0, 1.0, 0.0], [-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, 1.0, 0.0]]) / math.sqrt(2.0)
+QUAD_X_DIRECTIONS = np.array([1.0, 1.0, -1.0, -1.0])
+
+
+@dataclasses.dataclass(frozen=True)
+class VehiclePreset:
+    """Physical description of a quad X multirotor (SI units, body FRD).
+
+    Construct through :func:`make_vehicle` or directly; ``__post_init__`` validates every field.
+    """
+
+    name: str
+    mass: float  #: [kg]
+    inertia: tuple[float, ...]  #: diagonal (3) or full row-major (9) inertia about the CoM [kg m^2]
+    arm_length: float  #: CoM to rotor hub [m]
+    k_thrust: float  #: k_T [N/(rad/s)^2]
+    k_moment: float  #: k_M, reaction torque / thrust [m]
+    omega_min: float  #: armed idle rotor speed [rad/s]
+    omega_max: float  #: maximum rotor speed [rad/s]
+    tau_up: float  #: motor time constant when spinning up [s]
+    tau_down: float  #: motor time constant when spinning down [s]
+    rotor_radius: float  #: propeller radius [m]
+    rotor_drag: float = 0.0  #: k_d [N/((m/s)(rad/s))]
+    rolling_moment: float = 0.0  #: k_r [N m/((m/s)(rad/s))]
+    body_drag: tuple[float, float, float] = (0.0, 0.0, 0.0)  #: quadratic drag 0.5 rho C_D A [N/(m/s)^2]
+    cop_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  #: centre of pressure, body FRD [m]
+    source: str = ""  #: where the numbers come from
+
+    def __post_init__(self) -> None:
+        for field in ("mass", "arm_length", "k_thrust", "k_moment", "omega_max", "tau_up", "tau_down",
+                      "rotor_radius"):
+            value = getattr(self, field)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"vehicle field {field!r} must be a finite positive number, got {value!r}")
+        for field in ("omega_min", "rotor_drag", "rolling_moment"):
+            value = getattr(self, field)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"vehicle field {field!r} must be a finite number >= 0, got {value!r}")
+        if self.omega_min >= self.omega_max:
+            raise ValueError(f"vehicle field 'omega_min' ({self.omega_min}) must be below "
+                             f"'omega_max' ({self.omega_max})")
+        inertia = np.asarray(self.inertia, dtype=float)
+        if inertia.shape not in ((3,), (9,), (3, 3)):
+            raise ValueError(f"vehicle field 'inertia' must have 3 (diagonal) or 9 entries, got shape {inertia.shape}")
+        j = np.diag(inertia) if inertia.shape == (3,) else inertia.reshape(3, 3)
+        if not np.all(np.isfinite(j)) or not np.allclose(j, j.T, rtol=1e-9, atol=1e-12):
+            raise ValueError(f"vehicle field 'inertia' must be finite and symmetric, got {j.tolist()}")
+        eig = np.linalg.eigvalsh(j)
+        if eig.min() <= 0:
+            raise ValueError(f"vehicle field 'inertia' must be positive definite, eigenvalues {eig.tolist()}")
+        if eig[0] + eig[1] < eig[2] * (1 - 1e-9):
+            raise ValueError(f"vehicle field 'inertia' violates the triangle inequality of principal moments {eig.tolist()}")
+        object.__setattr__(self, "inertia", tuple(float(x) for x in j.reshape(-1)))
+        for field in ("body_drag", "cop_offset"):
+            vec = np.asarray(getattr(self, field), dtype=float)
+            if vec.shape != (3,) or not np.all(np.isfinite(vec)):
+                raise ValueError(f"vehicle field {field!r} must be 3 finite numbers, got {getattr(self, field)!r}")
+            if field == "body_drag" and np.any(vec < 0):
+                raise ValueError(f"vehicle field 'body_drag' must be >= 0, got {vec.tolist()}")
+            object.__setattr__(self, field, tuple(float(x) for x in vec))
+
+    # ---- derived quantities -------------------------------------------------------------
+    @property
+    def inertia_matrix(self) -> NDArray[np.float64]:
+        """J as a (3, 3) array [kg m^2]."""
+        return np.asarray(self.inertia, dtype=float).reshape(3, 3)
+
+    @property
+    def rotor_positions(self) -> NDArray[np.float64]:
+        """Rotor hub positions in body FRD, shape (4, 3) [m], PX4 quad X order."""
+        return QUAD_X_ARMS * self.arm_length
+
+    @property
+    def rotor_directions(self) -> NDArray[np.float64]:
+        """+1 for CCW rotors (seen from above), shape (4,)."""
+        return QUAD_X_DIRECTIONS.copy()
+
+    @property
+    def max_thrust_per_rotor(self) -> float:
+        """k_T omega_max^2 [N]."""
+        return self.k_thrust * self.omega_max**2
+
+    @property
+    def thrust_to_weight(self) -> float:
+        return 4.0 * self.max_thrust_per_rotor / (self.mass * GRAVITY)
+
+    @property
+    def hover_omega(self) -> float:
+        """Rotor speed that holds the vehicle's weight [rad/s]."""
+        return math.sqrt(self.mass * GRAVITY / (4.0 * self.k_thrust))
+
+    def replace(self, **changes: Any) -> VehiclePreset:
+        """A validated copy with some fields changed."""
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def _s500() -> VehiclePreset:
+    """S500 quad X of seed-000 Sec. 7 (ffts_eso_tse3_fawt_wang2024.txt: m = 1.0 kg, J = diag(0.03, 0.03, 0.06)).
+
+    Derived from public data for a T-Motor Air 2216 880 KV motor with 10x4.5" props on 4S:
+    the manufacturer's tables give roughly 0.9 kg of thrust per motor at full throttle at about
+    8,400 rpm loaded (880 rad/s).  With a static thrust coefficient C_T ~ 0.09 for a 10x4.5 prop
+    (UIUC propeller database range 0.09-0.11), k_T = C_T rho D^4 / (4 pi^2) = 1.15e-5 N/(rad/s)^2,
+    so T_max = 8.9 N per rotor and thrust-to-weight 3.6.  Power coefficient C_P ~ 0.040 gives
+    C_Q = C_P / (2 pi) and k_M = C_Q D / C_T = 0.018 m.  Motor time constants of ~30 ms up
+    (10" props on 22xx motors; PX4 gz x500 uses 12.5/25 ms for its lighter-loaded motors) and
+    45 ms down (no active braking).  Idle 10 % of max speed (PX4 armed idle).  Arm 0.24 m
+    (480 mm S500 wheelbase).  Aerodynamic coefficients are calibrated in fawtgym.envs.aero.
+    """
+    return VehiclePreset(
+        name="s500", mass=1.0, inertia=(0.03, 0.03, 0.06), arm_length=0.24,
+        k_thrust=1.15e-5, k_moment=0.018, omega_min=88.0, omega_max=880.0,
+        tau_up=0.030, tau_down=0.045, rotor_radius=0.127,
+        rotor_drag=1.0e-4, rolling_moment=1.0e-6, body_drag=(0.012, 0.012, 0.020),
+        cop_offset=(0.0, 0.0, -0.02),
+        source="seed-000 Sec. 7 (mass, inertia); T-Motor Air 2216 880KV + 10x4.5 public data (rotor)",
+    )
+
+
+def _pounds_x4() -> VehiclePreset:
+    """Pounds X-4 simulation vehicle of seed-000 Sec. 6: m = 4.34 kg, J = diag(0.0820, 0.0845, 0.1377).
+
+    Rotor data from Pounds, Mahony, Corke (2010), "Modelling and control of a large quadrotor
+    robot": arm 0.315 m, rotor radius 0.165 m, C_T = 0.0048 in T = C_T rho A R^2 w^2, hence
+    k_T = C_T rho pi R^4 = 1.7e-5 N/(rad/s)^2; max speed chosen for thrust-to-weight ~2.4.
+    Seed-000's simulation itself has no actuator dynamics (the seed-000 study bypasses motors).
+    """
+    return VehiclePreset(
+        name="pounds_x4", mass=4.34, inertia=(0.0820, 0.0845, 0.1377), arm_length=0.315,
+        k_thrust=1.7e-5, k_moment=0.02, omega_min=80.0, omega_max=800.0,
+        tau_up=0.05, tau_down=0.08, rotor_radius=0.165,
+        rotor_drag=2.0e-4, rolling_moment=2.0e-6, body_drag=(0.04, 0.04, 0.06),
+        source="seed-000 Sec. 6 (mass, inertia); Pounds et al. 2010 (rotor)",
+    )
+
+
+def _shi_geso() -> VehiclePreset:
+    """GESO simulation vehicle, seed-004 Table 1 (geso_quadrotor_shi2018.txt).
+
+    m = 1.79 kg, Jx = Jy = 1.335e-2, Jz = 2.465e-2 kg m^2, l = 0.18 m, k_T = 8.82e-6 N/(rad/s)^2,
+    drag-torque coefficient k_D = 1.09e-7 N m/(rad/s)^2, hence k_M = k_D / k_T.  Max speed for
+    thrust-to-weight ~2 and a 20 ms motor lag are our choices (the table gives none).
+    """
+    return VehiclePreset(
+        name="shi_geso", mass=1.79, inertia=(1.335e-2, 1.335e-2, 2.465e-2), arm_length=0.18,
+        k_thrust=8.82e-6, k_moment=1.09e-7 / 8.82e-6, omega_min=100.0, omega_max=1000.0,
+        tau_up=0.02, tau_down=0.03, rotor_radius=0.127,
+        rotor_drag=1.0e-4, rolling_moment=1.0e-6, body_drag=(0.015, 0.015, 0.025),
+        source="seed-004 Table 1",
+    )
+
+
+def _hummingbird() -> VehiclePreset:
+    """AscTec Hummingbird of seed-001 Sec. 4 (qb_observer_cayero2019.txt): m = 1.023 kg, J = diag(9.5, 9.5, 18.6)e-3.
+
+    Rotor and drag numbers from rotorpy's Hummingbird model (k_eta = 5.57e-6, k_m = 1.36e-7,
+    arm 0.17 m, rotor radius 0.1 m, max 1500 rad/s, rotor drag k_d = 1.19e-4, parasitic drag
+    c_D = 0.5e-2 / 0.5e-2 / 1e-2).  rotorpy's 5 ms motor lag is kept for spin-up.
+    """
+    return VehiclePreset(
+        name="hummingbird", mass=1.023, inertia=(9.5e-3, 9.5e-3, 18.6e-3), arm_length=0.17,
+        k_thrust=5.57e-6, k_moment=1.36e-7 / 5.57e-6, omega_min=150.0, omega_max=1500.0,
+        tau_up=0.005, tau_down=0.0075, rotor_radius=0.1,
+        rotor_drag=1.19e-4, rolling_moment=0.0, body_drag=(0.5e-2, 0.5e-2, 1e-2),
+        source="seed-001 Sec. 4 (mass, inertia); rotorpy hummingbird_params (rotor, drag)",
+    )
+
+
+def _x500() -> VehiclePreset:
+    """PX4's Gazebo x500 (PX4-gazebo-models x500_base/model.sdf), for SITL use.
+
+    m = 2.0 kg, Ixx = Iyy = 0.021667, Izz = 0.04 kg m^2, motorConstant 8.54858e-6,
+    momentConstant 0.016, timeConstantUp 0.0125 s, timeConstantDown 0.025 s,
+    maxRotVelocity 1000 rad/s, rotors at (+-0.174, +-0.174) m, rotorDragCoefficient 8.06428e-5,
+    rollingMomentCoefficient 1e-6.  Idle 100 rad/s.
+    """
+    return VehiclePreset(
+        name="x500", mass=2.0, inertia=(0.021667, 0.021667, 0.04), arm_length=0.174 * math.sqrt(2.0),
+        k_thrust=8.54858e-6, k_moment=0.016, omega_min=100.0, omega_max=1000.0,
+        tau_up=0.0125, tau_down=0.025, rotor_radius=0.127,
+        rotor_drag=8.06428e-5, rolling_moment=1e-6, body_drag=(0.02, 0.02, 0.03),
+        source="PX4 gz x500 model.sdf",
+    )
+
+
+_PRESETS = {"s500": _s500, "pounds_x4": _pounds_x4, "shi_geso": _shi_geso,
+            "hummingbird": _hummingbird, "x500": _x500}
+
+VEHICLE_NAMES: tuple[str, ...] = tuple(_PRESETS)
+
+
+def vehicle_from_mapping(data: Mapping[str, Any]) -> VehiclePreset:
+    """Build a preset from a mapping; ``base`` names a preset whose fields are the defaults."""
+    data = dict(data)
+    base = data.pop("base", None)
+    fields = {f.name for f in dataclasses.fields(VehiclePreset)}
+    unknown = sorted(set(data) - fields)
+    if unknown:
+        raise ValueError(f"unknown vehicle field(s) {unknown}; valid fields: {sorted(fields)}")
+    if base is not None:
+        return make_vehicle(base).replace(**data)
+    missing = sorted(f.name for f in dataclasses.fields(VehiclePreset)
+                     if f.default is dataclasses.MISSING and f.name not in data)
+    if missing:
+        raise ValueError(f"vehicle mapping is missing field(s) {missing} (or give 'base': <preset name>)")
+    return VehiclePreset(**data)
+
+
+def make_vehicle(spec: str | VehiclePreset | Mapping[str, Any] | Path) -> VehiclePreset:
+    """A preset from its name, a :class:`VehiclePreset`, a mapping, or a .yaml/.json file path."""
+    if isinstance(spec, VehiclePreset):
+        return spec
+    if isinstance(spec, Mapping):
+        return vehicle_from_mapping(spec)
+    if isinstance(spec, (str, Path)):
+        if str(spec) in _PRESETS:
+            return _PRESETS[str(spec)]()
+        path = Path(spec)
+        if path.suffix.lower() in (".yaml", ".yml", ".json") and path.is_file():
+            text = path.read_text()
+            if path.suffix.lower() == ".json":
+                return vehicle_from_mapping(json.loads(text))
+            try:
+                import yaml
+            except ImportError as exc:  # pragma: no cover - depends on the install
+                raise ImportError("reading a YAML vehicle needs pyyaml: pip install 'fawtgym[yaml]'") from exc
+            return vehicle_from_mapping(yaml.safe_load(text))
+        raise ValueError(f"unknown vehicle {str(spec)!r}; valid presets: {list(VEHICLE_NAMES)} "
+                         "(or a VehiclePreset, a mapping, or a .yaml/.json file)")
+    raise TypeError(f"vehicle must be a name, VehiclePreset, mapping or path, got {type(spec).__name__}")

@@ -1,0 +1,1 @@
+"""Metrics, experiment runner, leaderboard, plots, paper reproductions, benchmarks, SITL hook."""

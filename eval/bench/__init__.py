@@ -1,0 +1,1 @@
+"""Speed benchmarks (``fawtgym bench <name>``): ratios measured in one run, never timed tests."""

@@ -1,0 +1,89 @@
+"""Lie-group helpers on SO(3), in one place, batch-first (leading axes allowed everywhere).
+
+hat/vee (the ``x^`` / ``vex`` maps), the exponential and logarithm of SO(3) (Rodrigues), a
+geometric integration step ``R_{k+1} = R_k exp(h Omega^)`` that stays on SO(3) to rounding error,
+and a projection back onto SO(3) (polar decomposition via SVD) for inputs that drifted.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+_SMALL = 1e-8
+
+
+def hat(w: ArrayLike) -> NDArray[np.float64]:
+    """(..., 3) -> skew-symmetric (..., 3, 3) with hat(a) b = a x b."""
+    w = np.asarray(w, dtype=float)
+    out = np.zeros(w.shape + (3,))
+    out[..., 0, 1] = -w[..., 2]
+    out[..., 0, 2] = w[..., 1]
+    out[..., 1, 0] = w[..., 2]
+    out[..., 1, 2] = -w[..., 0]
+    out[..., 2, 0] = -w[..., 1]
+    out[..., 2, 1] = w[..., 0]
+    return out
+
+
+def vee(m: ArrayLike) -> NDArray[np.float64]:
+    """Inverse of :func:`hat` applied to the skew part: (..., 3, 3) -> (..., 3)."""
+    m = np.asarray(m, dtype=float)
+    return 0.5 * np.stack([m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]], axis=-1)
+
+
+def exp_so3(w: ArrayLike) -> NDArray[np.float64]:
+    """Rodrigues' formula exp(w^) for rotation vectors (..., 3); exact near zero (Taylor series)."""
+    w = np.asarray(w, dtype=float)
+    th2 = np.sum(w * w, axis=-1)[..., None, None]
+    th = np.sqrt(th2)
+    small = th2 < _SMALL
+    safe = np.where(small, 1.0, th)
+    a = np.where(small, 1.0 - th2 / 6.0 + th2 * th2 / 120.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - th2 / 24.0 + th2 * th2 / 720.0, (1.0 - np.cos(safe)) / (safe * safe))
+    k = hat(w)
+    return np.eye(3) + a * k + b * (k @ k)
+
+
+def log_so3(r: ArrayLike) -> NDArray[np.float64]:
+    """Rotation vector (..., 3) of R (..., 3, 3), angle in [0, pi]; robust near 0 and pi."""
+    r = np.asarray(r, dtype=float)
+    cos = np.clip((np.trace(r, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
+    th = np.arccos(cos)
+    v = vee(r)  # = sin(th) * axis
+    small = th < 1e-6
+    factor = np.where(small, 1.0 + th**2 / 6.0, th / np.sin(np.where(small, 1.0, th)))
+    out = factor[..., None] * v
+    near_pi = th > np.pi - 1e-3
+    if np.any(near_pi):
+        # near pi, sin(th) -> 0: the axis comes from the symmetric part (R + R^T)/2 = cos I + (1 - cos) a a^T
+        rs = r[near_pi]
+        c = cos[near_pi][..., None, None]
+        aat = ((rs + np.swapaxes(rs, -1, -2)) / 2.0 - c * np.eye(3)) / (1.0 - c)
+        col = np.argmax(np.diagonal(aat, axis1=-2, axis2=-1), axis=-1)
+        axis = aat[np.arange(aat.shape[0]), col, :]
+        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+        sgn = np.sign(np.sum(axis * v[near_pi], axis=-1))
+        sgn = np.where(sgn == 0, 1.0, sgn)
+        out[near_pi] = (sgn * th[near_pi])[..., None] * axis
+    return out
+
+
+def integrate_rotation(r: ArrayLike, omega_body: ArrayLike, h: float) -> NDArray[np.float64]:
+    """One geometric step of R' = R Omega^ with constant body rate: R exp(h Omega^)."""
+    return np.asarray(r, dtype=float) @ exp_so3(h * np.asarray(omega_body, dtype=float))
+
+
+def project_so3(m: ArrayLike) -> NDArray[np.float64]:
+    """Nearest rotation (Frobenius) to m (..., 3, 3): U diag(1, 1, det(U V^T)) V^T."""
+    u, _, vt = np.linalg.svd(np.asarray(m, dtype=float))
+    d = np.sign(np.linalg.det(u @ vt))
+    u = u.copy()
+    u[..., :, 2] *= d[..., None]
+    return u @ vt
+
+
+def orthogonality_error(r: ArrayLike) -> NDArray[np.float64]:
+    """||R^T R - I||_F per matrix, (...,)."""
+    r = np.asarray(r, dtype=float)
+    return np.linalg.norm(np.swapaxes(r, -1, -2) @ r - np.eye(3), axis=(-2, -1))

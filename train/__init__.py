@@ -1,0 +1,1 @@
+"""Stable-Baselines3 training entry points, hyperparameter files, wrappers and callbacks."""
