@@ -1,0 +1,21 @@
+"""Gymnasium registration of the fawtgym env ids."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+ENV_NAMESPACE = "fawtgym"
+HOVER_ENTRY_POINT = "fawtgym.envs.hover_env:HoverEnv"
+#: FAWT duty presets of seed-000 Table 3, registered as shortcut ids fawtgym/HoverFAWT<duty>-v0
+FAWT_DUTIES = (30, 40, 50, 60, 70)
+
+
+def register_envs() -> None:
+    """Register (idempotently) fawtgym/Hover-v0 and the FAWT shortcut ids."""
+    specs = {f"{ENV_NAMESPACE}/Hover-v0": {}}
+    for duty in FAWT_DUTIES:
+        specs[f"{ENV_NAMESPACE}/HoverFAWT{duty}-v0"] = {"wind": f"fawt-{duty}"}
+    for env_id, kwargs in specs.items():
+        if env_id not in gym.registry:
+            gym.register(id=env_id, entry_point=HOVER_ENTRY_POINT, kwargs=kwargs,
+                         disable_env_checker=False)
