@@ -170,12 +170,12 @@ def _pounds_x4() -> VehiclePreset:
 
     Rotor data from Pounds, Mahony, Corke (2010), "Modelling and control of a large quadrotor
     robot": arm 0.315 m, rotor radius 0.165 m, C_T = 0.0048 in T = C_T rho A R^2 w^2, hence
-    k_T = C_T rho pi R^4 = 1.7e-5 N/(rad/s)^2; max speed chosen for thrust-to-weight ~2.4.
+    k_T = C_T rho pi R^4 = 1.32e-5 N/(rad/s)^2 (rho = 1.184); max speed 1300 rad/s chosen for thrust-to-weight ~2.1.
     Seed-000's simulation itself has no actuator dynamics (the seed-000 study bypasses motors).
     """
     return VehiclePreset(
         name="pounds_x4", mass=4.34, inertia=(0.0820, 0.0845, 0.1377), arm_length=0.315,
-        k_thrust=1.7e-5, k_moment=0.02, omega_min=80.0, omega_max=800.0,
+        k_thrust=1.32e-5, k_moment=0.02, omega_min=130.0, omega_max=1300.0,
         tau_up=0.05, tau_down=0.08, rotor_radius=0.165,
         rotor_drag=2.0e-4, rolling_moment=2.0e-6, body_drag=(0.04, 0.04, 0.06),
         source="seed-000 Sec. 6 (mass, inertia); Pounds et al. 2010 (rotor)",
