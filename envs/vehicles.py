@@ -94,7 +94,8 @@ class VehiclePreset:
         if eig.min() <= 0:
             raise ValueError(f"vehicle field 'inertia' must be positive definite, eigenvalues {eig.tolist()}")
         if eig[0] + eig[1] < eig[2] * (1 - 1e-9):
-            raise ValueError(f"vehicle field 'inertia' violates the triangle inequality of principal moments {eig.tolist()}")
+            raise ValueError("vehicle field 'inertia' violates the triangle inequality of principal moments "
+                             f"{eig.tolist()}")
         object.__setattr__(self, "inertia", tuple(float(x) for x in j.reshape(-1)))
         for field in ("body_drag", "cop_offset"):
             vec = np.asarray(getattr(self, field), dtype=float)

@@ -29,7 +29,8 @@ def hat(w: ArrayLike) -> NDArray[np.float64]:
 def vee(m: ArrayLike) -> NDArray[np.float64]:
     """Inverse of :func:`hat` applied to the skew part: (..., 3, 3) -> (..., 3)."""
     m = np.asarray(m, dtype=float)
-    return 0.5 * np.stack([m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]], axis=-1)
+    return 0.5 * np.stack([m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]],
+                          axis=-1)
 
 
 def exp_so3(w: ArrayLike) -> NDArray[np.float64]:

@@ -1,0 +1,77 @@
+"""MJCF generated from a vehicle preset: one free body, four rotor sites, a floor.
+
+Actuators (all ``ctrl`` in physical units, unlimited):
+
+* ``rotor1..4``: site transmission at each rotor hub, gear (0, 0, 1, 0, 0, -d_i k_M) in the FLU
+  site frame: ``ctrl`` is the rotor thrust [N] pushing along body up (= -z FRD), and the rotor's
+  reaction torque ``d_i k_M T`` about FRD z (= -z FLU).
+* ``ext_tx/ty/tz``: a body torque at the CoM site, in body FLU axes.  The env writes the
+  disturbance torque (body FRD, converted) here, so it stays fixed in the body over a control step.
+
+The external force (world frame) goes through ``data.xfrc_applied``, which MuJoCo applies at the
+body's centre of mass in world coordinates.  Gravity is ``GRAVITY`` along -z.  The body frame is
+the CoM frame (``inertial pos = 0``), principal or full inertia from the preset.
+"""
+
+from __future__ import annotations
+
+from .frames import vec_ned_to_mj
+from .vehicles import GRAVITY, VehiclePreset
+
+#: MuJoCo integrators allowed by the env; the default is justified in :class:`HoverEnv`.
+INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
+
+
+def vehicle_mjcf(preset: VehiclePreset, physics_dt: float = 0.001, integrator: str = "Euler",
+                 render_width: int = 640, render_height: int = 480) -> str:
+    """Return the MJCF text for ``preset``."""
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"unknown integrator {integrator!r}; valid: {list(INTEGRATORS)}")
+    j = preset.inertia_matrix
+    full = " ".join(f"{x:.9g}" for x in (j[0, 0], j[1, 1], j[2, 2], j[0, 1], j[0, 2], j[1, 2]))
+    arm = preset.arm_length
+    r = preset.rotor_radius
+    body_half = 0.25 * arm
+    rotors = []
+    actuators = []
+    for i, (pos, d) in enumerate(zip(preset.rotor_positions, preset.rotor_directions, strict=True), start=1):
+        p = vec_ned_to_mj(pos)
+        color = "0.85 0.2 0.2 0.6" if i in (1, 3) else "0.2 0.2 0.85 0.6"  # front red, back blue
+        rotors.append(
+            f'<site name="rotor{i}" pos="{p[0]:.6g} {p[1]:.6g} {p[2] + 0.02:.6g}" size="0.005"/>\n'
+            f'      <geom name="arm{i}" type="capsule" fromto="0 0 0 {p[0]:.6g} {p[1]:.6g} 0" size="0.008" '
+            f'contype="0" conaffinity="0" mass="0" rgba="0.3 0.3 0.3 1"/>\n'
+            f'      <geom name="prop{i}" type="cylinder" pos="{p[0]:.6g} {p[1]:.6g} {p[2] + 0.02:.6g}" '
+            f'size="{r:.6g} 0.003" contype="0" conaffinity="0" mass="0" rgba="{color}"/>')
+        actuators.append(f'<general name="rotor{i}" site="rotor{i}" gear="0 0 1 0 0 {-d * preset.k_moment:.9g}"/>')
+    for axis, gear in (("x", "1 0 0"), ("y", "0 1 0"), ("z", "0 0 1")):
+        actuators.append(f'<general name="ext_t{axis}" site="com" gear="0 0 0 {gear}"/>')
+    rotor_xml = "\n      ".join(rotors)
+    act_xml = "\n    ".join(actuators)
+    return f"""<mujoco model="fawtgym_{preset.name}">
+  <compiler angle="radian" autolimits="true"/>
+  <option timestep="{physics_dt:.9g}" integrator="{integrator}" gravity="0 0 {-GRAVITY:.9g}" density="0" viscosity="0"/>
+  <visual><global offwidth="{render_width}" offheight="{render_height}"/></visual>
+  <asset>
+    <texture name="grid" type="2d" builtin="checker" rgb1="0.25 0.28 0.32" rgb2="0.35 0.38 0.42"
+             width="256" height="256"/>
+    <material name="grid" texture="grid" texrepeat="8 8"/>
+  </asset>
+  <worldbody>
+    <light pos="0 0 6" dir="0 0 -1" directional="true"/>
+    <geom name="floor" type="plane" size="20 20 0.1" material="grid"/>
+    <geom name="fan_array" type="box" pos="-0.05 0 1.5" size="0.05 0.72 0.36" contype="0" conaffinity="0"
+          rgba="0.5 0.5 0.55 0.5"/>
+    <body name="vehicle" pos="0 0 1.5">
+      <freejoint name="root"/>
+      <inertial pos="0 0 0" mass="{preset.mass:.9g}" fullinertia="{full}"/>
+      <site name="com" pos="0 0 0" size="0.01"/>
+      <geom name="hull" type="box" size="{body_half:.6g} {body_half:.6g} 0.04" mass="0" rgba="0.15 0.15 0.15 1"/>
+      {rotor_xml}
+    </body>
+  </worldbody>
+  <actuator>
+    {act_xml}
+  </actuator>
+</mujoco>
+"""
