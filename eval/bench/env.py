@@ -1,0 +1,79 @@
+"""``fawtgym bench env``: calm hover-env steps per second against the raw MuJoCo stepping it wraps.
+
+Both are timed in the same process, interleaved over several rounds, best round kept (the least
+disturbed by other load).  The raw figure is ``n_substeps`` bare ``mj_step`` calls on the env's own
+model/data (the physics the env cannot avoid); the ratio env/raw is the env's total cost in units of
+that physics, so ``ratio - 1`` is the env's overhead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from fawtgym.envs.hover_env import HoverEnv
+
+
+def _time_env(env: HoverEnv, steps: int) -> float:
+    a = env.hover_action()
+    env.reset(seed=0)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        _, _, term, trunc, _ = env.step(a)
+        if term or trunc:
+            env.reset()
+    return time.perf_counter() - t0
+
+
+def _time_raw(env: HoverEnv, steps: int) -> float:
+    m, d = env.model, env.data
+    thrust = env.preset.mass * 9.80665 / 4
+    d.ctrl[:4] = thrust
+    t0 = time.perf_counter()
+    for _ in range(steps * env.n_substeps):
+        mujoco.mj_step(m, d)
+    return time.perf_counter() - t0
+
+
+def measure(control_rate: float = 100.0, physics_rate: float = 1000.0, steps: int = 2000, rounds: int = 5,
+            **env_kwargs) -> dict[str, float]:
+    """Best-of-``rounds`` env and raw timings for ``steps`` control steps; returns rates and the ratio."""
+    env = HoverEnv(control_rate=control_rate, physics_rate=physics_rate, episode_seconds=1e6, init_noise=0.0,
+                   **env_kwargs)
+    env.reset(seed=0)
+    env_t, raw_t = [], []
+    for _ in range(rounds):
+        env_t.append(_time_env(env, steps))
+        raw_t.append(_time_raw(env, steps))
+    te, tr = min(env_t), min(raw_t)
+    return {"env_steps_per_s": steps / te, "raw_equiv_steps_per_s": steps / tr,
+            "raw_mj_steps_per_s": steps * env.n_substeps / tr, "ratio": te / tr,
+            "n_substeps": env.n_substeps, "integrator": int(env.model.opt.integrator)}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="fawtgym bench env", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--steps", type=int, default=2000, help="control steps per round")
+    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--control-rate", type=float, default=100.0)
+    parser.add_argument("--physics-rate", type=float, default=1000.0)
+    parser.add_argument("--integrator", default="Euler")
+    args = parser.parse_args(argv)
+    r = measure(args.control_rate, args.physics_rate, args.steps, args.rounds, integrator=args.integrator)
+    print(f"calm hover env, {args.control_rate:g} Hz control, {args.physics_rate:g} Hz physics "
+          f"({r['n_substeps']} substeps, integrator {args.integrator}):")
+    print(f"  env steps/s                         {r['env_steps_per_s']:12,.0f}")
+    print(f"  raw mj_step/s                       {r['raw_mj_steps_per_s']:12,.0f}")
+    print(f"  raw-equivalent control steps/s      {r['raw_equiv_steps_per_s']:12,.0f}")
+    print(f"  env / raw cost ratio                {r['ratio']:12.2f}   (overhead {r['ratio'] - 1:.2f}x raw)")
+    print("  targets: overhead <= 2x raw physics; >= 10,000 env steps/s")
+    return 0 if np.isfinite(r["ratio"]) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
