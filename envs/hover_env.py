@@ -143,6 +143,8 @@ class HoverEnv(gym.Env):
             if not (math.isfinite(float(value)) and float(value) >= 0):
                 raise ValueError(f"reward weight {key!r} must be finite and >= 0, got {value!r}")
             self.reward_weights[key] = float(value)
+        w = self.reward_weights
+        self._reward_w = np.repeat([w["pos"], w["vel"], w["rate"], w["action"]], [3, 3, 3, 4])
         self.action_type = action_type
         self.wind = make_wind(wind)
         self.aero = AeroModel(self.preset)
@@ -373,16 +375,13 @@ class HoverEnv(gym.Env):
         return np.minimum(np.maximum(obs, self._obs_low), self._obs_high).astype(np.float32)
 
     def _reward(self, meas: Mapping[str, NDArray[np.float64]], action: NDArray[np.float64]) -> float:
-        w = self.reward_weights
         if self._failure:
-            return -w["failure"]
-        e = meas[M.POSITION] - self.setpoint
+            return -self.reward_weights["failure"]
         r = meas[M.ATTITUDE]
         phi = math.acos(min(1.0, max(-1.0, 0.5 * (r[0, 0] + r[1, 1] + r[2, 2] - 1.0))))
-        cost = (w["pos"] * e @ e + w["vel"] * meas[M.VELOCITY] @ meas[M.VELOCITY] + w["att"] * phi * phi
-                + w["rate"] * meas[M.ANGULAR_VELOCITY] @ meas[M.ANGULAR_VELOCITY]
-                + w["action"] * float(((action - self._last_action) ** 2).sum()))
-        return float(math.exp(-cost))
+        x = np.concatenate([meas[M.POSITION] - self.setpoint, meas[M.VELOCITY], meas[M.ANGULAR_VELOCITY],
+                            action - self._last_action])
+        return math.exp(-(float(self._reward_w @ (x * x)) + self.reward_weights["att"] * phi * phi))
 
     # ---- rendering ----------------------------------------------------------------------
     def render(self) -> NDArray[np.uint8] | None:

@@ -167,7 +167,8 @@ def test_bad_options_raise_with_valid_values(kwargs, match):
         HoverEnv(**kwargs)
 
 
-def test_divergence_terminates_with_finite_observation():
+def test_divergence_terminates_with_finite_observation(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes MUJOCO_LOG.TXT on its bad-acceleration warning
     env = HoverEnv(init_noise=0.0)
     env.reset(seed=0)
     env.set_external_wrench(force_ned=(1e308, 1e308, 1e308))

@@ -1,0 +1,62 @@
+"""Sensor presets: PSD -> per-sample sigma, sample-and-hold, biases; reward bounds."""
+
+import math
+
+import numpy as np
+import pytest
+
+from fawtgym.envs.hover_env import HoverEnv
+from fawtgym.envs.sensors import SensorModel, make_sensor_spec
+from fawtgym.observers.lie import log_so3
+
+
+def _noise(preset, control_dt, n=4000):
+    model = SensorModel(make_sensor_spec(preset), control_dt)
+    model.reset(np.random.default_rng(0))
+    b, v, w, a = np.array([1.0, 2.0, -3.0]), np.array([0.1, 0.0, 0.2]), np.array([0.3, -0.1, 0.05]), np.zeros(3)
+    r = np.eye(3)
+    samples = [model.measure(k * control_dt, b, v, r, w, a) for k in range(n)]
+    return {key: np.array([s[key] for s in samples]) for key in samples[0]}, (b, v, r, w)
+
+
+@pytest.mark.parametrize("dt", [0.01, 0.002])
+def test_seed000_table2_psd_gives_rate_independent_density(dt):
+    m, (b, v, r, w) = _noise("seed000", dt)
+    # per-sample sigma = sqrt(P / dt): the density (PSD) is what stays fixed, Table 2
+    for key, truth, psd in (("position", b, 3e-8), ("velocity", v, 3e-7), ("angular_velocity", w, 3e-7)):
+        sigma = np.std(m[key] - truth, axis=0)
+        assert np.allclose(sigma, math.sqrt(psd / dt), rtol=0.06), (key, sigma)
+    rot_noise = log_so3(np.swapaxes(np.eye(3), 0, 1) @ m["attitude"])
+    assert np.allclose(np.std(rot_noise, axis=0), math.sqrt(3e-8 / dt), rtol=0.06)
+
+
+def test_pose_rate_must_divide_control_rate():
+    with pytest.raises(ValueError, match="divide"):
+        SensorModel(make_sensor_spec("mocap_imu"), 1 / 250)
+
+
+def test_mocap_hold_and_bias():
+    m, (b, v, r, w) = _noise("mocap_imu", 1 / 500, n=2000)
+    pos = m["position"]
+    changes = np.flatnonzero(np.any(np.diff(pos, axis=0) != 0, axis=1))
+    assert np.all(np.diff(changes) == 5)  # 100 Hz pose in a 500 Hz loop: new sample every 5th step
+    gyro_mean = np.mean(m["gyro"] - w, axis=0)
+    assert np.linalg.norm(gyro_mean) > 1e-4  # turn-on bias present
+    assert np.allclose(np.mean(m["angular_velocity"] - w, axis=0), 0, atol=3e-3)  # estimator rate: no bias
+
+
+def test_unknown_sensor_preset_and_bad_field():
+    with pytest.raises(ValueError, match="valid"):
+        make_sensor_spec("lidar")
+    with pytest.raises(ValueError, match="position_sigma"):
+        make_sensor_spec({"base": "none", "position_sigma": -1.0})
+
+
+def test_reward_bounded_and_decreasing_with_error():
+    env = HoverEnv(init_noise=0.0)
+    env.reset(seed=0)
+    r0 = env.step(env.hover_action())[1]
+    env.reset(seed=0, options={"setpoint": env.setpoint + np.array([0.5, 0.0, 0.0])})
+    env.setpoint = env.setpoint - np.array([0.5, 0.0, 0.0])  # now 0.5 m off
+    r1 = env.step(env.hover_action())[1]
+    assert 0 < r1 < r0 <= 1
