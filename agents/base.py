@@ -1,0 +1,87 @@
+"""The common agent API used by the leaderboard, the reproductions and the SITL hook.
+
+An agent turns what the env reports into an action, with the same two calls for every controller
+(PX4-style cascade, PX4 + observer feedforward, SB3 policy)::
+
+    agent.reset(info, seed=None)              # after env.reset(): info = the reset info
+    action = agent.act(observation, info)     # after every env.step(): info = that step's info
+
+``info`` is the env's info dict; agents read only the *sensor* side of it:
+``info["measurement"]`` (keys in :mod:`fawtgym.envs.measurement`), ``info["applied"]`` (the
+collective thrust [N] and body torque [N m] applied over the step just taken -- the known inputs of
+an observer) and, if present, ``info["setpoint"]`` (NED position setpoint).  ``info["truth"]`` is for
+metrics only and agents must not read it.
+
+Batch-first: every array in ``info`` may carry a leading batch axis N (a vector of vehicles) or not
+(a single env).  ``act`` returns actions of matching shape: ``(N, A)`` for batched input, ``(A,)`` for
+a single env.  The helpers below do that bookkeeping.
+"""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from fawtgym.envs.measurement import batch_measurement
+
+
+class Agent(abc.ABC):
+    """Base class of every agent: ``reset(info, seed)`` then ``act(observation, info)`` each step."""
+
+    #: the env action type this agent emits (``"motors"`` or ``"ctbr"``)
+    action_type: str = "motors"
+
+    @abc.abstractmethod
+    def reset(self, info: Mapping[str, Any], seed: int | None = None) -> None:
+        """Start an episode from the env's reset ``info`` (``seed`` for any internal randomness)."""
+
+    @abc.abstractmethod
+    def act(self, observation: Any, info: Mapping[str, Any]) -> NDArray[np.float64]:
+        """The action for the current step: shape (A,) for a single env, (N, A) for N vehicles."""
+
+    def __call__(self, observation: Any, info: Mapping[str, Any]) -> NDArray[np.float64]:
+        return self.act(observation, info)
+
+
+def measurement_from_info(info: Mapping[str, Any]) -> tuple[dict[str, NDArray[np.float64]], bool]:
+    """``(measurement with a batch axis, was_batched)`` from an env info dict.
+
+    Raises ValueError if ``info`` has no ``"measurement"`` mapping.
+    """
+    if not isinstance(info, Mapping) or not isinstance(info.get("measurement"), Mapping):
+        raise ValueError("agent needs the env's info dict with an info['measurement'] mapping "
+                         f"(keys: position, velocity, attitude, angular_velocity, ...); got {type(info).__name__}"
+                         + (f" with keys {sorted(info)}" if isinstance(info, Mapping) else ""))
+    raw = info["measurement"]
+    if "position" not in raw:
+        raise ValueError(f"info['measurement'] has no 'position'; keys: {sorted(raw)}")
+    batched = np.ndim(raw["position"]) == 2
+    return batch_measurement(raw), batched
+
+
+def applied_from_info(info: Mapping[str, Any], n: int, default_thrust: float) -> tuple[NDArray[np.float64],
+                                                                                       NDArray[np.float64]]:
+    """Applied collective thrust (n,) [N] and body torque (n, 3) [N m] from ``info["applied"]``.
+
+    Before the first step (or if the env does not report it) the hover thrust ``default_thrust`` and
+    zero torque are returned.
+    """
+    applied = info.get("applied") if isinstance(info, Mapping) else None
+    if not isinstance(applied, Mapping) or "thrust" not in applied or "torque" not in applied:
+        return np.full(n, float(default_thrust)), np.zeros((n, 3))
+    thrust = np.broadcast_to(np.asarray(applied["thrust"], dtype=float).reshape(-1), (n,)).copy()
+    torque = np.broadcast_to(np.asarray(applied["torque"], dtype=float).reshape(-1, 3), (n, 3)).copy()
+    return thrust, torque
+
+
+def match_batch(action: NDArray[np.float64], batched: bool) -> NDArray[np.float64]:
+    """Drop the batch axis of an (N, A) action when the input was not batched (N must then be 1)."""
+    if batched:
+        return action
+    if action.shape[0] != 1:
+        raise ValueError(f"unbatched input but {action.shape[0]} actions were computed")
+    return action[0]

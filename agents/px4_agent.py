@@ -1,0 +1,265 @@
+"""PX4-style cascaded flight control as an agent, with optional disturbance-observer feedforward.
+
+``PX4Agent`` runs PX4's multicopter cascade (v1.13: mc_pos_control -> mc_att_control ->
+mc_rate_control -> control_allocator) on the env's measurements and outputs the env's ``"motors"``
+action.  ``PX4ObserverAgent`` adds the feedforward of seed-000 Sec. 7.2 (ffts_eso_tse3_fawt_wang2024.txt)
+
+    F = F0 - phi_hat   (in the position loop: a_sp <- a_sp - phi_hat / m, before thrust/attitude generation)
+    tau = tau0 - tau_hat   (after the rate PID: c_tau <- c_tau - tau_hat / torque_scale)
+
+where ``phi_hat`` [N, world NED] and ``tau_hat`` [N m, body FRD] come from any registered observer and
+``torque_scale`` [N m per normalized unit] is derived from the vehicle preset in
+:mod:`fawtgym.agents.px4_allocation` (``2 l T_max`` roll/pitch, ``4 k_M T_max`` yaw).  The force path
+uses PX4's own hover-thrust scaling (``thrust = (a - g e3) Th / g``), so with ``Th = m g / (4 T_max)``
+the subtracted acceleration ``phi_hat / m`` is exactly a force of ``phi_hat`` newtons.
+
+Loop rates.  ``act`` is called once per env step (``control_rate`` Hz, the env's control rate).
+The rate loop, attitude loop and position loop each run when their own period has elapsed
+(``rate_loop_rate``, ``attitude_rate``, ``position_rate``; each must be <= ``control_rate``) with the
+true elapsed time as dt, the way PX4's modules run on their input topics.  Defaults: rate and attitude
+loops at the control rate (PX4 runs both at the gyro rate, 400 Hz by ``IMU_GYRO_RATEMAX``; the
+default 250 Hz divides the env's 1 kHz physics), position loop at 100 Hz (EKF2's output rate, PX4
+v1.13).  The gyro is low-passed by a 2nd-order Butterworth at ``IMU_GYRO_CUTOFF`` and the rate D term
+uses the Butterworth-filtered (``IMU_DGYRO_CUTOFF``) derivative of the raw gyro, as PX4's
+VehicleAngularVelocity; the velocity D term uses a 5 Hz (``MPC_VELD_LP``) filtered derivative.
+
+Hover thrust.  PX4 estimates it online (``MPC_USE_HTE``); this agent uses the value derived from the
+preset, ``Th = m g / (4 T_max)`` (0.275 for the s500), to which that estimator converges in calm
+hover.  Pass ``hover_thrust=`` to use another value (e.g. ``params["MPC_THR_HOVER"]``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from fawtgym.envs.frames import FAWT_HOVER_POINT_NED
+from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
+
+from .base import Agent, applied_from_info, match_batch, measurement_from_info
+from .px4_allocation import QuadXAllocation
+from .px4_attitude_control import AttitudeControl
+from .px4_filters import Butterworth2, FilteredDerivative
+from .px4_params import PX4Params
+from .px4_position_control import PositionControl, thrust_to_attitude
+from .px4_rate_control import RateControl
+
+_SAT_EPS = 1e-6
+
+
+def _rate(name: str, value: float | None, default: float, control_rate: float) -> float:
+    value = default if value is None else value
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and 0 < value <= control_rate * (1 + 1e-9)):
+        raise ValueError(f"{name} must be a frequency in (0, control_rate={control_rate:g}] Hz, got {value!r}")
+    return float(value)
+
+
+class _Loop:
+    """Runs a loop when its period has elapsed (elapsed time is returned as its dt)."""
+
+    def __init__(self, rate: float) -> None:
+        self.period = 1.0 / rate
+        self.elapsed = math.inf
+
+    def reset(self) -> None:
+        self.elapsed = math.inf
+
+    def tick(self, dt: float) -> float | None:
+        self.elapsed += dt
+        if self.elapsed >= self.period - 1e-9:
+            run_dt = self.elapsed if math.isfinite(self.elapsed) else self.period
+            self.elapsed = 0.0
+            return run_dt
+        return None
+
+
+class PX4Agent(Agent):
+    """PX4 v1.13-style position -> attitude -> rate -> allocation cascade holding a position setpoint.
+
+    Parameters
+    ----------
+    vehicle: preset name / :class:`VehiclePreset` / mapping (must match the env's vehicle).
+    params: :class:`PX4Params`, a mapping of overrides on the S500 set, a parameter file, or None (S500).
+    control_rate: rate [Hz] at which ``act`` is called (the env's ``control_rate``).
+    rate_loop_rate, attitude_rate, position_rate: loop rates [Hz] (defaults: control rate, control rate, 100).
+    setpoint: NED hover position (default: the FAWT hover point); ``info["setpoint"]`` overrides it.
+    yaw_setpoint: heading [rad].
+    hover_thrust: normalized hover thrust, or None to derive ``m g / (4 T_max)`` from the preset.
+    gyro_key: measurement key of the (bias-corrected, unfiltered) gyro fed to the filters.
+    """
+
+    def __init__(self, vehicle: str | VehiclePreset | Mapping[str, Any] = "s500",
+                 params: PX4Params | Mapping[str, Any] | str | None = None, control_rate: float = 250.0,
+                 rate_loop_rate: float | None = None, attitude_rate: float | None = None,
+                 position_rate: float | None = None, setpoint: ArrayLike | None = None, yaw_setpoint: float = 0.0,
+                 hover_thrust: float | None = None, gyro_key: str = "angular_velocity") -> None:
+        self.preset = make_vehicle(vehicle)
+        self.params = PX4Params.coerce(params)
+        if not (isinstance(control_rate, (int, float)) and math.isfinite(control_rate) and control_rate > 0):
+            raise ValueError(f"control_rate must be a positive frequency [Hz], got {control_rate!r}")
+        self.control_rate = float(control_rate)
+        self.dt = 1.0 / self.control_rate
+        self.rate_loop_rate = _rate("rate_loop_rate", rate_loop_rate, self.control_rate, self.control_rate)
+        self.attitude_rate = _rate("attitude_rate", attitude_rate, self.control_rate, self.control_rate)
+        self.position_rate = _rate("position_rate", position_rate, min(100.0, self.control_rate), self.control_rate)
+        self.allocation = QuadXAllocation(self.preset)
+        th = self.preset.mass * GRAVITY / self.allocation.thrust_scale if hover_thrust is None else hover_thrust
+        self.position_control = PositionControl(self.params, hover_thrust=th)
+        self.attitude_control = AttitudeControl(self.params)
+        self.rate_control = RateControl(self.params)
+        self.setpoint = np.array(FAWT_HOVER_POINT_NED if setpoint is None else setpoint, dtype=float)
+        if self.setpoint.shape[-1:] != (3,) or not np.all(np.isfinite(self.setpoint)):
+            raise ValueError(f"setpoint must be a finite NED position (3,) or (N, 3), got {setpoint!r}")
+        self.yaw_setpoint = float(yaw_setpoint)
+        self.gyro_key = gyro_key
+        self._loops = {"rate": _Loop(self.rate_loop_rate), "attitude": _Loop(self.attitude_rate),
+                       "position": _Loop(self.position_rate)}
+        self._n = 0
+
+    @classmethod
+    def for_env(cls, env: Any, **kwargs: Any) -> PX4Agent:
+        """An agent matched to ``env`` (its vehicle preset, control rate and setpoint)."""
+        base = getattr(env, "unwrapped", env)
+        kwargs.setdefault("vehicle", base.preset)
+        kwargs.setdefault("control_rate", 1.0 / base.dt)
+        kwargs.setdefault("setpoint", getattr(base, "setpoint", None))
+        return cls(**kwargs)
+
+    # ---- feedforward hook (zero for plain PX4) --------------------------------------------------
+    def _estimate(self, meas: dict[str, NDArray[np.float64]], info: Mapping[str, Any],
+                  dt: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
+        return None, None
+
+    def _reset_estimator(self, meas: dict[str, NDArray[np.float64]], seed: int | None) -> None:
+        return None
+
+    # ---- Agent API ------------------------------------------------------------------------------
+    def reset(self, info: Mapping[str, Any], seed: int | None = None) -> None:
+        meas, _ = measurement_from_info(info)
+        n = meas["position"].shape[0]
+        self._n = n
+        self.position_control.reset(n)
+        self.rate_control.reset(n)
+        fs = self.control_rate
+        self._gyro_lpf = Butterworth2(fs, self.params["IMU_GYRO_CUTOFF"])
+        self._dgyro_lpf = Butterworth2(fs, self.params["IMU_DGYRO_CUTOFF"])
+        self._vel_deriv = FilteredDerivative(self.params["MPC_VELD_LP"])
+        self._gyro_prev: NDArray[np.float64] | None = None
+        for loop in self._loops.values():
+            loop.reset()
+        sp = info.get("setpoint") if isinstance(info, Mapping) else None
+        self._setpoint = np.broadcast_to(np.asarray(self.setpoint if sp is None else sp, dtype=float), (n, 3)).copy()
+        self._thr_sp = np.zeros((n, 3))
+        self._thr_sp[:, 2] = -self.position_control.hover_thrust
+        self._att_sp = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+        self._rate_sp = np.zeros((n, 3))
+        self._torque = np.zeros((n, 3))
+        self.last_estimate: tuple[NDArray[np.float64] | None, NDArray[np.float64] | None] = (None, None)
+        self._reset_estimator(meas, seed)
+
+    def set_setpoint(self, position: ArrayLike, yaw: float | None = None) -> None:
+        """Change the NED position setpoint (and heading) during an episode."""
+        pos = np.asarray(position, dtype=float)
+        if pos.shape[-1:] != (3,) or not np.all(np.isfinite(pos)):
+            raise ValueError(f"setpoint must be a finite NED position (3,) or (N, 3), got {position!r}")
+        self._setpoint = np.broadcast_to(pos, (max(self._n, 1), 3)).copy()
+        if yaw is not None:
+            self.yaw_setpoint = float(yaw)
+
+    def act(self, observation: Any, info: Mapping[str, Any]) -> NDArray[np.float64]:
+        meas, batched = measurement_from_info(info)
+        n = meas["position"].shape[0]
+        if n != self._n:
+            raise ValueError(f"act() got {n} vehicles but reset() saw {self._n}; call reset() first")
+        dt = self.dt
+        force_hat, torque_hat = self._estimate(meas, info, dt)
+        self.last_estimate = (force_hat, torque_hat)
+
+        gyro = meas.get(self.gyro_key, meas["angular_velocity"])
+        rate = self._gyro_lpf.update(gyro)
+        if self._gyro_prev is None:
+            self._dgyro_lpf.reset(np.zeros_like(gyro))
+            ang_acc = np.zeros_like(gyro)
+        else:
+            ang_acc = self._dgyro_lpf.update((gyro - self._gyro_prev) / dt)
+        self._gyro_prev = gyro
+
+        pos_dt = self._loops["position"].tick(dt)
+        if pos_dt is not None:
+            vel = meas["velocity"]
+            vel_dot = self._vel_deriv.update(vel, pos_dt)
+            offset = None if force_hat is None else -force_hat / self.preset.mass
+            self._thr_sp = self.position_control.update(meas["position"], vel, vel_dot, self._setpoint, pos_dt,
+                                                        acc_offset=offset)
+            self._att_sp, _ = thrust_to_attitude(self._thr_sp, np.full(n, self.yaw_setpoint))
+        if self._loops["attitude"].tick(dt) is not None:
+            self._rate_sp = self.attitude_control.update(meas["attitude"], self._att_sp)
+        rate_dt = self._loops["rate"].tick(dt)
+        if rate_dt is not None:
+            torque = self.rate_control.update(rate, self._rate_sp, ang_acc, rate_dt)
+            if torque_hat is not None:
+                torque = torque - self.allocation.torque_to_normalized(torque_hat)
+            self._torque = torque
+        collective = np.sqrt(np.einsum("ni,ni->n", self._thr_sp, self._thr_sp))
+        rotor, unallocated = self.allocation.allocate(self._torque, collective)
+        missed = np.einsum("ni,ni->n", unallocated[:, :3], unallocated[:, :3]) >= _SAT_EPS
+        self.rate_control.set_saturation(missed[:, None] & (unallocated[:, :3] > _SAT_EPS),
+                                         missed[:, None] & (unallocated[:, :3] < -_SAT_EPS))
+        action = self.allocation.motor_commands(rotor)
+        if not np.all(np.isfinite(action)):
+            raise FloatingPointError(f"PX4Agent produced a non-finite action {action}; measurement "
+                                     f"position {meas['position']}")
+        return match_batch(action, batched)
+
+    @property
+    def attitude_setpoint(self) -> NDArray[np.float64]:
+        """The current attitude setpoint R_d (N, 3, 3) (for the principal-angle metric)."""
+        return self._att_sp
+
+
+class PX4ObserverAgent(PX4Agent):
+    """PX4Agent + disturbance-observer feedforward F = F0 - phi_hat, tau = tau0 - tau_hat (seed-000 Sec. 7.2).
+
+    ``observer``: a registered observer name (built with the preset's mass and inertia and
+    ``observer_kwargs``) or an :class:`fawtgym.observers.base.Observer`.  ``force_ff`` / ``torque_ff``
+    switch the two feedforward paths (the paper's Boolean parameters); a channel the observer does
+    not estimate is never fed forward.  The observer is updated once per ``act`` with the env's
+    applied thrust/torque over the step just taken.
+    """
+
+    def __init__(self, observer: Any = "ffts_eso", force_ff: bool = True, torque_ff: bool = True,
+                 observer_kwargs: Mapping[str, Any] | None = None, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        from fawtgym.observers.base import Observer, make_observer
+
+        if isinstance(observer, str):
+            import fawtgym.observers  # noqa: F401  (registers every observer)
+
+            observer = make_observer(observer, self.preset.mass, self.preset.inertia_matrix,
+                                     **dict(observer_kwargs or {}))
+        elif observer_kwargs:
+            raise ValueError("observer_kwargs is only used when observer is given by name")
+        if not isinstance(observer, Observer):
+            raise TypeError(f"observer must be a registered name or an Observer, got {type(observer).__name__}")
+        self.observer = observer
+        self.force_ff = bool(force_ff) and "force" in observer.channels
+        self.torque_ff = bool(torque_ff) and "torque" in observer.channels
+
+    def _reset_estimator(self, meas: dict[str, NDArray[np.float64]], seed: int | None) -> None:
+        self.observer.reset(meas)
+
+    def _estimate(self, meas: dict[str, NDArray[np.float64]], info: Mapping[str, Any],
+                  dt: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
+        n = meas["position"].shape[0]
+        thrust, torque = applied_from_info(info, n, self.preset.mass * GRAVITY)
+        est = self.observer.update(meas, thrust, torque, dt)
+        force = np.asarray(est.force, dtype=float).reshape(n, 3)
+        tau = np.asarray(est.torque, dtype=float).reshape(n, 3)
+        if not (np.all(np.isfinite(force)) and np.all(np.isfinite(tau))):
+            raise FloatingPointError(f"observer {self.observer.name!r} returned a non-finite estimate")
+        self.raw_estimate = (force, tau)
+        return (force if self.force_ff else None), (tau if self.torque_ff else None)
