@@ -1,24 +1,76 @@
 """Aerodynamics: wind at the vehicle -> disturbance force (world NED) and torque (body FRD).
 
-First version (issue 2): linear rotor drag per rotor and quadratic body drag at the CoM.  The
-wind issue extends this model (rolling moments, centre-of-pressure lever arm, differential wind
-across the rotor discs) and calibrates it.
+Model (per vehicle, batch-first; every coefficient is a :class:`~fawtgym.envs.vehicles.VehiclePreset`
+field, the calibration is in ``docs/wind.md`` and :func:`calibrated_rotor_drag`)::
+
+    a_i   = R^T (w_i - v) - Omega x r_i                 air velocity relative to rotor hub i, body FRD
+    a_0   = R^T (w_0 - v) - Omega x c                   ... relative to the centre of pressure c
+    F_i   = k_d omega_i P a_i,  P = diag(1, 1, 0)       linear rotor (induced + profile, "H-force") drag
+    M_i   = k_r omega_i (a_i x e3)                      blade-flapping moment: the disc tilts downwind
+    F_b   = D |a_0| a_0,  D = body_drag                 quadratic parasitic drag of the body
+    force = R (sum_i F_i + F_b)                         world NED
+    tau   = sum_i (r_i x F_i + M_i) + c x F_b           body FRD
+
+``w_0`` is the wind at the CoM and ``w_i`` at rotor hub ``i`` (so differential wind across the
+vehicle, e.g. a FAWT shear layer, gives differential rotor forces and moments), ``v`` the CoM
+velocity (NED), ``Omega`` the body rate (FRD), ``r_i`` the hub positions and ``c = cop_offset``.
+
+Sources: the rotor drag ``F = -k_d omega v_inplane`` is PX4's Gazebo motor model
+(``rotorDragCoefficient``; x500: 8.06428e-5) and rotorpy's (Hummingbird ``k_d = 1.19e-4``), the
+linear-in-airspeed drag of Faessler et al. (RA-L 2018).  The flapping moment follows the blade-
+flapping analysis of Hoffmann et al. (AIAA GNC 2007): it is about the in-plane axis normal to the
+relative wind and has the same sign for both spin directions, so it pitches a vehicle nose-up in a
+headwind.  Its coefficient has PX4's ``rollingMomentCoefficient`` magnitude (1e-6); PX4's own term
+is spin-direction dependent and cancels between the rotor pairs of a quad in uniform wind, so it is
+not modelled separately.  Not modelled: axial-inflow change of thrust, rotor-disc averaging of
+small eddies, ground effect.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
-from .vehicles import VehiclePreset
+from .vehicles import GRAVITY, VehiclePreset
+
+#: Linear (rotor) drag per unit vehicle mass at hover [N/(m/s)/kg] used to calibrate ``rotor_drag``;
+#: between rotorpy's Hummingbird (0.32) and the Neural-Fly two-point fit (0.37 linear part), see docs/wind.md.
+LINEAR_DRAG_PER_KG = 0.40
+
+
+def calibrated_rotor_drag(preset: VehiclePreset, linear_drag_per_kg: float = LINEAR_DRAG_PER_KG) -> float:
+    """``k_d`` such that ``4 k_d omega_hover = linear_drag_per_kg * mass`` (the calibration rule of docs/wind.md)."""
+    return linear_drag_per_kg * preset.mass / (4.0 * preset.hover_omega)
+
+
+def _hat(r: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
 
 
 class AeroModel:
-    """Wind + vehicle motion -> aerodynamic disturbance wrench, batch-first."""
+    """Wind + vehicle motion -> aerodynamic disturbance wrench, batch-first (module docstring)."""
 
     def __init__(self, preset: VehiclePreset) -> None:
         self.preset = preset
-        self.rotor_positions = preset.rotor_positions  # (4, 3) body FRD
+        self.rotor_positions = np.asarray(preset.rotor_positions, dtype=float)  # (4, 3) body FRD
+        r = self.rotor_positions
+        self.n_rotors = r.shape[0]
+        k_d, k_r = float(preset.rotor_drag), float(preset.rolling_moment)
+        self.cop = np.asarray(preset.cop_offset, dtype=float)
+        self.body_drag = np.asarray(preset.body_drag, dtype=float)
+        proj = np.diag([1.0, 1.0, 0.0])
+        flap = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])  # a -> a x e3
+        # [omega_i a_i] (N, 4*3) @ W (12, 6) = [sum F_i, sum (r_i x F_i + M_i)]
+        w = np.zeros((3 * self.n_rotors, 6))
+        for i in range(self.n_rotors):
+            w[3 * i:3 * i + 3, :3] = (k_d * proj).T
+            w[3 * i:3 * i + 3, 3:] = (k_d * _hat(r[i]) @ proj + k_r * flap).T
+        self._w = w
+        # Omega (N, 3) @ X (3, 15) = [Omega x c, Omega x r_1, ..., Omega x r_4]; Omega x r = -r^ Omega
+        self._x = np.hstack([(-_hat(p)).T for p in (self.cop, *r)])
+        self._cop_hat_t = _hat(self.cop).T
 
     def wrench(self, rotation: NDArray[np.float64], velocity: NDArray[np.float64],
                angular_velocity: NDArray[np.float64], rotor_speeds: NDArray[np.float64],
@@ -28,14 +80,43 @@ class AeroModel:
         ``rotation`` (N, 3, 3) body FRD -> NED, ``velocity`` (N, 3) NED, ``angular_velocity`` (N, 3)
         FRD, ``rotor_speeds`` (N, 4) rad/s, ``wind`` (N, 5, 3) NED at [CoM, rotor 1..4].
         """
-        p = self.preset
-        # air velocity relative to the CoM, in body FRD
-        rel_ned = wind[:, 0, :] - velocity
-        rel_body = np.einsum("nji,nj->ni", rotation, rel_ned)
-        inplane = rel_body.copy()
-        inplane[:, 2] = 0.0
-        f_rotor = p.rotor_drag * rotor_speeds.sum(axis=1)[:, None] * inplane
-        f_body = np.asarray(p.body_drag) * np.abs(rel_body) * rel_body
-        force_body = f_rotor + f_body
-        force_ned = np.einsum("nij,nj->ni", rotation, force_body)
-        return force_ned, np.zeros_like(force_ned)
+        n = velocity.shape[0]
+        if wind.shape != (n, self.n_rotors + 1, 3) or rotation.shape != (n, 3, 3) \
+                or angular_velocity.shape != (n, 3) or rotor_speeds.shape != (n, self.n_rotors):
+            raise ValueError(f"AeroModel.wrench shapes must be rotation ({n},3,3), velocity ({n},3), angular_velocity "
+                             f"({n},3), rotor_speeds ({n},{self.n_rotors}), wind ({n},{self.n_rotors + 1},3); got "
+                             f"{rotation.shape}, {velocity.shape}, {angular_velocity.shape}, {rotor_speeds.shape}, "
+                             f"{wind.shape}")
+        # air velocity relative to each point, body FRD: R^T (w_k - v) - Omega x r_k
+        rel = (wind - velocity[:, None, :]) @ rotation - (angular_velocity @ self._x).reshape(n, self.n_rotors + 1, 3)
+        q = (rotor_speeds[:, :, None] * rel[:, 1:, :]).reshape(n, 3 * self.n_rotors)
+        ft = q @ self._w  # (N, 6): rotor force (body) and torque
+        a0 = rel[:, 0, :]
+        f_body = self.body_drag * a0 * np.sqrt((a0 * a0).sum(axis=1, keepdims=True))
+        force_b = ft[:, :3] + f_body
+        torque = ft[:, 3:] + f_body @ self._cop_hat_t
+        force_ned = (rotation @ force_b[:, :, None])[:, :, 0]
+        if not math.isfinite(float(force_ned.sum()) + float(torque.sum())):
+            raise ValueError("aerodynamic wrench is not finite: check rotation, velocity, angular_velocity, "
+                             "rotor_speeds and wind for NaN/inf")
+        return force_ned, torque
+
+
+def hover_drag(preset: VehiclePreset, airspeed: float | NDArray[np.float64]) -> NDArray[np.float64]:
+    """Horizontal drag [N] on a level vehicle hovering (rotors at hover speed) in a uniform horizontal wind.
+
+    The number the calibration in docs/wind.md is stated in; evaluated through :class:`AeroModel`.
+    """
+    v = np.atleast_1d(np.asarray(airspeed, dtype=float))
+    n = v.size
+    wind = np.zeros((n, 5, 3))
+    wind[:, :, 0] = v[:, None]
+    model = AeroModel(preset)
+    force, _ = model.wrench(np.broadcast_to(np.eye(3), (n, 3, 3)).copy(), np.zeros((n, 3)), np.zeros((n, 3)),
+                            np.full((n, 4), preset.hover_omega), wind)
+    return force[:, 0]
+
+
+def hover_tilt_deg(preset: VehiclePreset, airspeed: float) -> float:
+    """Tilt [deg] a vehicle needs to hold position against :func:`hover_drag` at ``airspeed``."""
+    return math.degrees(math.atan2(float(hover_drag(preset, airspeed)[0]), preset.mass * GRAVITY))

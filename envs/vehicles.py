@@ -154,13 +154,22 @@ def _s500() -> VehiclePreset:
     C_Q = C_P / (2 pi) and k_M = C_Q D / C_T = 0.018 m.  Motor time constants of ~30 ms up
     (10" props on 22xx motors; PX4 gz x500 uses 12.5/25 ms for its lighter-loaded motors) and
     45 ms down (no active braking).  Idle 10 % of max speed (PX4 armed idle).  Arm 0.24 m
-    (480 mm S500 wheelbase).  Aerodynamic coefficients are calibrated in fawtgym.envs.aero.
+    (480 mm S500 wheelbase).
+
+    Aerodynamics (calibration in docs/wind.md, rule in fawtgym.envs.aero.calibrated_rotor_drag):
+    rotor drag k_d = 0.40 N/(m/s) per kg / (4 omega_hover) = 2.2e-4 (linear drag 0.40 N s/m at
+    hover, between rotorpy's Hummingbird 0.32 and a Neural-Fly two-point fit 0.37-0.5); body drag
+    0.5 rho C_D A with C_D ~ 1.1, frontal area ~0.025 m^2 (frame plates, battery, landing gear)
+    -> 0.017, top area ~0.045 m^2 (arms, plates; the discs are in the rotor model) -> 0.03;
+    flapping-moment coefficient 1e-6 (PX4 gz x500 rollingMomentCoefficient magnitude);
+    centre of pressure 2 cm above the CoM (battery strapped on top).  Horizontal drag at hover:
+    2.0 N at 4.2 m/s, 4.7 N at 8.5 m/s (Neural-Fly: 2-3 N and 6-8 N), 4.5 N at FAWT 50 %, 6.5 N at 70 %.
     """
     return VehiclePreset(
         name="s500", mass=1.0, inertia=(0.03, 0.03, 0.06), arm_length=0.24,
         k_thrust=1.15e-5, k_moment=0.018, omega_min=88.0, omega_max=880.0,
         tau_up=0.030, tau_down=0.045, rotor_radius=0.127,
-        rotor_drag=1.0e-4, rolling_moment=1.0e-6, body_drag=(0.012, 0.012, 0.020),
+        rotor_drag=2.2e-4, rolling_moment=1.0e-6, body_drag=(0.017, 0.017, 0.030),
         cop_offset=(0.0, 0.0, -0.02),
         source="seed-000 Sec. 7 (mass, inertia); T-Motor Air 2216 880KV + 10x4.5 public data (rotor)",
     )
@@ -173,12 +182,14 @@ def _pounds_x4() -> VehiclePreset:
     robot": arm 0.315 m, rotor radius 0.165 m, C_T = 0.0048 in T = C_T rho A R^2 w^2, hence
     k_T = C_T rho pi R^4 = 1.32e-5 N/(rad/s)^2 (rho = 1.184); max speed 1300 rad/s chosen for thrust-to-weight ~2.1.
     Seed-000's simulation itself has no actuator dynamics (the seed-000 study bypasses motors).
+    Aerodynamics by the docs/wind.md rule: k_d = 0.40 * m / (4 omega_hover) = 4.8e-4, body drag
+    scaled from the s500 by frontal area ~ m^(2/3): 0.017 * 4.34^(2/3) = 0.045.
     """
     return VehiclePreset(
         name="pounds_x4", mass=4.34, inertia=(0.0820, 0.0845, 0.1377), arm_length=0.315,
         k_thrust=1.32e-5, k_moment=0.02, omega_min=130.0, omega_max=1300.0,
         tau_up=0.05, tau_down=0.08, rotor_radius=0.165,
-        rotor_drag=2.0e-4, rolling_moment=2.0e-6, body_drag=(0.04, 0.04, 0.06),
+        rotor_drag=4.8e-4, rolling_moment=2.0e-6, body_drag=(0.045, 0.045, 0.08),
         source="seed-000 Sec. 6 (mass, inertia); Pounds et al. 2010 (rotor)",
     )
 
@@ -189,12 +200,14 @@ def _shi_geso() -> VehiclePreset:
     m = 1.79 kg, Jx = Jy = 1.335e-2, Jz = 2.465e-2 kg m^2, l = 0.18 m, k_T = 8.82e-6 N/(rad/s)^2,
     drag-torque coefficient k_D = 1.09e-7 N m/(rad/s)^2, hence k_M = k_D / k_T.  Max speed for
     thrust-to-weight ~2 and a 20 ms motor lag are our choices (the table gives none).
+    Aerodynamics by the docs/wind.md rule: k_d = 0.40 * m / (4 omega_hover) = 2.5e-4, body drag
+    0.017 * 1.79^(2/3) = 0.025.
     """
     return VehiclePreset(
         name="shi_geso", mass=1.79, inertia=(1.335e-2, 1.335e-2, 2.465e-2), arm_length=0.18,
         k_thrust=8.82e-6, k_moment=1.09e-7 / 8.82e-6, omega_min=100.0, omega_max=1000.0,
         tau_up=0.02, tau_down=0.03, rotor_radius=0.127,
-        rotor_drag=1.0e-4, rolling_moment=1.0e-6, body_drag=(0.015, 0.015, 0.025),
+        rotor_drag=2.5e-4, rolling_moment=1.0e-6, body_drag=(0.025, 0.025, 0.045),
         source="seed-004 Table 1",
     )
 

@@ -1,5 +1,43 @@
-"""Wind fields: still air, Dryden turbulence, the fan-array wind tunnel (FAWT), outdoor presets."""
+"""Wind fields: still air, Dryden turbulence, the fan-array wind tunnel (FAWT), outdoor presets.
+
+Registered names (``make_wind(name)`` or ``make_wind({"name": ..., **options})``):
+
+* ``calm``: still air.
+* ``fawt-30`` ... ``fawt-70``: the seed-000 Table 3 FAWT presets (duty 30-70 %); ``fawt`` takes
+  ``duty`` as a fraction in [0, 1] (interpolated inside [0.3, 0.7], policy outside, see
+  :mod:`.fawt`).  Options: ``on_time``, ``off_time``, ``spin_tau``, ``spin_down_tau``,
+  ``length_scale``, ``form``, ``rates``, ``span``, ``turbulence``, ``discretization``.
+* ``dryden-light`` / ``-moderate`` / ``-severe``: MIL-spec low-altitude turbulence (:mod:`.outdoor`);
+  options ``altitude``, ``form``, ``mean_wind``, ``direction_deg``, ``length_scale``, ``rates``, ``span``.
+* ``gust-1cos``: discrete 1-cosine gust; options ``amplitude``, ``length``, ``speed``,
+  ``start_time``, ``direction_deg``, ``shape``.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
 
 from .base import CalmWind, WindModel, make_wind, register_wind, wind_names
+from .dryden import DrydenParams, DrydenProcess, dryden_psd
+from .fawt import TABLE3, FawtWind, fawt_statistics
+from .outdoor import DrydenWind, OneCosineGust
+from .schedule import FanSchedule
 
-__all__ = ["CalmWind", "WindModel", "make_wind", "register_wind", "wind_names"]
+
+def _fawt_preset(duty: float, **options: Any) -> FawtWind:
+    if "duty" in options:
+        raise ValueError(f"preset fawt-{round(duty * 100)} has a fixed duty; use the 'fawt' wind with duty=...")
+    return FawtWind(duty, **options)
+
+
+for _duty in sorted(TABLE3):
+    register_wind(f"fawt-{round(_duty * 100)}", functools.partial(_fawt_preset, _duty))
+register_wind("fawt", FawtWind)
+for _level in ("light", "moderate", "severe"):
+    register_wind(f"dryden-{_level}", functools.partial(DrydenWind, _level))
+register_wind("gust-1cos", OneCosineGust)
+
+__all__ = ["TABLE3", "CalmWind", "DrydenParams", "DrydenProcess", "DrydenWind", "FanSchedule", "FawtWind",
+           "OneCosineGust", "WindModel", "dryden_psd", "fawt_statistics", "make_wind", "register_wind",
+           "wind_names"]

@@ -10,14 +10,15 @@ sigma^2``):
 
 * MIL-F-8785C (and MIL-HDBK-1797, same ``u``)::
 
-      Phi_u = sigma_u^2 (2 L_u / pi) / (1 + (L_u Omega)^2)              H_u = sigma_u sqrt(2 L_u) / (1 + L_u s_x)
+      Phi_u = sigma_u^2 (2 L_u / pi) / (1 + (L_u Omega)^2)
+      H_u   = sigma_u sqrt(2 L_u) / (1 + L_u s_x)
       Phi_v = sigma_v^2 (L_v / pi) (1 + 3 (L_v Omega)^2) / (1 + (L_v Omega)^2)^2
-                                                                        H_v = sigma_v sqrt(L_v) (1 + sqrt(3) L_v s_x) / (1 + L_v s_x)^2
+      H_v   = sigma_v sqrt(L_v) (1 + sqrt(3) L_v s_x) / (1 + L_v s_x)^2
 
 * MIL-HDBK-1797 lateral/vertical (its ``L_v`` is half the 8785C one for the same field)::
 
       Phi_v = sigma_v^2 (2 L_v / pi) (1 + 12 (L_v Omega)^2) / (1 + 4 (L_v Omega)^2)^2
-                                                                        H_v = sigma_v sqrt(2 L_v) (1 + 2 sqrt(3) L_v s_x) / (1 + 2 L_v s_x)^2
+      H_v   = sigma_v sqrt(2 L_v) (1 + 2 sqrt(3) L_v s_x) / (1 + 2 L_v s_x)^2
 
   (``w`` as ``v`` with ``L_w``, ``sigma_w``.)
 
@@ -225,13 +226,19 @@ class DrydenProcess:
         self.n_states = self.a.shape[0]
         self.p_stat = scipy.linalg.solve_continuous_lyapunov(self.a, -self.b @ self.b.T)
         self.p_stat = 0.5 * (self.p_stat + self.p_stat.T)
-        self._cache: dict[int, tuple[NDArray, NDArray]] = {}
+        self._cache: dict[int, NDArray[np.float64]] = {}
         self._ct = np.ascontiguousarray(self.c.T)
         self.n = 0
 
     # ---- discretization ------------------------------------------------------------------
     def discrete(self, d: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """``(Ad^T, S^T)`` for a step of length ``d`` [m]: ``x+ = Ad x + S z``, ``z ~ N(0, I)`` (transposed for row batches)."""
+        """``(Ad, S)`` for a step of length ``d`` [m] (binned): ``x+ = Ad x + S z``, ``z ~ N(0, I)``."""
+        m = self._matrix(d)
+        ns = self.n_states
+        return m[:ns, :ns].T.copy(), m[ns:, :ns].T.copy()
+
+    def _matrix(self, d: float) -> NDArray[np.float64]:
+        """Cached ``M = [[Ad^T, Ad^T C^T], [S^T, S^T C^T]]`` so that ``[x, z] @ M = [x+, y+]``."""
         key = int(math.floor(math.log(d) / _BIN + 0.5))
         hit = self._cache.get(key)
         if hit is not None:
@@ -241,12 +248,14 @@ class DrydenProcess:
         if self.discretization == "exact":
             s = _psd_sqrt(self.p_stat - ad @ self.p_stat @ ad.T)
         else:
-            # noise held over the step: n_k ~ N(0, 1/dq) per unit distance, ZOH input matrix Bd
+            # noise held over the step at intensity 1/dq, zero-order-hold input matrix Bd
             ns = self.n_states
             sysd = scipy.signal.cont2discrete((self.a, self.b, np.eye(ns), np.zeros((ns, self.b.shape[1]))), dq,
                                               method="zoh")
-            s = sysd[1] / math.sqrt(dq)
-        hit = (np.ascontiguousarray(ad.T), np.ascontiguousarray(s.T))
+            s = np.zeros((ns, ns))
+            s[:, :self.b.shape[1]] = sysd[1] / math.sqrt(dq)
+        top = np.vstack([ad.T, s.T])
+        hit = np.ascontiguousarray(np.hstack([top, top @ self._ct]))
         self._cache[key] = hit
         return hit
 
@@ -261,38 +270,42 @@ class DrydenProcess:
         self.n = n
         chol = _psd_sqrt(self.p_stat)
         self.x = np.stack([chol @ g.standard_normal(self.n_states) for g in self._rngs])
-        self._noise = np.empty((self.block, n, self.n_states))
+        self._buf = np.zeros((self.block, n, 2 * self.n_states))
         self._k = self.block
         self.y = self.x @ self._ct
 
     def _refill(self) -> None:
+        ns = self.n_states
         for i, g in enumerate(self._rngs):
-            self._noise[:, i, :] = g.standard_normal((self.block, self.n_states))
+            self._buf[:, i, ns:] = g.standard_normal((self.block, ns))
         self._k = 0
 
     def step(self, dt: float, airspeed: float | NDArray[np.float64]) -> NDArray[np.float64]:
-        """Advance every field by ``dt`` [s] at ``airspeed`` [m/s] (floored at ``V_FLOOR``); return outputs."""
+        """Advance every field by ``dt`` [s] at ``airspeed`` [m/s] (floored at ``V_FLOOR``); return outputs.
+
+        ``airspeed`` is a scalar (all fields) or (N,).  Returns (N, 3) ``[u, v, w]`` or (N, 6) with rates.
+        """
         if self._k >= self.block:
             self._refill()
-        z = self._noise[self._k]
+        ns = self.n_states
+        row = self._buf[self._k]
         self._k += 1
-        if np.ndim(airspeed) == 0:
-            ad_t, s_t = self.discrete(max(float(airspeed), V_FLOOR) * dt)
-            self.x = self.x @ ad_t + z @ s_t
+        row[:, :ns] = self.x
+        if isinstance(airspeed, (float, int)) or np.ndim(airspeed) == 0:
+            out = row @ self._matrix(max(float(airspeed), V_FLOOR) * dt)
         else:
             d = np.maximum(np.asarray(airspeed, dtype=float), V_FLOOR) * dt
             keys = np.floor(np.log(d) / _BIN + 0.5)
             if np.all(keys == keys[0]):
-                ad_t, s_t = self.discrete(float(d[0]))
-                self.x = self.x @ ad_t + z @ s_t
+                out = row @ self._matrix(float(d[0]))
             else:
-                ads = np.empty((self.n, self.n_states, self.n_states))
-                ss = np.empty_like(ads)
+                mats = np.empty((self.n, 2 * ns, ns + self.c.shape[0]))
                 for uk in np.unique(keys):
                     m = keys == uk
-                    ads[m], ss[m] = self.discrete(float(d[np.argmax(m)]))
-                self.x = np.einsum("ni,nij->nj", self.x, ads) + np.einsum("ni,nij->nj", z, ss)
-        self.y = self.x @ self._ct
+                    mats[m] = self._matrix(float(d[np.argmax(m)]))
+                out = np.einsum("ni,nij->nj", row, mats)
+        self.x = out[:, :ns]
+        self.y = out[:, ns:]
         return self.y
 
     def sample(self, n_steps: int, dt: float, airspeed: float) -> NDArray[np.float64]:

@@ -1,0 +1,193 @@
+"""Outdoor winds: MIL-spec low-altitude Dryden turbulence and the discrete 1-cosine gust.
+
+Low-altitude Dryden (MIL-F-8785C Sec. 3.7 / MIL-HDBK-1797; altitude h in feet, h <= 1000 ft)::
+
+    sigma_w = 0.1 W20,   sigma_u = sigma_v = sigma_w / (0.177 + 0.000823 h)^0.4
+    MIL-F-8785C:   L_u = L_v = h / (0.177 + 0.000823 h)^1.2,   L_w = h
+    MIL-HDBK-1797: L_u = h / (0.177 + 0.000823 h)^1.2,  L_v = L_u / 2,  L_w = h / 2
+
+with W20 (wind speed at 20 ft) = 15 kt light, 30 kt moderate, 45 kt severe.  Below 10 ft the
+formulas degenerate (L_w -> 0); we hold them at their 10 ft values.  Above 1000 ft the spec switches
+to the medium/high-altitude model (not implemented: ValueError).  The altitude is a parameter (the
+scales do not follow the vehicle's height, which in a hover episode barely changes).
+
+Mean wind (option ``mean_wind``): ``False`` (default: turbulence only, as MATLAB's Dryden block),
+``True`` (the MIL-F-8785C log profile ``W(h) = W20 ln(h / z0) / ln(20 / z0)``, ``z0 = 0.15 ft``,
+flight phase C), or a speed [m/s].  It blows horizontally toward ``direction_deg`` (NED heading,
+0 = toward north).  Gust axes: ``u`` along that direction, ``v`` 90 deg to its right, ``w`` down.
+Frozen-turbulence speed ``V = |mean wind - v_vehicle|`` floored at ``dryden.V_FLOOR``.
+
+Discrete gust (MIL-F-8785C Sec. 3.7.5): ``v(x) = V_m (1 - cos(pi x / d_m)) / 2`` for
+``0 <= x <= d_m`` and ``V_m`` beyond (``shape="rise"``), or back to 0 at ``x = 2 d_m``
+(``shape="full"``, the classic 1-cosine).  ``x`` is the distance the gust front has travelled past
+each point since ``start_time``, advected at ``speed`` relative to the vehicle, so points further
+downstream meet it later (differential wind across the vehicle).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .base import WindModel
+from .dryden import FORMS, V_FLOOR, DrydenParams, DrydenProcess
+from .fawt import check_points
+
+FT = 0.3048  #: [m] per foot
+KNOT = 0.514444  #: [m/s] per knot
+W20_KNOTS = {"light": 15.0, "moderate": 30.0, "severe": 45.0}
+LOW_ALTITUDE_MAX = 1000.0 * FT  #: [m]
+Z0_FT = 0.15  #: roughness height of the MIL-F-8785C log wind profile (flight phase C) [ft]
+
+
+def low_altitude_params(intensity: str, altitude: float, form: str = "8785c") -> DrydenParams:
+    """MIL-spec low-altitude Dryden intensities and scales (SI) for ``intensity`` at ``altitude`` [m]."""
+    if intensity not in W20_KNOTS:
+        raise ValueError(f"turbulence intensity must be one of {list(W20_KNOTS)}, got {intensity!r}")
+    if form not in FORMS:
+        raise ValueError(f"form must be one of {FORMS}, got {form!r}")
+    if isinstance(altitude, bool) or not isinstance(altitude, (int, float)) or not math.isfinite(altitude) \
+            or not 0.0 < altitude <= LOW_ALTITUDE_MAX:
+        raise ValueError(f"altitude must be in (0, {LOW_ALTITUDE_MAX:.1f}] m (low-altitude model, 1000 ft), "
+                         f"got {altitude!r}")
+    h = max(altitude / FT, 10.0)
+    k = 0.177 + 0.000823 * h
+    sig_w = 0.1 * W20_KNOTS[intensity] * KNOT
+    sig_u = sig_w / k**0.4
+    l_u = h / k**1.2 * FT
+    l_w = h * FT
+    length = (l_u, l_u, l_w) if form == "8785c" else (l_u, 0.5 * l_u, 0.5 * l_w)
+    return DrydenParams(sigma=(sig_u, sig_u, sig_w), length=length, form=form)
+
+
+def log_profile_speed(intensity: str, altitude: float) -> float:
+    """MIL-F-8785C mean wind [m/s] at ``altitude`` [m] from W20: ``W20 ln(h / z0) / ln(20 / z0)``."""
+    h = max(altitude / FT, 10.0)
+    return W20_KNOTS[intensity] * KNOT * math.log(h / Z0_FT) / math.log(20.0 / Z0_FT)
+
+
+def _direction(direction_deg: float) -> NDArray[np.float64]:
+    if not (isinstance(direction_deg, (int, float)) and math.isfinite(direction_deg)):
+        raise ValueError(f"direction_deg must be a finite heading in degrees, got {direction_deg!r}")
+    a = math.radians(direction_deg)
+    return np.array([math.cos(a), math.sin(a), 0.0])
+
+
+class DrydenWind(WindModel):
+    """MIL-spec Dryden turbulence at low altitude (module docstring); ``intensity`` light/moderate/severe.
+
+    Options: ``altitude`` [m] (default 10), ``form`` ("8785c" | "1797"), ``mean_wind`` (False | True |
+    speed [m/s]), ``direction_deg``, ``length_scale`` [m] (overrides L_u; L_v, L_w follow the form's
+    isotropic ratios), ``rates`` (gust gradients across the vehicle), ``span`` [m], ``discretization``.
+    """
+
+    def __init__(self, intensity: str = "light", *, altitude: float = 10.0, form: str = "8785c",
+                 mean_wind: bool | float = False, direction_deg: float = 0.0, length_scale: float | None = None,
+                 rates: bool = False, span: float = 0.5, discretization: str = "exact") -> None:
+        params = low_altitude_params(intensity, altitude, form)
+        if length_scale is not None:
+            if isinstance(length_scale, bool) or not isinstance(length_scale, (int, float)) \
+                    or not math.isfinite(length_scale) or length_scale <= 0:
+                raise ValueError(f"length_scale must be a finite positive length [m], got {length_scale!r}")
+            lat = length_scale if form == "8785c" else 0.5 * length_scale
+            params = DrydenParams(sigma=params.sigma, length=(length_scale, lat, lat), form=form, span=span)
+        else:
+            params = DrydenParams(sigma=params.sigma, length=params.length, form=form, span=span)
+        self.params = params
+        self.intensity = intensity
+        self.altitude = float(altitude)
+        if mean_wind is True:
+            speed = log_profile_speed(intensity, altitude)
+        elif mean_wind is False or mean_wind is None:
+            speed = 0.0
+        elif isinstance(mean_wind, (int, float)) and math.isfinite(mean_wind) and mean_wind >= 0:
+            speed = float(mean_wind)
+        else:
+            raise ValueError(f"mean_wind must be False, True or a speed >= 0 [m/s], got {mean_wind!r}")
+        d = _direction(direction_deg)
+        self.mean = speed * d  # NED
+        # gust axes (rows: u, v, w) in NED
+        self.axes = np.array([d, [-d[1], d[0], 0.0], [0.0, 0.0, 1.0]])
+        self.rates = bool(rates)
+        self.process = DrydenProcess(params, rates=self.rates, discretization=discretization)
+        self.n = 0
+
+    def reset(self, n: int, seed: int | np.random.SeedSequence | None = None) -> None:
+        self.process.reset(n, seed)
+        self.n = int(n)
+
+    def step(self, t: float, dt: float, points_ned: NDArray[np.float64],
+             vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
+        if not (dt > 0 and math.isfinite(dt)):
+            raise ValueError(f"dt must be a finite positive step [s], got {dt!r}")
+        check_points(points_ned, vehicle_velocity_ned, self.n)
+        rel = self.mean - vehicle_velocity_ned
+        speed = np.sqrt((rel * rel).sum(axis=1))
+        y = self.process.step(dt, float(speed[0]) if self.n == 1 else speed)
+        if self.rates:
+            d = (points_ned - points_ned[:, :1, :]) @ self.axes.T  # offsets along (u, v, w) axes
+            gv = y[:, None, 1] - d[..., 0] * y[:, None, 5]
+            gw = y[:, None, 2] - d[..., 0] * y[:, None, 4] + d[..., 1] * y[:, None, 3]
+            gust = np.stack([np.broadcast_to(y[:, None, 0], gv.shape), gv, gw], axis=-1) @ self.axes
+        else:
+            gust = (y[:, :3] @ self.axes)[:, None, :]
+        return self.mean + gust + np.zeros(points_ned.shape)
+
+
+class OneCosineGust(WindModel):
+    """Discrete (1 - cosine) gust, MIL-F-8785C Sec. 3.7.5 (module docstring).
+
+    ``amplitude`` [m/s]: a float (horizontal, toward ``direction_deg``) or an NED 3-vector;
+    ``length`` d_m [m]; ``speed`` [m/s] the front's advection speed; ``start_time`` [s]; ``shape``
+    "rise" | "full".
+    """
+
+    def __init__(self, amplitude: float | tuple[float, float, float] = 3.0, *, length: float = 10.0,
+                 speed: float = 5.0, start_time: float = 1.0, direction_deg: float = 0.0,
+                 shape: str = "rise") -> None:
+        d = _direction(direction_deg)
+        amp = np.asarray(amplitude, dtype=float)
+        if amp.shape == ():
+            amp = float(amp) * d
+        if amp.shape != (3,) or not np.all(np.isfinite(amp)):
+            raise ValueError(f"amplitude must be a finite speed or NED 3-vector [m/s], got {amplitude!r}")
+        for name, val in (("length", length), ("speed", speed)):
+            if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
+                raise ValueError(f"{name} must be a finite positive number, got {val!r}")
+        if not (isinstance(start_time, (int, float)) and math.isfinite(start_time) and start_time >= 0):
+            raise ValueError(f"start_time must be a finite time >= 0 s, got {start_time!r}")
+        if shape not in ("rise", "full"):
+            raise ValueError(f"shape must be 'rise' or 'full', got {shape!r}")
+        self.amplitude = amp
+        self.length = float(length)
+        self.speed = float(speed)
+        self.start_time = float(start_time)
+        self.direction = d if np.linalg.norm(amp) == 0 else amp / np.linalg.norm(amp)
+        self.shape = shape
+        self.n = 0
+
+    def reset(self, n: int, seed: int | np.random.SeedSequence | None = None) -> None:
+        self.n = int(n)
+        self.x = np.zeros(self.n)  # distance the front has moved past the CoM
+
+    def profile(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Gust fraction of the amplitude at penetration distance ``x`` [m]."""
+        xm = np.clip(x, 0.0, self.length if self.shape == "rise" else 2.0 * self.length)
+        return np.where(x > 0, 0.5 * (1.0 - np.cos(math.pi * xm / self.length)), 0.0)
+
+    def step(self, t: float, dt: float, points_ned: NDArray[np.float64],
+             vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
+        if not (dt > 0 and math.isfinite(dt)):
+            raise ValueError(f"dt must be a finite positive step [s], got {dt!r}")
+        check_points(points_ned, vehicle_velocity_ned, self.n)
+        active = min(max(t - self.start_time, 0.0), dt)  # part of this step after the gust started
+        if active > 0:
+            rel = self.speed * self.direction - vehicle_velocity_ned
+            self.x = self.x + np.maximum(np.sqrt((rel * rel).sum(axis=1)), V_FLOOR) * active
+        if t <= self.start_time:
+            return np.zeros(points_ned.shape)
+        lag = (points_ned - points_ned[:, :1, :]) @ self.direction  # (N, K) downstream offset
+        frac = self.profile(self.x[:, None] - lag)
+        return frac[..., None] * self.amplitude
