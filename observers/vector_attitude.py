@@ -1,0 +1,163 @@
+"""Attitude from vector measurements: the generalized Wahba cost and its Morse-function error terms.
+
+Source: ``hc_eso_so3_wang2022.txt`` (Wang and Sanyal, IFAC PapersOnLine 55-22, 2022), Secs. 3-5.
+
+k >= 3 known inertial vectors ``E = [e_1 .. e_k]`` (eq. 7, rank 3) are measured in the body frame,
+``U^m = R^T E + Xi`` (eq. 9).  With the generalized weight ``W`` of eq. 13 the Wahba cost (eq. 12)
+equals the Morse function ``<K, I - Q>`` of the attitude error ``Q = R R_hat^T`` (eq. 14, Lemma 1).
+Its gradient terms used by the HC-ESO are ``s_K(Q)`` (eq. 21), ``s_L(R_hat)`` with
+``L = E W (U^m)^T`` (eq. 22, Lemma 2), ``z_L`` (eq. 26), ``w_L = d/dt s_L`` (eq. 27) and ``H``
+(eq. 28).  Everything is batch-first: rotation matrices (N, 3, 3), vectors (N, 3); ``E`` and
+``W`` are shared by the batch.
+
+For a vehicle with an accelerometer and a magnetometer (the env's IMU) :func:`imu_vector_set`
+builds three inertial directions: gravity (down, from the specific force, valid when the
+vehicle's own acceleration is small compared with g), the Earth field, and their cross product.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from fawtgym.envs.measurement import EARTH_FIELD_NED
+
+from .lie import hat, vee
+
+#: floor on s^T s in the Hölder terms (eqs. 26, 28, 30): they are continuous at s = 0 but their
+#: formulas divide by powers of |s|; below this the direction is undefined and the term is ~0.
+_S2_FLOOR = 1e-24
+
+
+def check_vector_set(e: ArrayLike) -> NDArray[np.float64]:
+    """Validate the inertial vector matrix E (3, k), k >= 3, rank 3 (Assumption 2, eq. 7)."""
+    e = np.asarray(e, dtype=float)
+    if e.ndim != 2 or e.shape[0] != 3 or e.shape[1] < 3:
+        raise ValueError(f"E must have shape (3, k) with k >= 3 inertial vectors as columns, got {e.shape}")
+    if not np.all(np.isfinite(e)):
+        raise ValueError("E contains non-finite values")
+    sv = np.linalg.svd(e, compute_uv=False)
+    if sv[-1] <= 1e-9 * max(sv[0], 1e-300):
+        raise ValueError(f"E must have rank 3 (at least three non-collinear vectors, Assumption 2); "
+                         f"singular values {sv}")
+    return e
+
+
+def check_morse_gains(k: ArrayLike) -> NDArray[np.float64]:
+    """Validate K = diag(k1, k2, k3) with k1 > k2 > k3 >= 1 (Lemma 1); returns the diagonal (3,)."""
+    k = np.asarray(k, dtype=float)
+    if k.shape == (3, 3):
+        if np.any(k != np.diag(np.diag(k))):
+            raise ValueError(f"K must be diagonal, got {k}")
+        k = np.diag(k)
+    if k.shape != (3,) or not np.all(np.isfinite(k)) or not (k[0] > k[1] > k[2] >= 1.0):
+        raise ValueError(f"K = diag(k1, k2, k3) needs k1 > k2 > k3 >= 1 (Lemma 1), got {k}")
+    return k
+
+
+def wahba_weight(e: ArrayLike, k: ArrayLike) -> NDArray[np.float64]:
+    """Generalized Wahba weight, eq. 13: ``W = E^T (E E^T)^-1 K (E E^T)^-1 E`` (k x k); then E W E^T = K."""
+    e = check_vector_set(e)
+    kd = np.diag(check_morse_gains(k))
+    g = np.linalg.inv(e @ e.T)
+    return e.T @ g @ kd @ g @ e
+
+
+def wahba_cost(e: ArrayLike, u_m: ArrayLike, r_hat: ArrayLike, w: ArrayLike) -> NDArray[np.float64]:
+    """Wahba cost, eq. 12: ``1/2 <E - R_hat U^m, (E - R_hat U^m) W>``; u_m (N, 3, k), r_hat (N, 3, 3) -> (N,)."""
+    d = np.asarray(e, float) - np.asarray(r_hat, float) @ np.asarray(u_m, float)
+    return 0.5 * np.einsum("...ij,...ij->...", d, d @ np.asarray(w, float))
+
+
+def gain_matrix(e: ArrayLike, w: ArrayLike, u_m: ArrayLike) -> NDArray[np.float64]:
+    """``L = E W (U^m)^T`` (Lemma 2), (N, 3, 3); with exact measurements L = K R."""
+    return np.asarray(e, float) @ np.asarray(w, float) @ np.swapaxes(np.asarray(u_m, float), -1, -2)
+
+
+def s_k(q: ArrayLike, k: ArrayLike) -> NDArray[np.float64]:
+    """``s_K(Q) = vex(K Q - Q^T K)``, eq. 21."""
+    kd = np.diag(np.asarray(k, float))
+    q = np.asarray(q, float)
+    return 2.0 * vee(kd @ q)  # vex(A - A^T) = 2 vee(A) (vee takes the skew part)
+
+
+def s_l(l: ArrayLike, r_hat: ArrayLike) -> NDArray[np.float64]:
+    """``s_L(R_hat) = vex(L^T R_hat - R_hat^T L)``, eq. 22, (N, 3)."""
+    return 2.0 * vee(np.swapaxes(np.asarray(l, float), -1, -2) @ np.asarray(r_hat, float))
+
+
+def _pow_s2(s: NDArray[np.float64], expo: float) -> NDArray[np.float64]:
+    s2 = np.maximum(np.sum(s * s, axis=-1), _S2_FLOOR)
+    return s2**expo
+
+
+def z_l(s: ArrayLike, alpha: float, gamma: float) -> NDArray[np.float64]:
+    """``z_L = (s_L^T s_L)^((alpha-1)/gamma) s_L``, eq. 26 (Hölder-continuous, 0 at s_L = 0)."""
+    s = np.asarray(s, float)
+    return _pow_s2(s, (alpha - 1.0) / gamma)[..., None] * s
+
+
+def w_l(l: ArrayLike, r_hat: ArrayLike, omega_hat: ArrayLike, omega_m: ArrayLike) -> NDArray[np.float64]:
+    """``w_L = d/dt s_L(R_hat)``, eq. 27, for R_hat' = R_hat Omega_hat^x and L' = L (Omega^m)^x.
+
+    ``vex(L^T R_hat W_hat + W_hat R_hat^T L) - vex(R_hat^T L W_m + W_m L^T R_hat)`` with W = Omega^x.
+    """
+    l = np.asarray(l, float)
+    r = np.asarray(r_hat, float)
+    wh, wm = hat(omega_hat), hat(omega_m)
+    lt_r = np.swapaxes(l, -1, -2) @ r
+    rt_l = np.swapaxes(lt_r, -1, -2)
+    return vee(lt_r @ wh + wh @ rt_l) - vee(rt_l @ wm + wm @ lt_r)
+
+
+def h_matrix(x: ArrayLike, alpha: float, gamma: float) -> NDArray[np.float64]:
+    """``H(x) = I - 2 (1 - alpha)/gamma x x^T / (x^T x)``, eq. 28, (N, 3, 3); H(0) := I."""
+    x = np.asarray(x, float)
+    x2 = np.maximum(np.sum(x * x, axis=-1), _S2_FLOOR)[..., None, None]
+    return np.eye(3) - 2.0 * (1.0 - alpha) / gamma * (x[..., :, None] * x[..., None, :]) / x2
+
+
+def solve_wahba(l: ArrayLike) -> NDArray[np.float64]:
+    """Static attitude: the R_hat in SO(3) maximizing tr(L^T R_hat) (i.e. minimizing eq. 12), by SVD."""
+    from .lie import project_so3
+
+    return project_so3(l)
+
+
+def imu_inertial_vectors(field_ned: ArrayLike = EARTH_FIELD_NED) -> NDArray[np.float64]:
+    """Inertial unit vectors (3, 3) used by :func:`imu_vector_set`: down e3, field direction, e3 x field."""
+    field = np.asarray(field_ned, float)
+    if field.shape != (3,) or not np.all(np.isfinite(field)) or np.linalg.norm(field) == 0:
+        raise ValueError(f"field_ned must be a finite non-zero 3-vector, got {field_ned!r}")
+    g_i = np.array([0.0, 0.0, 1.0])
+    m_i = field / np.linalg.norm(field)
+    c_i = np.cross(g_i, m_i)
+    if np.linalg.norm(c_i) < 1e-6:
+        raise ValueError(f"the Earth field {field} is parallel to gravity; no attitude from these vectors")
+    return np.stack([g_i, m_i, c_i / np.linalg.norm(c_i)], axis=1)
+
+
+def imu_vector_set(specific_force: ArrayLike, magnetometer: ArrayLike,
+                   field_ned: ArrayLike = EARTH_FIELD_NED) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Inertial/body unit-vector sets ``(E (3, 3), U^m (N, 3, 3))`` from an accelerometer and a magnetometer.
+
+    Columns: gravity direction (NED down e3; body ``-f / |f|`` since the specific force is
+    ``R^T (a - g e3)``), the Earth field direction, and their normalized cross product.  A column
+    whose body vector has (near) zero length (free fall, missing magnetometer) raises ValueError.
+    """
+    f = np.atleast_2d(np.asarray(specific_force, float))
+    m = np.atleast_2d(np.asarray(magnetometer, float))
+    if not (np.all(np.isfinite(f)) and np.all(np.isfinite(m))):
+        raise ValueError("specific_force / magnetometer contain non-finite values")
+    e = imu_inertial_vectors(field_ned)
+
+    def unit(v: NDArray[np.float64], what: str) -> NDArray[np.float64]:
+        n = np.linalg.norm(v, axis=-1, keepdims=True)
+        if np.any(n < 1e-9):
+            raise ValueError(f"{what} has (near) zero length in the batch; cannot use it as a direction")
+        return v / n
+
+    g_b = unit(-f, "specific force (free fall?)")
+    m_b = unit(m, "magnetometer")
+    c_b = unit(np.cross(g_b, m_b), "gravity x field (vectors collinear)")
+    return e, np.stack([g_b, m_b, c_b], axis=-1)
