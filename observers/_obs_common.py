@@ -1,0 +1,92 @@
+"""Small helpers shared by the seed-000 observers (FFTS-ESO, LESO, FxTSDO, STO).
+
+Not an observer itself (the leading underscore keeps it out of the auto-import/registry).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from fawtgym.envs.measurement import batch_measurement
+
+
+def require(measurement: Mapping[str, ArrayLike], keys: Sequence[str], who: str) -> dict[str, NDArray[np.float64]]:
+    """Batch the measurement and check that ``keys`` are present and finite (ValueError otherwise)."""
+    meas = batch_measurement(measurement)
+    missing = [k for k in keys if k not in meas]
+    if missing:
+        raise ValueError(f"{who} needs measurement keys {list(keys)}; missing {missing} (got {sorted(meas)})")
+    n = meas[keys[0]].shape[0]
+    for k in keys:
+        if meas[k].shape[0] != n:
+            raise ValueError(f"{who}: measurement[{k!r}] has batch size {meas[k].shape[0]}, expected {n}")
+        if not np.all(np.isfinite(meas[k])):
+            raise ValueError(f"{who}: measurement[{k!r}] contains non-finite values")
+    return meas
+
+
+def batch_vec(x: ArrayLike | None, n: int, label: str, who: str) -> NDArray[np.float64]:
+    """(3,) or (N, 3) or None -> (N, 3) float array (zeros for None); ValueError on wrong shape."""
+    if x is None:
+        return np.zeros((n, 3))
+    a = np.asarray(x, dtype=float)
+    if a.shape == (3,):
+        a = np.broadcast_to(a, (n, 3))
+    if a.shape != (n, 3) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{who}: {label} must be finite with shape (3,) or ({n}, 3), got shape {a.shape}")
+    return np.array(a)
+
+
+def batch_thrust(f: NDArray[np.float64], n: int, who: str) -> NDArray[np.float64]:
+    """Thrust (1,) or (N,) -> (N,)."""
+    if f.shape == (1,) and n != 1:
+        f = np.broadcast_to(f, (n,))
+    if f.shape != (n,):
+        raise ValueError(f"{who}: thrust must have shape ({n},), got {f.shape}")
+    return f
+
+
+def batch_torque(tau: NDArray[np.float64], n: int, who: str) -> NDArray[np.float64]:
+    if tau.shape == (1, 3) and n != 1:
+        tau = np.broadcast_to(tau, (n, 3))
+    if tau.shape != (n, 3):
+        raise ValueError(f"{who}: torque must have shape (3,) or ({n}, 3), got {tau.shape}")
+    return tau
+
+
+def check_finite(who: str, **arrays: NDArray[np.float64]) -> None:
+    """Raise FloatingPointError naming the first non-finite state (never return NaN/inf silently)."""
+    for name, a in arrays.items():
+        if not np.all(np.isfinite(a)):
+            bad = np.unique(np.nonzero(~np.isfinite(a))[0])
+            raise FloatingPointError(f"{who}: state {name!r} became non-finite for batch rows {bad.tolist()}; "
+                                     "the observer diverged (check gains, dt and the measurement)")
+
+
+def positive(who: str, **values: float) -> None:
+    """ValueError unless every value is a finite positive number."""
+    for k, v in values.items():
+        if not (np.isfinite(v) and v > 0):
+            raise ValueError(f"{who}: gain {k} must be a finite positive number, got {v!r}")
+
+
+def sig(x: NDArray[np.float64], a: float) -> NDArray[np.float64]:
+    """Element-wise sig^a(x) = |x|^a sign(x) (0 at 0 for a > 0)."""
+    return np.sign(x) * np.abs(x) ** a
+
+
+_I1 = [1, 2, 0]
+_I2 = [2, 0, 1]
+
+
+def cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """a x b over the last axis (..., 3); a lean replacement for np.cross on small batches."""
+    return a[..., _I1] * b[..., _I2] - a[..., _I2] * b[..., _I1]
+
+
+def all_finite(*arrays: NDArray[np.float64]) -> bool:
+    """True iff every entry of every array is finite (one reduction per array)."""
+    return bool(np.isfinite(sum(float(np.sum(a)) for a in arrays)))

@@ -1,0 +1,219 @@
+"""Hölder-continuous fast finite-time stable differentiator (HC-FFTSD), seed-000 Theorem 1.
+
+Source: ``ffts_eso_tse3_fawt_wang2024.txt`` (Wang, Hamrah, Sanyal, Glauser 2024), Sec. 3.
+
+* :func:`phi1`, :func:`phi2` -- the output-injection maps of eq. (9); both are continuous at 0 and
+  evaluated without NaN/inf there (the fractional power of ``e^T e`` is only taken where it is > 0).
+* :func:`phi1_jacobian` -- eq. (12), so that eq. (13) ``phi2 = phi1' phi1`` can be checked.
+* :func:`frac_power` / :func:`frac_power_rate` -- the term ``(e^T e)^((1-p)/p) e`` of eqs. (50)/(69)
+  and its time derivative ``(e^T e)^((1-p)/p) H(e, (p-1)/p) e'`` (Def. 1, eq. 8) used by the ESOs.
+  The derivative is unbounded as e -> 0 (exponent (2-p)/p - 1 < 0), so the ESOs use the regularised
+  g(e) = max(e^T e, eps)^((1-p)/p) e (exact for |e| > sqrt(eps), linear inside) and g's exact,
+  bounded derivative.  This is the one numerical regularisation of the continuous-time law; it is
+  documented wherever it is used.
+* :class:`HCFFTSD` -- gains (k1, k2, k3, p), the Lyapunov matrix P of eq. (17) from scipy,
+  gamma_1, gamma_2 of eq. (32), the Lyapunov function (19) and the settling-time bound of Lemma 2,
+  eq. (5) with lambda_1 = gamma_1, lambda_2 = gamma_2, alpha = 1/p.
+
+Everything is batch-first over leading axes: ``e`` has shape (..., n).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import ArrayLike, NDArray
+
+#: floor on e^T e in the *derivative* terms (frac_power_rate, phi1_jacobian); see module docstring
+DEFAULT_EPS = 1e-12
+
+
+def check_p(p: float) -> float:
+    """Validate the Hölder exponent parameter p in ]1, 2[ (Theorem 1)."""
+    if not (np.isfinite(p) and 1.0 < p < 2.0):
+        raise ValueError(f"p must lie in the open interval (1, 2) (seed-000 Theorem 1), got p={p!r}")
+    return float(p)
+
+
+def _sq(e: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.sum(e * e, axis=-1, keepdims=True)
+
+
+def _safe_pow(r2: NDArray[np.float64], a: float) -> NDArray[np.float64]:
+    """r2**a where r2 > 0 and 0 where r2 == 0 (only used multiplied by e, whose limit is 0)."""
+    pos = r2 > 0.0
+    return np.where(pos, np.where(pos, r2, 1.0) ** a, 0.0)
+
+
+def phi1(e: ArrayLike, k3: float, p: float) -> NDArray[np.float64]:
+    """phi_1(e) = k3 e + (e^T e)^((1-p)/(3p-2)) e, eq. (9).  Continuous; phi_1(0) = 0."""
+    e = np.asarray(e, dtype=float)
+    a = (1.0 - p) / (3.0 * p - 2.0)
+    return k3 * e + _safe_pow(_sq(e), a) * e
+
+
+def phi2(e: ArrayLike, k3: float, p: float) -> NDArray[np.float64]:
+    """phi_2(e) of eq. (9): k3^2 e + 2 k3 (2p-1)/(3p-2) |e|^(2a) e + p/(3p-2) |e|^(4a) e, a=(1-p)/(3p-2)."""
+    e = np.asarray(e, dtype=float)
+    a = (1.0 - p) / (3.0 * p - 2.0)
+    r2 = _sq(e)
+    c1 = 2.0 * k3 * (2.0 * p - 1.0) / (3.0 * p - 2.0)
+    c2 = p / (3.0 * p - 2.0)
+    return k3 * k3 * e + c1 * _safe_pow(r2, a) * e + c2 * _safe_pow(r2, 2.0 * a) * e
+
+
+def phi1_jacobian(e: ArrayLike, k3: float, p: float, eps: float = DEFAULT_EPS) -> NDArray[np.float64]:
+    """phi_1'(e) of eq. (12), shape (..., n, n).
+
+    The exact Jacobian is unbounded at e = 0; ``e^T e`` is floored at ``eps`` so the result is finite
+    everywhere and exact for |e| > sqrt(eps).
+    """
+    e = np.asarray(e, dtype=float)
+    n = e.shape[-1]
+    a = (1.0 - p) / (3.0 * p - 2.0)
+    r2 = np.maximum(_sq(e), eps)[..., None]
+    outer = e[..., :, None] * e[..., None, :]
+    eye = np.eye(n)
+    return k3 * eye + r2**a * (eye - 2.0 * (p - 1.0) / (3.0 * p - 2.0) * outer / r2)
+
+
+def h_matrix(x: ArrayLike, k: float, eps: float = 0.0) -> NDArray[np.float64]:
+    """H(x, k) = I - 2k x x^T / (x^T x), Definition 1 eq. (8), shape (..., 3, 3).
+
+    At x = 0 (undefined in the paper) the outer-product term is taken as 0, i.e. H = I; with
+    ``eps`` > 0 the denominator is max(x^T x, eps).
+    """
+    x = np.asarray(x, dtype=float)
+    r2 = _sq(x)[..., None]
+    den = np.maximum(r2, eps) if eps > 0 else r2
+    safe = np.where(den > 0, den, 1.0)
+    outer = x[..., :, None] * x[..., None, :]
+    return np.eye(x.shape[-1]) - 2.0 * k * np.where(den > 0, outer / safe, 0.0)
+
+
+def frac_power(e: ArrayLike, p: float, eps: float = 0.0) -> NDArray[np.float64]:
+    """g(e) = max(e^T e, eps)^((1-p)/p) e, the fractional term of eqs. (50)/(69).
+
+    With eps = 0 this is exactly (e^T e)^((1-p)/p) e (continuous, 0 at e = 0).  With eps > 0 it is exact for
+    |e| > sqrt(eps) and linear inside that ball -- the regularisation used by the ESOs, whose derivative
+    :func:`frac_power_rate` is bounded.
+    """
+    e = np.asarray(e, dtype=float)
+    r2 = _sq(e)
+    return (_safe_pow(r2, (1.0 - p) / p) if eps <= 0 else np.maximum(r2, eps) ** ((1.0 - p) / p)) * e
+
+
+def frac_power_rate(e: ArrayLike, edot: ArrayLike, p: float, eps: float = DEFAULT_EPS) -> NDArray[np.float64]:
+    """Exact time derivative of :func:`frac_power` (with the same eps > 0) along e' = edot.
+
+    For |e| > sqrt(eps): (e^T e)^((1-p)/p) H(e, (p-1)/p) e' as in eqs. (49)/(68) (Definition 1), computed as
+    r^c (e' - 2k (e.e') e / r) with r = e^T e, c = (1-p)/p, k = (p-1)/p.  Inside the ball: eps^c e'.
+    The unregularised derivative is unbounded at e = 0, hence eps must be > 0.
+    """
+    if not (np.isfinite(eps) and eps > 0):
+        raise ValueError(f"eps must be > 0 (the exact derivative is unbounded at e = 0), got {eps!r}")
+    e = np.asarray(e, dtype=float)
+    edot = np.asarray(edot, dtype=float)
+    r2 = _sq(e)
+    r = np.maximum(r2, eps)
+    k = (p - 1.0) / p
+    dot = np.sum(e * edot, axis=-1, keepdims=True)
+    return r ** ((1.0 - p) / p) * (edot - np.where(r2 > eps, 2.0 * k * dot / r, 0.0) * e)
+
+
+def lyapunov_p(k1: float, k2: float, q: ArrayLike | None = None) -> NDArray[np.float64]:
+    """P* solving (A*)^T P* + P* A* = -Q*, eq. (17), with A* of eq. (10) (Q* = I by default).
+
+    Raises ValueError if A* is not Hurwitz (k1, k2 > 0) or Q* is not symmetric positive definite.
+    """
+    a = hurwitz_matrix(k1, k2)
+    qm = np.eye(2) if q is None else np.asarray(q, dtype=float)
+    if qm.shape != (2, 2) or not np.allclose(qm, qm.T) or np.linalg.eigvalsh(qm).min() <= 0:
+        raise ValueError(f"Q* must be a symmetric positive-definite 2x2 matrix, got {qm.tolist()}")
+    # scipy solves A X + X A^H = Q; with A := (A*)^T and Q := -Q* this is eq. (17).
+    pm = scipy.linalg.solve_continuous_lyapunov(a.T, -qm)
+    return 0.5 * (pm + pm.T)
+
+
+def hurwitz_matrix(k1: float, k2: float, label: str = "A*") -> NDArray[np.float64]:
+    """A = [[-k1, 1], [-k2, 0]] (eqs. 10, 48, 67); raises ValueError unless it is Hurwitz."""
+    a = np.array([[-float(k1), 1.0], [-float(k2), 0.0]])
+    eig = np.linalg.eigvals(a)
+    if not (np.all(np.isfinite(a)) and np.all(eig.real < 0)):
+        raise ValueError(f"{label} = [[-k1, 1], [-k2, 0]] must be Hurwitz (needs k1 > 0 and k2 > 0); "
+                         f"got k1={k1!r}, k2={k2!r} with eigenvalues {eig}")
+    return a
+
+
+@dataclasses.dataclass(frozen=True)
+class HCFFTSD:
+    """The differentiator (11): e1' = -k1 phi1(e1) + e2, e2' = -k2 phi2(e1) (+ perturbation, eq. 33).
+
+    Construction validates p in ]1, 2[, k3 > 0 and the Hurwitz condition of eq. (10).
+    """
+
+    k1: float
+    k2: float
+    k3: float
+    p: float
+    q: tuple[tuple[float, float], tuple[float, float]] = ((1.0, 0.0), (0.0, 1.0))
+
+    def __post_init__(self) -> None:
+        check_p(self.p)
+        if not (np.isfinite(self.k3) and self.k3 > 0):
+            raise ValueError(f"k3 must be a finite positive number (Theorem 1), got k3={self.k3!r}")
+        hurwitz_matrix(self.k1, self.k2)
+
+    # ---- dynamics ----------------------------------------------------------------------
+    def rhs(self, e1: ArrayLike, e2: ArrayLike, perturbation: ArrayLike | float = 0.0
+            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Right-hand side of eq. (11) (eq. 33 with a perturbation Delta^D)."""
+        e1 = np.asarray(e1, dtype=float)
+        e2 = np.asarray(e2, dtype=float)
+        return (-self.k1 * phi1(e1, self.k3, self.p) + e2,
+                -self.k2 * phi2(e1, self.k3, self.p) + np.asarray(perturbation, dtype=float))
+
+    # ---- Lyapunov analysis ---------------------------------------------------------------
+    @property
+    def p_matrix(self) -> NDArray[np.float64]:
+        """P* of eq. (17) for this A* and Q*."""
+        return lyapunov_p(self.k1, self.k2, np.asarray(self.q))
+
+    def gammas(self) -> tuple[float, float]:
+        """(gamma_1, gamma_2) of eq. (32)."""
+        pm = self.p_matrix
+        lp = np.linalg.eigvalsh(pm)
+        lq = np.linalg.eigvalsh(np.asarray(self.q, dtype=float))
+        p = self.p
+        g1 = self.k3 * lq[0] / lp[-1]
+        g2 = lq[0] * lp[0] ** ((p - 1.0) / p) / lp[-1] * p / (3.0 * p - 2.0)
+        return float(g1), float(g2)
+
+    def lyapunov(self, e1: ArrayLike, e2: ArrayLike) -> NDArray[np.float64]:
+        """V = zeta^T P zeta with zeta = [phi1(e1), e2], eq. (19); shape (...,)."""
+        z1 = phi1(e1, self.k3, self.p)
+        z2 = np.asarray(e2, dtype=float)
+        pm = self.p_matrix
+        return (pm[0, 0] * np.sum(z1 * z1, -1) + 2 * pm[0, 1] * np.sum(z1 * z2, -1)
+                + pm[1, 1] * np.sum(z2 * z2, -1))
+
+    def settling_time_bound(self, e1: ArrayLike, e2: ArrayLike) -> NDArray[np.float64]:
+        """Upper bound on the settling time, eq. (5) with lambda_1, lambda_2 = gamma_1, gamma_2 and alpha = 1/p."""
+        g1, g2 = self.gammas()
+        alpha = 1.0 / self.p
+        v0 = self.lyapunov(e1, e2)
+        return np.log((g1 * v0 ** (1.0 - alpha) + g2) / g2) / (g1 * (1.0 - alpha))
+
+    def comparison_bound(self, v0: float, t: ArrayLike) -> NDArray[np.float64]:
+        """Solution of the comparison ODE V' = -g1 V - g2 V^(1/p) (eq. 31 with equality), V(0) = v0.
+
+        With W = V^(1-alpha): W' = -(1-alpha)(g1 W + g2), so W(t) = (W0 + g2/g1) e^{-(1-alpha) g1 t} - g2/g1,
+        clipped at 0 (reached exactly at the time of eq. 5).
+        """
+        g1, g2 = self.gammas()
+        alpha = 1.0 / self.p
+        t = np.asarray(t, dtype=float)
+        w = (v0 ** (1 - alpha) + g2 / g1) * np.exp(-(1 - alpha) * g1 * t) - g2 / g1
+        return np.maximum(w, 0.0) ** (1.0 / (1.0 - alpha))
