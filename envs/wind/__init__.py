@@ -25,7 +25,7 @@ from .outdoor import DrydenWind, OneCosineGust
 from .schedule import FanSchedule
 
 
-def _fawt_preset(duty: float, **options: Any) -> FawtWind:
+def _fawt_preset(duty: float, /, **options: Any) -> FawtWind:
     if "duty" in options:
         raise ValueError(f"preset fawt-{round(duty * 100)} has a fixed duty; use the 'fawt' wind with duty=...")
     return FawtWind(duty, **options)

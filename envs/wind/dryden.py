@@ -37,7 +37,8 @@ stationary covariance (``A P + P A^T + B B^T = 0``, scipy's Lyapunov solver).  T
 sample instants, so the realized sigma does not depend on the step (unlike the common practice of
 scaling unit noise without ``sqrt(dt)``).  A changing airspeed (the frozen-turbulence speed
 ``V = |mean wind - vehicle velocity|``, floored at ``v_floor``) only changes ``d``; the matrices are
-cached on a logarithmic grid of ``d`` (1 % bins, i.e. the step length is exact to +-0.5 %).
+cached on a logarithmic grid of ``d`` (1 % bins, i.e. the step length is exact to +-0.5 %;
+``d`` is clipped to [1e-5, 200] m).
 
 Option ``discretization="zoh"``: zero-order hold of the state space with the noise held over the
 step at intensity ``1/dt`` (``scipy.signal.cont2discrete``), as many simulators do; its variance
@@ -64,6 +65,7 @@ FORMS = ("8785c", "1797")
 #: scale finite (MATLAB's Dryden block has no floor and divides by zero at V = 0).
 V_FLOOR = 1.0
 _BIN = 0.01  # log-bin width of the cached step length d = V dt
+_D_MIN, _D_MAX = 1e-5, 200.0  # [m] range of d = V dt held in the table (clipped outside)
 
 
 def _check_positive(name: str, value: float) -> float:
@@ -226,7 +228,11 @@ class DrydenProcess:
         self.n_states = self.a.shape[0]
         self.p_stat = scipy.linalg.solve_continuous_lyapunov(self.a, -self.b @ self.b.T)
         self.p_stat = 0.5 * (self.p_stat + self.p_stat.T)
-        self._cache: dict[int, NDArray[np.float64]] = {}
+        # dense lazily-filled table of step matrices on the log grid of d (1 % bins)
+        self._k0 = int(math.floor(math.log(_D_MIN) / _BIN + 0.5))
+        n_keys = int(math.floor(math.log(_D_MAX) / _BIN + 0.5)) - self._k0 + 1
+        self._dense = np.zeros((n_keys, 2 * self.n_states, self.n_states + self.c.shape[0]))
+        self._filled = np.zeros(n_keys, dtype=bool)
         self._ct = np.ascontiguousarray(self.c.T)
         self.n = 0
 
@@ -239,11 +245,12 @@ class DrydenProcess:
 
     def _matrix(self, d: float) -> NDArray[np.float64]:
         """Cached ``M = [[Ad^T, Ad^T C^T], [S^T, S^T C^T]]`` so that ``[x, z] @ M = [x+, y+]``."""
-        key = int(math.floor(math.log(d) / _BIN + 0.5))
-        hit = self._cache.get(key)
-        if hit is not None:
-            return hit
-        dq = math.exp(key * _BIN)
+        return self._fill(int(math.floor(math.log(min(max(d, _D_MIN), _D_MAX)) / _BIN + 0.5)) - self._k0)
+
+    def _fill(self, idx: int) -> NDArray[np.float64]:
+        if self._filled[idx]:
+            return self._dense[idx]
+        dq = math.exp((idx + self._k0) * _BIN)
         ad = scipy.linalg.expm(self.a * dq)
         if self.discretization == "exact":
             s = _psd_sqrt(self.p_stat - ad @ self.p_stat @ ad.T)
@@ -255,9 +262,9 @@ class DrydenProcess:
             s = np.zeros((ns, ns))
             s[:, :self.b.shape[1]] = sysd[1] / math.sqrt(dq)
         top = np.vstack([ad.T, s.T])
-        hit = np.ascontiguousarray(np.hstack([top, top @ self._ct]))
-        self._cache[key] = hit
-        return hit
+        self._dense[idx] = np.hstack([top, top @ self._ct])
+        self._filled[idx] = True
+        return self._dense[idx]
 
     # ---- state ---------------------------------------------------------------------------
     def reset(self, n: int, seed: int | np.random.SeedSequence | None = None) -> None:
@@ -294,16 +301,16 @@ class DrydenProcess:
         if isinstance(airspeed, (float, int)) or np.ndim(airspeed) == 0:
             out = row @ self._matrix(max(float(airspeed), V_FLOOR) * dt)
         else:
-            d = np.maximum(np.asarray(airspeed, dtype=float), V_FLOOR) * dt
-            keys = np.floor(np.log(d) / _BIN + 0.5)
-            if np.all(keys == keys[0]):
-                out = row @ self._matrix(float(d[0]))
+            d = np.clip(np.maximum(np.asarray(airspeed, dtype=float), V_FLOOR) * dt, _D_MIN, _D_MAX)
+            idx = np.floor(np.log(d) / _BIN + 0.5).astype(np.intp) - self._k0
+            lo, hi = idx.min(), idx.max()
+            if lo == hi:
+                out = row @ self._fill(int(lo))
             else:
-                mats = np.empty((self.n, 2 * ns, ns + self.c.shape[0]))
-                for uk in np.unique(keys):
-                    m = keys == uk
-                    mats[m] = self._matrix(float(d[np.argmax(m)]))
-                out = np.einsum("ni,nij->nj", row, mats)
+                missing = idx[~self._filled[idx]]
+                for k in np.unique(missing):
+                    self._fill(int(k))
+                out = (row[:, None, :] @ self._dense[idx])[:, 0, :]
         self.x = out[:, :ns]
         self.y = out[:, ns:]
         return self.y
