@@ -1,0 +1,225 @@
+"""Runtime QB observer (seed-001 qb_observer_cayero2019.txt): shipped gains, frames, batch, no-cvxpy run,
+and a shortened Fig. 7 check of the mu claim (the full reproduction is a long test)."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from fawtgym.envs.vehicles import GRAVITY
+from fawtgym.eval.reproduce import qb_observer as rq
+from fawtgym.observers import make_observer, observer_names
+from fawtgym.observers import qb_design as qd
+from fawtgym.observers.lie import hat
+from fawtgym.observers.qb_observer import QBObserver, load_gain
+from fawtgym.observers.qb_uav_model import HUMMINGBIRD_INERTIA, HUMMINGBIRD_MASS, uav_model
+
+M_H, J_H = HUMMINGBIRD_MASS, np.diag(HUMMINGBIRD_INERTIA)
+MUS = {"0p2": 0.2, "0p5": 0.5, "0p95": 0.95}
+
+
+@pytest.fixture(scope="module")
+def gains():
+    return {k: load_gain(f"qb_gain_hummingbird_mu{k}") for k in MUS}
+
+
+def _as_solution(g) -> qd.QBSolution:
+    pz = qd.projection_matrix(g.P, g.E1)
+    return qd.QBSolution(alpha=g.alpha, P=g.P, Y=g.P @ g.L, X=pz, L=g.L, Pz=pz, log_volume=g.log_volume,
+                         status="stored", solver="", solve_seconds=0.0)
+
+
+def test_registered_and_default_constructible():
+    assert "qb" in observer_names()
+    obs = make_observer("qb", M_H, J_H)
+    assert obs.channels == frozenset({"force", "torque"}) and obs.gain.mu == 0.5 and obs.order == 3
+
+
+def test_shipped_gains_match_design_inputs_and_satisfy_lmis(gains):
+    pr = uav_model()
+    for key, g in gains.items():
+        for name, arr in pr.as_arrays().items():
+            np.testing.assert_array_equal(getattr(g, name), arr, err_msg=f"{key}: stored {name} is stale")
+        assert g.mu == MUS[key] and g.meta["r"] == 3 and g.meta["mass"] == M_H
+        sol = _as_solution(g)
+        r = qd.lmi_residuals(pr, sol)
+        assert r["lmi7_max_eig"] <= 1e-6 * r["lmi7_scale"], (key, r)  # LMI (7) with the stored P, L
+        assert r["decay_margin"] <= 1e-6 * g.alpha, (key, r)
+        assert math.isclose(qd.ellipsoid_log_volume(qd.projection_matrix(g.P, g.E1)), g.log_volume,
+                            abs_tol=1e-6)
+        a = g.meta["anchors"]
+        assert a["alpha_nadir"] <= g.alpha <= a["alpha_star"] == 20.0
+    # Fig. 6 ordering: higher mu -> smaller alpha and smaller volume
+    assert gains["0p95"].alpha < gains["0p5"].alpha <= gains["0p2"].alpha
+    assert gains["0p95"].log_volume < gains["0p5"].log_volume <= gains["0p2"].log_volume
+
+
+def test_stored_gain_is_reproduced_by_the_sdp(gains):
+    """Re-solve eq. 31 at the stored alpha (one r = 3 SDP): same optimal volume, LMIs hold."""
+    g = gains["0p95"]
+    pr = uav_model()
+    sol = qd.solve_qb_lmi(pr, g.alpha)
+    assert abs(sol.log_volume - g.log_volume) < 1e-3
+    r = qd.lmi_residuals(pr, sol)
+    assert r["lmi7_max_eig"] <= 1e-6 * r["lmi7_scale"] and r["lmi30_min_eig"] >= -1e-6 * r["lmi30_scale"]
+    assert r["decay_margin"] <= 1e-6 * g.alpha and r["P_min_eig"] > 0
+
+
+def _hover_meas(n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    from fawtgym.observers.lie import exp_so3
+
+    R = exp_so3(0.2 * rng.normal(size=(n, 3)))
+    return {"position": rng.normal(size=(n, 3)), "velocity": rng.normal(size=(n, 3)), "attitude": R,
+            "angular_velocity": 0.3 * rng.normal(size=(n, 3)),
+            "specific_force": np.array([0.0, 0.0, -GRAVITY]) + 0.5 * rng.normal(size=(n, 3))}
+
+
+def test_batch_equals_single(gains):
+    rng = np.random.default_rng(0)
+    n = 4
+    seq = [_hover_meas(n, rng) for _ in range(6)]
+    thrust = M_H * GRAVITY * (1 + 0.1 * rng.normal(size=(6, n)))
+    torque = 0.01 * rng.normal(size=(6, n, 3))
+    batch = QBObserver(M_H, J_H)
+    batch.reset(seq[0])
+    for k in range(1, 6):
+        eb = batch.update(seq[k], thrust[k], torque[k], 0.01)
+    for i in range(n):
+        one = QBObserver(M_H, J_H)
+        one.reset({key: v[i] for key, v in seq[0].items()})
+        for k in range(1, 6):
+            e1 = one.update({key: v[i] for key, v in seq[k].items()}, thrust[k, i], torque[k, i], 0.01)
+        np.testing.assert_allclose(e1.force[0], eb.force[i], rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(e1.torque[0], eb.torque[i], rtol=1e-9, atol=1e-12)
+
+
+def test_estimates_true_disturbance_of_a_rotating_rigid_body():
+    """Frames: force NED and torque FRD of the seed-000 model (eq. 38) are recovered from the env's
+    measurement keys, with the vehicle rotating (world torque R tau_D changes with time)."""
+    m, J = 1.2, np.diag([0.02, 0.025, 0.04])
+    phi = np.array([0.4, -0.3, 0.2])  # NED
+    tau_d = np.array([0.01, -0.02, 0.008])  # FRD
+    f, tau_a = m * GRAVITY * 0.95, np.array([0.002, 0.001, -0.003])
+
+    def rhs(_t, s):
+        v, R, w = s[3:6], s[6:15].reshape(3, 3), s[15:18]
+        a = GRAVITY * np.array([0, 0, 1.0]) + (-f * R[:, 2] + phi) / m
+        wd = np.linalg.solve(J, np.cross(J @ w, w) + tau_a + tau_d)
+        return np.concatenate([v, a, (R @ hat(w)).ravel(), wd])
+
+    dt, n_steps = 0.01, 300
+    s0 = np.concatenate([np.zeros(6), np.eye(3).ravel(), [0.5, -0.3, 0.8]])
+    sol = solve_ivp(rhs, (0, dt * n_steps), s0, t_eval=np.arange(n_steps + 1) * dt, rtol=1e-10, atol=1e-12)
+
+    def meas(k):
+        s = sol.y[:, k]
+        R = s[6:15].reshape(3, 3)
+        acc = rhs(0, s)[3:6]
+        return {"velocity": s[3:6], "attitude": R, "angular_velocity": s[15:18],
+                "specific_force": R.T @ (acc - GRAVITY * np.array([0, 0, 1.0]))}
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # noise ellipsoid designed for the Hummingbird mass
+        obs = make_observer("qb", m, J)
+    obs.reset(meas(0), thrust=f)
+    for k in range(1, n_steps + 1):
+        est = obs.update(meas(k), f, tau_a, dt)
+    np.testing.assert_allclose(est.force[0], phi, atol=2e-3)
+    np.testing.assert_allclose(est.torque[0], tau_d, atol=1e-3)
+    np.testing.assert_allclose(est.states["angular_velocity"][0], sol.y[15:18, -1], atol=1e-3)
+    np.testing.assert_allclose(est.states["velocity"][0], sol.y[3:6, -1], atol=1e-3)
+
+
+def test_saved_gain_round_trip_runs_without_cvxpy_and_design_names_the_extra(tmp_path, gains):
+    path = gains["0p95"].save(tmp_path / "g.npz")
+    again = load_gain(path)
+    for name in ("A", "C", "L", "P", "Q"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(gains["0p95"], name))
+    assert again.alpha == gains["0p95"].alpha and again.meta == gains["0p95"].meta
+    rng = np.random.default_rng(5)
+    seq = [_hover_meas(1, rng) for _ in range(4)]
+    obs = QBObserver(M_H, J_H, gain_file=path)
+    obs.reset(seq[0])
+    for k in range(1, 4):
+        est = obs.update(seq[k], M_H * GRAVITY, np.zeros(3), 0.01)
+    (tmp_path / "seq.json").write_text(json.dumps([{k: v.tolist() for k, v in s.items()} for s in seq]))
+    code = f"""
+import sys, json
+sys.modules['cvxpy'] = None  # any 'import cvxpy' now raises ImportError
+import numpy as np
+from fawtgym.observers import make_observer
+seq = json.load(open({str(tmp_path / 'seq.json')!r}))
+obs = make_observer('qb', {M_H}, {list(J_H)}, gain_file={str(path)!r})
+obs.reset(seq[0])
+for s in seq[1:]:
+    e = obs.update(s, {M_H * GRAVITY}, [0.0, 0.0, 0.0], 0.01)
+from fawtgym.observers.qb_design import solve_qb_lmi
+from fawtgym.observers.qb_uav_model import uav_model
+try:
+    solve_qb_lmi(uav_model(r=1), 1.0)
+    msg = "designed without cvxpy?"
+except ImportError as exc:
+    msg = str(exc)
+print(json.dumps([e.force[0].tolist(), e.torque[0].tolist(), msg]))
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    force, torque, msg = json.loads(out.stdout.strip().splitlines()[-1])
+    np.testing.assert_allclose(force, est.force[0], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(torque, est.torque[0], rtol=1e-12, atol=1e-12)
+    # ... and designing without cvxpy names the optional extra
+    assert "pip install 'fawtgym[design]'" in msg, msg
+
+
+def test_bad_inputs_raise(tmp_path):
+    obs = QBObserver(M_H, J_H)
+    meas = _hover_meas(1, np.random.default_rng(1))
+    with pytest.raises(RuntimeError, match="reset"):
+        obs.update(meas, M_H * GRAVITY, np.zeros(3), 0.01)
+    obs.reset(meas)
+    with pytest.raises(ValueError, match="specific_force"):
+        obs.update({k: v for k, v in meas.items() if k != "specific_force"}, M_H * GRAVITY, np.zeros(3), 0.01)
+    with pytest.raises(ValueError, match="dt"):
+        obs.update(meas, M_H * GRAVITY, np.zeros(3), 0.0)
+    bad = dict(meas, velocity=np.array([[np.nan, 0, 0]]))
+    with pytest.raises(ValueError, match="velocity"):
+        obs.update(bad, M_H * GRAVITY, np.zeros(3), 0.01)
+    with pytest.raises(ValueError, match="shipped gains"):
+        QBObserver(M_H, J_H, gain_file="no_such_gain")
+    with pytest.warns(UserWarning, match="design for this vehicle"):
+        QBObserver(2.0, [0.02, 0.02, 0.04])
+
+
+def test_fig7_mu_claim_shortened(gains):
+    """Shortened Fig. 7 (first 12 s of the Fig. 3 signal): mu = 0.95 converges slower than mu = 0.2
+    but to a smaller error region (paper Sec. 4, last paragraph)."""
+    settle, rms = {}, {}
+    for key in ("0p2", "0p95"):
+        clean = rq.simulate_fig7(gains[key], t_end=9.0, noise=False)
+        noisy = rq.simulate_fig7(gains[key], t_end=12.0, noise=True, seed=3)
+        settle[key] = rq.settling_time(clean)
+        rms[key] = rq.error_region(noisy, 9.5, 11.0)["rms"]
+    assert 0 < settle["0p2"] < settle["0p95"] < 3.0, settle
+    assert rms["0p95"] < 0.7 * rms["0p2"], rms
+
+
+def test_fig3_disturbance_shape():
+    t = np.array([0.0, 5.0, 8.5, 12.0, 25.0, 27.5, 40.0, 45.0])
+    np.testing.assert_allclose(rq.fig3_disturbance(t), [0, 1.0, 2.0, 0.5, 2.0, 1.0, 2.0, 0.0])
+
+
+@pytest.mark.long
+def test_full_reproduction(tmp_path):
+    s = rq.run(tmp_path, quick=False)
+    assert all(s["claims"].values()), s["claims"]
+    for name in ("qb_fig4_volume.csv", "qb_fig5_jmu.csv", "qb_fig6_mu.csv", "qb_fig7_estimation.csv",
+                 "qb_summary.md", "qb_fig4.png", "qb_fig7.png"):
+        assert (tmp_path / name).is_file()
+    assert s["max_rel_lmi7"] < 1e-6 and s["max_decay_margin"] <= 0
