@@ -20,6 +20,11 @@ One control step (period ``1 / control_rate``, which must divide the physics rat
    ``info["failure"] = "diverged"`` (the last finite state is returned);
 5. sensors (:mod:`.sensors`) produce ``info["measurement"]``; the observation is built from it.
 
+``info`` also carries ``"applied"`` (the known inputs: mean collective rotor thrust [N] and rotor
+torque [N m] over the step just taken, rotor thrusts and speeds), ``"truth"`` (true state, wind at the
+CoM, disturbance force NED and torque FRD exactly as applied; for metrics only), ``"setpoint"``
+(the NED position set point, a command), ``"action_clipped"``, ``"failure"`` and ``"time"``.
+
 Observation (float32, shape (19,)), from *measurements*, never the truth:
 ``[b^m - b_sp (3, NED m), v^m (3, NED m/s), R^m[:, 0], R^m[:, 1] (6, the continuous 6-D attitude
 representation of Zhou et al. 2019), Omega^m (3, FRD rad/s), last action (4)]``, clipped to the
@@ -363,6 +368,7 @@ class HoverEnv(gym.Env):
                         "rotor_thrusts": self._applied_thrusts.copy(), "motor_speeds": self.rotor_speeds.copy()},
             "truth": {M.POSITION: b.copy(), M.VELOCITY: v.copy(), M.ATTITUDE: r.copy(), M.ANGULAR_VELOCITY: w.copy(),
                       "wind": wind.copy(), "force": force.copy(), "torque": torque.copy()},
+            "setpoint": self.setpoint.copy(),
             "action_clipped": action_clipped,
             "failure": self._failure,
             "time": self.time,
