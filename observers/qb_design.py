@@ -248,7 +248,6 @@ def _auto_scaling(problem: QBProblem, alpha: float) -> NDArray[np.float64]:
         t = 1.0 / np.sqrt(d)
     except (ValueError, np.linalg.LinAlgError):
         return np.ones(pr.n)
-    # E1 rows must stay orthonormal up to a diagonal factor: E1 is a selection in all uses here
     return t
 
 
@@ -323,8 +322,14 @@ def solve_qb_lmi(problem: QBProblem, alpha: float, solver: str | None = None, p_
         raise QBInfeasibleError(f"QB design at alpha={alpha:g}: solver {solver} returned a P that is not "
                                 f"positive definite (status {status!r})") from exc
     L = np.linalg.solve(Pv, Yv)  # eq. 9
-    return QBSolution(alpha=float(alpha), P=Pv, Y=Yv, X=Xv, L=L, Pz=pz, log_volume=log_vol, status=status,
-                      solver=solver, solve_seconds=seconds)
+    sol = QBSolution(alpha=float(alpha), P=Pv, Y=Yv, X=Xv, L=L, Pz=pz, log_volume=log_vol, status=status,
+                     solver=solver, solve_seconds=seconds)
+    res = lmi_residuals(pr, sol)
+    if res["lmi7_max_eig"] > 1e-5 * res["lmi7_scale"] or res["decay_margin"] > 1e-5 * max(alpha, 1.0):
+        raise QBInfeasibleError(f"QB design at alpha={alpha:g}: solver {solver} ({status}) returned a point "
+                                f"violating LMI (7): max eig {res['lmi7_max_eig']:.3g} (scale "
+                                f"{res['lmi7_scale']:.3g}), decay margin {res['decay_margin']:.3g}")
+    return sol
 
 
 # ------------------------------------------------------- trade-off (eqs. 21-25) ----

@@ -164,7 +164,7 @@ class QBObserver(Observer):
             warnings.warn(f"QB gain {Path(str(gain_file or DEFAULT_GAIN)).name}: its noise ellipsoid Q2 was "
                           f"designed for m = {m_d} kg, used here with m = {self.mass} kg; for guarantees design "
                           f"for this vehicle (fawtgym reproduce qb --design-for <preset>)", stacklevel=2)
-        self._disc: dict[float, tuple[NDArray[np.float64], ...]] = {}
+        self._disc: dict[float, NDArray[np.float64]] = {}
         self._x: NDArray[np.float64] | None = None
         self._y: NDArray[np.float64] | None = None
         self._R: NDArray[np.float64] | None = None
@@ -210,15 +210,20 @@ class QBObserver(Observer):
         n_b = self._x.shape[0]
         if R.shape[0] != n_b:
             raise ValueError(f"batch size changed from {n_b} (reset) to {R.shape[0]}; reset again")
-        f = np.broadcast_to(f, (n_b,))
-        tau = np.broadcast_to(tau, (n_b, 3))
+        if f.shape != (n_b,):
+            f = np.broadcast_to(f, (n_b,))
+        if tau.shape != (n_b, 3):
+            tau = np.broadcast_to(tau, (n_b, 3))
         key = float(dt)
-        if key not in self._disc:
-            self._disc[key] = discretize(self.gain, key)
-        phi, gu, gy0, gy1 = self._disc[key]
+        stacked = self._disc.get(key)
+        if stacked is None:
+            phi, gu, gy0, gy1 = discretize(self.gain, key)
+            # x+ = Phi x + Gu u + Gy0 y_prev + Gy1 (y - y_prev), as one product with [x, u, y_prev, y]
+            stacked = np.vstack([phi.T, gu.T, (gy0 - gy1).T, gy1.T])
+            self._disc[key] = stacked
         u = momentum_input(self.mass, self.gravity, 0.5 * (self._R + R), f, tau)
         y = self._y_of(meas, f)
-        x = self._x @ phi.T + u @ gu.T + self._y @ gy0.T + (y - self._y) @ gy1.T
+        x = np.concatenate([self._x, u, self._y, y], axis=1) @ stacked
         if not np.all(np.isfinite(x)):
             raise FloatingPointError("QB observer state became non-finite")
         self._x, self._y, self._R = x, y, R.copy()
