@@ -223,3 +223,28 @@ def test_full_reproduction(tmp_path):
                  "qb_summary.md", "qb_fig4.png", "qb_fig7.png"):
         assert (tmp_path / name).is_file()
     assert s["max_rel_lmi7"] < 1e-6 and s["max_decay_margin"] <= 0
+
+
+def test_runs_in_the_hover_env_with_its_measurement_and_applied_inputs():
+    """Batch-first use at the env's control rate: info['measurement'] and info['applied'] as given by
+    fawtgym/Hover-v0 (ENV_API.md), constant external wrench plus the env's own aero forces."""
+    gym = pytest.importorskip("gymnasium")
+    import fawtgym  # noqa: F401  (registers the env ids)
+
+    if "fawtgym/Hover-v0" not in gym.registry:
+        pytest.skip("hover env not registered in this build")
+    env = gym.make("fawtgym/Hover-v0", vehicle="hummingbird", wind="calm", init_noise=0.0, sensors="none")
+    _, info = env.reset(seed=0)
+    u = env.unwrapped
+    u.set_external_wrench(np.array([0.3, -0.2, 0.1]), np.array([0.005, -0.004, 0.002]))
+    obs = make_observer("qb", u.preset.mass, u.preset.inertia_matrix)
+    obs.reset(info["measurement"], thrust=u.preset.mass * GRAVITY)
+    a = u.hover_action()
+    for _ in range(150):
+        _, _, term, trunc, info = env.step(a)
+        assert not (term or trunc), info.get("failure")
+        est = obs.update(info["measurement"], info["applied"]["thrust"], info["applied"]["torque"], u.dt)
+    f_true, t_true = np.asarray(info["truth"]["force"]), np.asarray(info["truth"]["torque"])
+    assert np.linalg.norm(est.force[0] - f_true) < 0.1 * np.linalg.norm(f_true) + 0.02, (est.force, f_true)
+    np.testing.assert_allclose(est.torque[0], t_true, atol=5e-4)
+    env.close()
