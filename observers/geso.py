@@ -255,8 +255,15 @@ class GESO(Observer):
     Options (defaults in brackets): ``order`` in 1..4 [3, the paper's recommendation, Sec. VII],
     ``bandwidth`` w_b [20 rad/s, Table 2]; each may be a number or a mapping
     ``{"force": ..., "torque": ...}``; ``channels`` ["force", "torque"]; ``hold`` "zoh" | "foh"
-    ["zoh"]; ``rate_key`` which measured rate feeds the torque channel ["angular_velocity"; or
+    ["foh"]; ``rate_key`` which measured rate feeds the torque channel ["angular_velocity"; or
     "gyro"].
+
+    Both holds are exact discretizations of eq. 22; they differ in what is assumed about y between
+    samples.  ``"zoh"``: u* and y held at their start-of-step values (classical sampled data; y
+    then lags by dt/2).  ``"foh"`` (default): u* held (the applied thrust/torque averaged over the
+    step, its state-dependent part at the mean of the two measurements), y linear between the
+    previous and the new measurement, which the update receives anyway; at 100-250 Hz this is
+    several times more accurate (tests/test_obs2_geso_discrete.py).
 
     ``states``: ``"velocity"`` (N, 3) and ``"force_derivatives"`` (N, n-1, 3) for the force
     channel; ``"angular_velocity"`` (N, 3) and ``"torque_derivatives"`` (N, n-1, 3) for the
@@ -265,7 +272,7 @@ class GESO(Observer):
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *,
                  order: int | Mapping[str, int] = 3, bandwidth: float | Mapping[str, float] = 20.0,
-                 channels: str | Iterable[str] = CHANNELS, hold: str = "zoh",
+                 channels: str | Iterable[str] = CHANNELS, hold: str = "foh",
                  rate_key: str = M.ANGULAR_VELOCITY) -> None:
         super().__init__(mass, inertia, gravity)
         chans = _parse_channels(channels)
@@ -337,21 +344,25 @@ class GESO(Observer):
                              "set at reset") from None
         out = {"force": np.zeros((n_batch, 3)), "torque": np.zeros((n_batch, 3))}
         states: dict[str, NDArray[np.float64]] = {}
-        for chan, filt in self.filters.items():
-            y_new, aux_new = self._signals(chan, meas)
+        signals = {chan: self._signals(chan, meas) for chan in self.filters}  # validate all before any change
+        for y_new, _ in signals.values():
             if y_new.shape[0] != n_batch:
                 raise ValueError(f"measurement batch size {y_new.shape[0]} != {n_batch} set at reset")
+        new_x = {}
+        for chan, filt in self.filters.items():
+            y_new, aux_new = signals[chan]
             y_old, aux_old = self._prev[chan]
             if self.hold == "zoh":
                 u = self._u_star(chan, aux_old, f, tau)
-                x = filt.step(self._x[chan], u, y_old, dt, "zoh")
+                new_x[chan] = filt.step(self._x[chan], u, y_old, dt, "zoh")
             else:
                 u = self._u_star(chan, 0.5 * (aux_old + aux_new), f, tau)
-                x = filt.step(self._x[chan], u, y_old, dt, "foh", y_next=y_new)
-            if not np.all(np.isfinite(x)):
+                new_x[chan] = filt.step(self._x[chan], u, y_old, dt, "foh", y_next=y_new)
+            if not np.all(np.isfinite(new_x[chan])):
                 raise ValueError(f"GESO {chan} state became non-finite (check dt={dt} and the inputs)")
+        for chan, x in new_x.items():
             self._x[chan] = x
-            self._prev[chan] = (y_new, aux_new)
+            self._prev[chan] = signals[chan]
             out[chan] = x[..., 1].copy()
             if chan == "force":
                 states["velocity"] = x[..., 0] / self.mass
