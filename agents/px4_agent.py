@@ -4,14 +4,15 @@
 mc_rate_control -> control_allocator) on the env's measurements and outputs the env's ``"motors"``
 action.  ``PX4ObserverAgent`` adds the feedforward of seed-000 Sec. 7.2 (ffts_eso_tse3_fawt_wang2024.txt)
 
-    F = F0 - phi_hat   (in the position loop: a_sp <- a_sp - phi_hat / m, before thrust/attitude generation)
-    tau = tau0 - tau_hat   (after the rate PID: c_tau <- c_tau - tau_hat / torque_scale)
+    F = F0 - phi_hat       (position loop output: thr <- thr0 - phi_hat / thrust_scale, before thrust -> attitude)
+    tau = tau0 - tau_hat   (rate loop output:     c_tau <- c_tau0 - tau_hat / torque_scale)
 
 where ``phi_hat`` [N, world NED] and ``tau_hat`` [N m, body FRD] come from any registered observer and
-``torque_scale`` [N m per normalized unit] is derived from the vehicle preset in
-:mod:`fawtgym.agents.px4_allocation` (``2 l T_max`` roll/pitch, ``4 k_M T_max`` yaw).  The force path
-uses PX4's own hover-thrust scaling (``thrust = (a - g e3) Th / g``), so with ``Th = m g / (4 T_max)``
-the subtracted acceleration ``phi_hat / m`` is exactly a force of ``phi_hat`` newtons.
+``thrust_scale`` [N per unit] = ``4 T_max`` and ``torque_scale`` [N m per unit] = ``(2 l T_max, 2 l T_max,
+4 k_M T_max)`` are derived from the vehicle preset in :mod:`fawtgym.agents.px4_allocation`.  The
+feedforward thrust vector is tilt- and magnitude-limited like PX4's own (``MPC_TILTMAX_AIR``,
+``MPC_THR_MIN/MAX``).  PX4's internal state (velocity integrator, its anti-windup, the hover-thrust
+estimator) sees only the baseline ``F0``, as in the paper's "additional term" on top of unchanged PX4.
 
 Loop rates.  ``act`` is called once per env step (``control_rate`` Hz, the env's control rate).
 The rate loop, attitude loop and position loop each run when their own period has elapsed
@@ -23,9 +24,10 @@ v1.13).  The gyro is low-passed by a 2nd-order Butterworth at ``IMU_GYRO_CUTOFF`
 uses the Butterworth-filtered (``IMU_DGYRO_CUTOFF``) derivative of the raw gyro, as PX4's
 VehicleAngularVelocity; the velocity D term uses a 5 Hz (``MPC_VELD_LP``) filtered derivative.
 
-Hover thrust.  PX4 estimates it online (``MPC_USE_HTE``); this agent uses the value derived from the
-preset, ``Th = m g / (4 T_max)`` (0.275 for the s500), to which that estimator converges in calm
-hover.  Pass ``hover_thrust=`` to use another value (e.g. ``params["MPC_THR_HOVER"]``).
+Hover thrust.  Initialized from the preset, ``Th = m g / (4 T_max)`` (0.275 for the s500; pass
+``hover_thrust=`` for another value, e.g. ``params["MPC_THR_HOVER"]``) and, with ``MPC_USE_HTE = 1``
+(PX4's default), re-estimated online by PX4's hover-thrust EKF (:mod:`fawtgym.agents.px4_hover_thrust`)
+from the accelerometer and the baseline thrust setpoint.
 """
 
 from __future__ import annotations
@@ -44,8 +46,9 @@ from .base import Agent, applied_from_info, match_batch, measurement_from_info
 from .px4_allocation import QuadXAllocation
 from .px4_attitude_control import AttitudeControl
 from .px4_filters import Butterworth2, FilteredDerivative
+from .px4_hover_thrust import HoverThrustEstimator
 from .px4_params import PX4Params
-from .px4_position_control import PositionControl, thrust_to_attitude
+from .px4_position_control import PositionControl, apply_force_feedforward, thrust_to_attitude
 from .px4_rate_control import RateControl
 
 _SAT_EPS = 1e-6
@@ -109,6 +112,8 @@ class PX4Agent(Agent):
         self.allocation = QuadXAllocation(self.preset)
         th = self.preset.mass * GRAVITY / self.allocation.thrust_scale if hover_thrust is None else hover_thrust
         self.position_control = PositionControl(self.params, hover_thrust=th)
+        self.use_hte = bool(self.params["MPC_USE_HTE"])
+        self.hover_thrust_estimator = HoverThrustEstimator(self.params, hover_thrust=th)
         self.attitude_control = AttitudeControl(self.params)
         self.rate_control = RateControl(self.params)
         self.setpoint = np.array(FAWT_HOVER_POINT_NED if setpoint is None else setpoint, dtype=float)
@@ -143,6 +148,8 @@ class PX4Agent(Agent):
         n = meas["position"].shape[0]
         self._n = n
         self.position_control.reset(n)
+        self.hover_thrust_estimator.reset(n)
+        self._thr0: NDArray[np.float64] | None = None
         self.rate_control.reset(n)
         fs = self.control_rate
         self._gyro_lpf = Butterworth2(fs, self.params["IMU_GYRO_CUTOFF"])
@@ -191,10 +198,19 @@ class PX4Agent(Agent):
         pos_dt = self._loops["position"].tick(dt)
         if pos_dt is not None:
             vel = meas["velocity"]
+            if self.use_hte and "specific_force" in meas and self._thr0 is not None:
+                # vertical acceleration (up positive) from the accelerometer: a = R f_sp + g e3
+                acc_up = -(np.einsum("nj,nj->n", meas["attitude"][:, 2, :], meas["specific_force"]) + GRAVITY)
+                th = self.hover_thrust_estimator.update(acc_up, -self._thr0[:, 2], vel, pos_dt)
+                self.position_control.update_hover_thrust(th)
             vel_dot = self._vel_deriv.update(vel, pos_dt)
-            offset = None if force_hat is None else -force_hat / self.preset.mass
-            self._thr_sp = self.position_control.update(meas["position"], vel, vel_dot, self._setpoint, pos_dt,
-                                                        acc_offset=offset)
+            thr0 = self.position_control.update(meas["position"], vel, vel_dot, self._setpoint, pos_dt)
+            self._thr0 = thr0
+            if force_hat is not None:
+                pc = self.position_control
+                thr0 = apply_force_feedforward(thr0, force_hat, self.allocation.thrust_scale, pc.lim_tilt,
+                                               pc.lim_thr_min, pc.lim_thr_max)
+            self._thr_sp = thr0
             self._att_sp, _ = thrust_to_attitude(self._thr_sp, np.full(n, self.yaw_setpoint))
         if self._loops["attitude"].tick(dt) is not None:
             self._rate_sp = self.attitude_control.update(meas["attitude"], self._att_sp)

@@ -63,6 +63,13 @@ PARAM_SPECS: dict[str, ParamSpec] = {
     "MPC_THR_HOVER": ParamSpec(0.5, 0.1, 0.8, "norm", "hover thrust (the agent derives it from the preset)"),
     "MPC_THR_XY_MARG": ParamSpec(0.3, 0.0, 0.5, "norm", "horizontal thrust margin kept under vertical priority"),
     "MPC_VELD_LP": ParamSpec(5.0, 0.0, 10.0, "Hz", "low-pass cut-off of the velocity derivative (D term)"),
+    "MPC_USE_HTE": ParamSpec(1, 0, 1, "bool", "use the hover-thrust estimator", integer=True),
+    # ---- mc_hover_thrust_estimator ---------------------------------------------------------
+    "HTE_HT_NOISE": ParamSpec(0.0036, 0.0001, 1.0, "norm", "hover-thrust process noise"),
+    "HTE_ACC_GATE": ParamSpec(3.0, 1.0, 10.0, "SD", "gate size of the acceleration innovation"),
+    "HTE_HT_ERR_INIT": ParamSpec(0.1, 0.0, 1.0, "norm", "initial 1-sigma hover-thrust uncertainty"),
+    "HTE_VXY_THR": ParamSpec(10.0, 1.0, 20.0, "m/s", "horizontal speed above which the estimator pauses"),
+    "HTE_VZ_THR": ParamSpec(2.0, 1.0, 10.0, "m/s", "vertical speed above which the estimator pauses"),
     # ---- mc_att_control: attitude loop -----------------------------------------------------
     "MC_ROLL_P": ParamSpec(6.5, 0.0, 12.0, "1/s", "roll attitude P gain"),
     "MC_PITCH_P": ParamSpec(6.5, 0.0, 12.0, "1/s", "pitch attitude P gain"),

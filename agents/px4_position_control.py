@@ -13,9 +13,9 @@ The law, as PX4 v1.13 implements it (re-derived, world NED, normalized thrust):
    horizontal tracking anti-windup (Rundqwist 1990) with gain ``2 / K_vp``; ``|i_z| <= g``.
 6. thrust vector + yaw -> attitude setpoint (``bodyz_to_attitude``).
 
-Observer feedforward (seed-000 Sec. 7.2, ffts_eso_tse3_fawt_wang2024.txt, F = F0 - phi_hat): the
-commanded force ``F0 = m (a_sp - g e3)`` becomes ``F0 - phi_hat``, i.e. ``a_sp <- a_sp - phi_hat / m``
-before step 3, so the thrust vector includes the estimated disturbance; pass it as ``acc_offset``.
+The observer feedforward of seed-000 Sec. 7.2 (F = F0 - phi_hat) is applied to this law's output
+thrust vector by the agent (:func:`apply_force_feedforward`), so the baseline law, its anti-windup and
+the hover-thrust estimator see exactly PX4's own F0.
 """
 
 from __future__ import annotations
@@ -119,7 +119,9 @@ class PositionControl:
         ht = p["MPC_THR_HOVER"] if hover_thrust is None else hover_thrust
         if not (math.isfinite(ht) and 0.0 < ht < 1.0):
             raise ValueError(f"hover_thrust must be in (0, 1) (normalized collective thrust), got {ht!r}")
-        self.hover_thrust = float(ht)
+        self.initial_hover_thrust = float(ht)
+        #: hover thrust per vehicle (N,)
+        self.hover_thrust = np.full(1, self.initial_hover_thrust)
         self.vel_int = np.zeros((1, 3))
         # last outputs, for logging and tests
         self.vel_sp = np.zeros((1, 3))
@@ -127,17 +129,27 @@ class PositionControl:
         self.thr_sp = np.zeros((1, 3))
 
     def reset(self, n: int = 1) -> None:
-        """Zero the integrator for ``n`` vehicles."""
+        """Zero the integrator and restore the initial hover thrust for ``n`` vehicles."""
         self.vel_int = np.zeros((n, 3))
+        self.hover_thrust = np.full(n, self.initial_hover_thrust)
+        self.acc_sp = np.zeros((n, 3))
+
+    def update_hover_thrust(self, hover_thrust_new: ArrayLike) -> None:
+        """PositionControl::updateHoverThrust: new hover thrust (N,), integrator shifted so the thrust is continuous.
+
+        From ``T = a Th / g - Th``: ``a' = (a - g) Th / Th' + g``, and ``a' - a`` is added to the z integrator.
+        """
+        new = np.broadcast_to(np.asarray(hover_thrust_new, dtype=float), self.hover_thrust.shape)
+        ok = np.isfinite(new) & (new > _EPS)
+        a_z = self.acc_sp[:, 2]
+        shift = (a_z - GRAVITY) * self.hover_thrust / np.where(ok, new, 1.0) + GRAVITY - a_z
+        self.vel_int[:, 2] += np.where(ok, shift, 0.0)
+        self.hover_thrust = np.where(ok, new, self.hover_thrust)
 
     def update(self, position: ArrayLike, velocity: ArrayLike, velocity_dot: ArrayLike, position_sp: ArrayLike,
-               dt: float, velocity_ff: ArrayLike | None = None, acceleration_ff: ArrayLike | None = None,
-               acc_offset: ArrayLike | None = None) -> NDArray[np.float64]:
-        """One position/velocity step; all vectors (N, 3) NED; returns the thrust vector setpoint (N, 3).
-
-        ``acc_offset`` (N, 3) is added to the acceleration setpoint before the thrust computation and
-        anti-windup (the observer feedforward ``-phi_hat / m``).
-        """
+               dt: float, velocity_ff: ArrayLike | None = None,
+               acceleration_ff: ArrayLike | None = None) -> NDArray[np.float64]:
+        """One position/velocity step; all vectors (N, 3) NED; returns the thrust vector setpoint (N, 3)."""
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
         pos = np.atleast_2d(np.asarray(position, dtype=float))
@@ -159,8 +171,6 @@ class PositionControl:
         # ---- velocity PID (PositionControl::_velocityControl)
         vel_err = vel_sp - vel
         acc_sp = a_ff + vel_err * self.gain_vel_p + self.vel_int - vel_dot * self.gain_vel_d
-        if acc_offset is not None:
-            acc_sp = acc_sp + np.broadcast_to(np.asarray(acc_offset, dtype=float), acc_sp.shape)
         thr_sp = self._acceleration_control(acc_sp)
 
         # vertical anti-windup: freeze when saturated in the error's direction
@@ -180,7 +190,7 @@ class PositionControl:
         thr_sp = np.concatenate([thr_xy * scale[:, None], thr_z[:, None]], axis=1)
 
         # horizontal tracking anti-windup (Rundqwist 1990), gain 2 / K_vp
-        acc_xy_produced = thr_sp[:, :2] * (GRAVITY / self.hover_thrust)
+        acc_xy_produced = thr_sp[:, :2] * (GRAVITY / self.hover_thrust)[:, None]
         arw_gain = 2.0 / self.gain_vel_p[0]
         acc_xy = acc_sp[:, :2]
         acc_limited_xy = np.where((_norm(acc_xy) ** 2 > _norm(acc_xy_produced) ** 2)[:, None], acc_xy_produced, acc_xy)
@@ -202,3 +212,20 @@ class PositionControl:
         collective = collective / body_z[:, 2]
         collective = np.minimum(collective, -self.lim_thr_min)
         return body_z * collective[:, None]
+
+
+def apply_force_feedforward(thrust_sp: ArrayLike, force_hat: ArrayLike, thrust_scale: float, max_tilt: float,
+                            thr_min: float, thr_max: float) -> NDArray[np.float64]:
+    """F = F0 - phi_hat (seed-000 Sec. 7.2) on PX4's normalized thrust vector, then PX4's limits again.
+
+    ``thrust_sp`` (N, 3) normalized NED thrust vector F0 / thrust_scale, ``force_hat`` (N, 3) the estimated
+    disturbance force [N] world NED, ``thrust_scale`` [N per unit] (``4 T_max``).  The result is tilt-limited
+    to ``max_tilt`` [rad] and its magnitude kept in ``[thr_min, thr_max]``.
+    """
+    thr = np.asarray(thrust_sp, dtype=float) - np.asarray(force_hat, dtype=float) / thrust_scale
+    n = _norm(thr)
+    body_z = -thr / np.where(n > 0, n, 1.0)[:, None]  # thrust acts along -body_z
+    body_z = np.where((n > 0)[:, None], body_z, np.array([0.0, 0.0, 1.0]))
+    body_z = limit_tilt(body_z, np.array([0.0, 0.0, 1.0]), max_tilt)
+    mag = np.clip(n, thr_min, thr_max)
+    return -body_z * mag[:, None]
