@@ -248,3 +248,15 @@ def test_runs_in_the_hover_env_with_its_measurement_and_applied_inputs():
     assert np.linalg.norm(est.force[0] - f_true) < 0.1 * np.linalg.norm(f_true) + 0.02, (est.force, f_true)
     np.testing.assert_allclose(est.torque[0], t_true, atol=5e-4)
     env.close()
+
+
+@pytest.mark.long
+def test_design_for_another_preset(tmp_path):
+    path = rq.design_for("s500", 0.5, tmp_path, quick=True)
+    g = load_gain(path)
+    assert g.meta["vehicle"] == "s500" and g.meta["mass"] == 1.0 and g.mu == 0.5
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # designed for this vehicle: no mass-mismatch warning
+        obs = make_observer("qb", 1.0, [0.03, 0.03, 0.06], gain_file=path)
+    obs.reset(_hover_meas(2, np.random.default_rng(0)))
+    assert obs.update(_hover_meas(2, np.random.default_rng(1)), 9.8, np.zeros(3), 0.01).force.shape == (2, 3)

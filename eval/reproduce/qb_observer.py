@@ -393,7 +393,7 @@ def design_for(preset: str, mu: float, out: Path, solver: str | None = None, qui
     path = g.save(out / f"qb_gain_{v.name}_mu{str(mu).replace('.', 'p')}.npz")
     print(f"designed QB gain for {v.name} (m = {v.mass} kg): mu = {mu:g}, alpha = {g.alpha:.4g}, "
           f"Vol = {math.exp(g.log_volume):.4g}; saved {path}\n"
-          f"use: make_observer('qb', {v.mass}, {list(np.diag(v.inertia_matrix))}, gain_file='{path}')")
+          f"use: make_observer('qb', {v.mass}, {[float(x) for x in np.diag(v.inertia_matrix)]}, gain_file='{path}')")
     return path
 
 
