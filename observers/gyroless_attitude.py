@@ -25,7 +25,7 @@ estimator has no true omega: :class:`GibbsSTSMO` takes it when given (``omega=..
 setting) and otherwise uses its own estimate omega_hat of eq. 80 (certainty equivalence), which is
 what the env estimator :class:`PdtStaAttitudeObserver` does.
 
-Discretization.  The time-varying term eta/(t_s - t) x1_tilde of eq. 77 is integrated exactly over a
+Discretization.  The time-varying term eta/(t_c - t) x1_tilde of eq. 77 is integrated exactly over a
 step with the measurement held (the transition of eq. 7, :func:`fawtgym.observers.pdt_sta.exact_linear_step`),
 so the step stays stable up to t_s for any dt; everything else is forward Euler as in the paper
 (Sec. 5, T_s = 1e-4 s).  ``integrator="euler"`` uses forward Euler for that term too (the paper).
@@ -43,7 +43,7 @@ from fawtgym.envs.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FOR
 
 from .base import Observer, ObserverEstimate, register_observer
 from .lie import hat, vee
-from .pdt_sta import check_params
+from .pdt_sta import check_params, switch_and_gain_times
 from .quest import quest
 
 _EYE = np.eye(3)
@@ -146,8 +146,9 @@ def _omega_fast(g: NDArray[np.float64], g_dot: NDArray[np.float64]) -> NDArray[n
 class GibbsSTSMO:
     """Batch super-twisting observer of (g, g') from a Gibbs-vector measurement (eqs. 75-77 / 81-82).
 
-    ``mode="predefined"``: sigma = eta/(t_s - t) x1_tilde for t < t_s, kappa1 x1_tilde/||x1_tilde||^(1/2)
-    afterwards, t_s = ``t_switch`` (eq. 44's t_e) or ``t_c`` (eq. 77).  ``mode="conventional"``: the
+    ``mode="predefined"``: sigma = eta/(t_d - t) x1_tilde for t < t_s, kappa1 x1_tilde/||x1_tilde||^(1/2)
+    afterwards, t_s = ``t_switch`` (eq. 44's t_e) or ``t_c`` (eq. 77); t_d = t_c, or t_s with
+    ``early_form="eq44"`` (eq. 44 as printed; see :mod:`fawtgym.observers.pdt_sta`).  ``mode="conventional"``: the
     STA term from the start (eq. 81).  Eq. 76/82: x2_hat' = 1/2 [Gamma'(x1_hat) omega + Gamma(x1_hat)
     J^-1 (J omega x omega + u + kappa2 x1_tilde/||x1_tilde||)].  Time t counts from :meth:`reset`.
     Parameters follow the paper's Table 1 / Sec. 5 by default (t_c = 1.5 s, eta = 5, kappa1 = 1,
@@ -156,7 +157,7 @@ class GibbsSTSMO:
 
     def __init__(self, inertia: ArrayLike, t_c: float = 1.5, eta: float = 5.0, kappa1: float = 1.0,
                  kappa2: float = 1.5, mode: str = "predefined", t_switch: float | None = None,
-                 integrator: str = "exact") -> None:
+                 integrator: str = "exact", early_form: str = "tc") -> None:
         if mode not in ("predefined", "conventional"):
             raise ValueError(f"mode must be 'predefined' or 'conventional', got {mode!r}")
         if integrator not in ("exact", "euler"):
@@ -172,7 +173,9 @@ class GibbsSTSMO:
         self.J_inv = np.linalg.inv(J)
         self.t_c, self.eta, self.kappa1, self.kappa2 = float(t_c), float(eta), float(kappa1), float(kappa2)
         self.mode, self.integrator = mode, integrator
-        self.t_s = float(t_c if t_switch is None else t_switch) if mode == "predefined" else 0.0
+        t_s, t_d = switch_and_gain_times(float(t_c), t_switch, early_form)
+        self.t_s = t_s if mode == "predefined" else 0.0
+        self.t_d = t_d
         self.x1: NDArray[np.float64] = np.zeros((1, 3))
         self.x2: NDArray[np.float64] = np.zeros((1, 3))
         self.t: NDArray[np.float64] = np.zeros(1)
@@ -210,13 +213,13 @@ class GibbsSTSMO:
             x1_new = x1 + dt * (x2 + sta)
         elif self.integrator == "euler":
             tv = (self.t_s - t) > 1e-6 * dt  # a clock within rounding of t_s counts as switched
-            gain = np.where(tv, self.eta / np.where(tv, self.t_s - t, 1.0), 0.0)[:, None]
+            gain = np.where(tv, self.eta / np.where(tv, self.t_d - t, 1.0), 0.0)[:, None]
             x1_new = x1 + dt * (x2 + np.where(tv[:, None], gain * e1, sta))
         else:
             h1 = np.clip(self.t_s - t, 0.0, dt)
             h2 = (dt - h1)[:, None]
             if np.any(h1 > 0):
-                tau0 = np.maximum(self.t_s - t, 1e-300)
+                tau0 = np.maximum(self.t_d - t, 1e-300)
                 r = ((tau0 - h1) / tau0)[:, None]
                 phi = r**self.eta  # eq. 7 transition (see pdt_sta.exact_linear_step)
                 psi = (tau0 - h1)[:, None] * (1.0 - r ** (self.eta - 1.0)) / (self.eta - 1.0)
@@ -243,8 +246,14 @@ class PdtStaAttitudeObserver(Observer):
     omega_hat (N, 3) (eq. 80), ``states["attitude_quest"]`` (the static QUEST attitude) and
     ``states["gibbs"]``.  It estimates no disturbance: force and torque are zeros, ``channels`` is empty.
 
-    Defaults (all documented, paper Sec. 5): t_c = 1.5 s, eta = 5, kappa1 = 1, kappa2 = 1.5,
-    ``noise_bound`` ell = 0 (t_e = t_c; with ell > 0 the switch is eq. 43's t_e = t_c - eta ell),
+    Defaults: t_c = 1.5 s and eta = 5 (paper Sec. 5); ``noise_bound`` ell = 0 (t_e = t_c; with ell > 0
+    the switch is eq. 43's t_e = t_c - eta ell).  The gains are NOT the paper's (kappa1, kappa2) =
+    (1, 1.5): those were tuned for J = diag(0.05, 0.05, 0.02) at T_s = 1e-4 s, and at env rates
+    (100-500 Hz) the STA phase after t_c falls into a large limit cycle (0.1 rad attitude, 2-5 rad/s
+    rate error measured with J = diag(0.03, 0.03, 0.06)).  Here the effective injection
+    1/2 kappa2 J^-1 of eq. 76 is sized instead: ``kappa2=None`` means kappa2 = 6 lambda_min(J) (largest
+    entry of 1/2 kappa2 J^-1 = 3 rad/s^2 =: L) and kappa1 = 2.5 ~ 1.5 sqrt(L) (the usual STA rule
+    k1 = 1.5 sqrt(L), k2 = 1.1 L).  Pass kappa1=1, kappa2=1.5 for the paper's values.
     ``mode="predefined"`` ("conventional" gives eqs. 81-82), QUEST weights (accelerometer,
     magnetometer) = (1, 1) (the paper uses the inverse noise levels), field ``EARTH_FIELD_NED``.
     Assumes small linear acceleration (the paper's v' = 0 of eq. 50): the accelerometer stands in
@@ -258,13 +267,15 @@ class PdtStaAttitudeObserver(Observer):
     channels = frozenset()
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, t_c: float = 1.5,
-                 eta: float = 5.0, kappa1: float = 1.0, kappa2: float = 1.5, noise_bound: float = 0.0,
+                 eta: float = 5.0, kappa1: float = 2.5, kappa2: float | None = None, noise_bound: float = 0.0,
                  mode: str = "predefined", weights: tuple[float, float] = (1.0, 1.0),
                  magnetic_field: ArrayLike = EARTH_FIELD_NED, reanchor: float = 1.0) -> None:
         super().__init__(mass, inertia, gravity)
         from .pdt_sta import early_switch_time
 
         t_switch = early_switch_time(t_c, eta, noise_bound) if noise_bound > 0 else None
+        if kappa2 is None:
+            kappa2 = 6.0 * float(np.linalg.eigvalsh(self.inertia).min())
         self.core = GibbsSTSMO(self.inertia, t_c, eta, kappa1, kappa2, mode, t_switch)
         w = np.asarray(weights, dtype=float)
         if w.shape != (2,) or not np.all(np.isfinite(w)) or np.any(w <= 0):

@@ -19,6 +19,13 @@ area X = {|x2(t)| <= kappa2 (t_c - t)} gives the gain conditions (30) and (36)
 t_e = t_c - eta * ell (:func:`early_switch_time`), and sigma_e of eq. 44 (:func:`sigma`,
 ``t_switch=t_e``); eq. 39 bounds x1 (:func:`xi_bound`).
 
+Two readings of eq. 44.  As printed, sigma_e = eta/(t_e - t) x1 on [t0, t_e): the singular instant
+just moves to t_e, and the gain still goes to infinity there.  The text around it (eqs. 42-43: t_e is
+where the gain eta/(t_c - t) reaches 1/ell; "the states will not converge to the origin at the
+switching instant, but to a vicinity of it") describes keeping eta/(t_c - t) and switching to the
+STA term at t_e, where the gain is the finite 1/ell.  ``early_form="tc"`` (default) implements the
+text; ``early_form="eq44"`` the formula as printed.
+
 The paper writes Theorem 2 with t0 = 0; here every time is measured from t0 (t -> t - t0), which is
 the same result for any t0.  eta is an integer >= 3 in the paper; the formulas only need eta > 2,
 but we keep the paper's eta >= 3 (Corollary 1) and accept any real value >= 3.
@@ -66,32 +73,41 @@ def check_params(t_c: float, eta: float, kappa2: float | None = None, kappa1: fl
 # --------------------------------------------------------------------------------------------------
 # right-hand side, eqs. 20-22 and 44
 # --------------------------------------------------------------------------------------------------
+def switch_and_gain_times(t_c: float, t_switch: float | None, early_form: str) -> tuple[float, float]:
+    """(t_s, t_d): the switching instant and the instant in the gain eta/(t_d - t) (see module doc)."""
+    if early_form not in ("tc", "eq44"):
+        raise ValueError(f"early_form must be 'tc' (the text of Sec. 3.1) or 'eq44' (as printed), got {early_form!r}")
+    t_s = t_c if t_switch is None else float(t_switch)
+    if not t_s <= t_c:
+        raise ValueError(f"t_switch must be <= t_c = {t_c}, got {t_switch!r}")
+    return t_s, (t_c if early_form == "tc" else t_s)
+
+
 def sigma(t: float, x1: ArrayLike, t_c: float, eta: float, kappa1: float,
-          t_switch: float | None = None) -> NDArray[np.float64]:
+          t_switch: float | None = None, early_form: str = "tc") -> NDArray[np.float64]:
     """The stabilizing function sigma of eq. 20, or sigma_e of eq. 44 when ``t_switch`` = t_e < t_c.
 
-    For t < t_s (t_s = t_switch or t_c): eta / (t_s - t) * x1; afterwards the STA term
-    kappa1 |x1|^(1/2) sign(x1).  Note eq. 44 divides by (t_e - t) (it moves the singular instant to
-    t_e); this follows the paper.
+    For t < t_s (t_s = t_switch or t_c): eta / (t_d - t) * x1 with t_d = t_c (``early_form="tc"``) or
+    t_d = t_s (``"eq44"``, eq. 44 as printed); afterwards the STA term kappa1 |x1|^(1/2) sign(x1).
     """
-    t_s = t_c if t_switch is None else float(t_switch)
-    if t_s > t_c:
-        raise ValueError(f"t_switch must be <= t_c = {t_c}, got {t_switch!r}")
+    t_s, t_d = switch_and_gain_times(t_c, t_switch, early_form)
     x1 = np.asarray(x1, dtype=float)
     if t < t_s:
-        return eta / (t_s - t) * x1
+        return eta / (t_d - t) * x1
     return kappa1 * np.sqrt(np.abs(x1)) * np.sign(x1)
 
 
 def modified_sta_rhs(t_c: float, eta: float, kappa1: float, kappa2: float, t_switch: float | None = None,
-                     delta: Callable[[float], float] | None = None) -> Callable[[float, ArrayLike], NDArray]:
+                     delta: Callable[[float], float] | None = None,
+                     early_form: str = "tc") -> Callable[[float, ArrayLike], NDArray]:
     """f(t, x) of eqs. 21-22 (scalar x = (x1, x2)) for :func:`scipy.integrate.solve_ivp`."""
     check_params(t_c, eta, kappa2, kappa1)
 
     def rhs(t: float, x: ArrayLike) -> NDArray[np.float64]:
         x1, x2 = float(x[0]), float(x[1])
         d = 0.0 if delta is None else float(delta(t))
-        return np.array([-float(sigma(t, x1, t_c, eta, kappa1, t_switch)) + x2, -kappa2 * np.sign(x1) + d])
+        return np.array([-float(sigma(t, x1, t_c, eta, kappa1, t_switch, early_form)) + x2,
+                         -kappa2 * np.sign(x1) + d])
 
     return rhs
 
@@ -354,16 +370,15 @@ def xi_bound(t: ArrayLike, x1_0: float, t_c: float, eta: float, kappa2: float, t
 
 def simulate_scalar(x0: tuple[float, float], t_end: float, h: float, t_c: float, eta: float, kappa1: float,
                     kappa2: float, t_switch: float | None = None, delta: Callable[[float], float] | None = None,
-                    noise: NDArray[np.float64] | None = None) -> tuple[NDArray, NDArray, NDArray]:
+                    noise: NDArray[np.float64] | None = None,
+                    early_form: str = "tc") -> tuple[NDArray, NDArray, NDArray]:
     """Fixed-step simulation of eqs. 21-22 (with eq. 40-41 noise on x1 inside sigma and sign, eq. 44).
 
     The time-varying phase uses :func:`exact_linear_step`; after the switch, forward Euler (as the
     paper's simulations).  ``noise`` (len = steps) is v of eq. 41.  Returns t, x1, x2.
     """
     check_params(t_c, eta, kappa2, kappa1)
-    t_s = t_c if t_switch is None else float(t_switch)
-    if t_s > t_c:
-        raise ValueError(f"t_switch must be <= t_c = {t_c}, got {t_switch!r}")
+    t_s, t_d = switch_and_gain_times(t_c, t_switch, early_form)
     n = int(round(t_end / h))
     if noise is not None and len(noise) < n:
         raise ValueError(f"noise needs at least {n} samples, got {len(noise)}")
@@ -380,8 +395,8 @@ def simulate_scalar(x0: tuple[float, float], t_end: float, h: float, t_c: float,
         d = 0.0 if delta is None else float(delta(tk))
         h1 = min(h, max(t_s - tk, 0.0))
         if h1 > 0:
-            # x1' = -eta/(t_s - t)(x1 + v) + x2: exact step towards -v (eq. 7 transition, see exact_linear_step)
-            tau0 = t_s - tk
+            # x1' = -eta/(t_d - t)(x1 + v) + x2: exact step towards -v (eq. 7 transition, see exact_linear_step)
+            tau0 = t_d - tk
             tau1 = max(tau0 - h1, 0.0)
             r = tau1 / tau0
             x1 = -v + r**eta * (x1 + v) + tau1 * (1.0 - r ** (eta - 1.0)) / (eta - 1.0) * x2

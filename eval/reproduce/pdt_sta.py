@@ -19,7 +19,7 @@ as the env estimator ``pdt_sta``).
 
 Outputs in ``--out`` (default ``runs/reproduce/pdt_sta``): ``example1.csv``, ``sec5.csv``,
 ``summary.md`` (claims vs ours) and the figures ``fig3_ptc.png``, ``fig5.png`` ... ``fig9.png``.
-``--quick`` shortens the study (T_s = 1e-3 s, t_f = 2.5 s) for the fast tests.
+``--quick`` shortens the study (T_s = 1e-3 s, t_f = 2 s, figures 3 and 5 only) for the fast tests.
 """
 
 from __future__ import annotations
@@ -85,6 +85,7 @@ class Sec5Case:
     noise: bool = False
     early: bool = False
     integrator: str = "euler"
+    early_form: str = "tc"
     claim: str = ""
 
 
@@ -95,6 +96,8 @@ CASES = (
     Sec5Case("fig8", 1.5, noise=True, claim="noise: errors depart from the origin at t_c (high-gain problem)"),
     Sec5Case("fig9", 1.5, noise=True, early=True,
              claim="noise + early switch t_e = 1.3268 s: no departure, bounded neighbourhood"),
+    Sec5Case("fig9_eq44", 1.5, noise=True, early=True, early_form="eq44",
+             claim="(ours) fig9 with eq. 44 as printed, eta/(t_e - t)"),
     Sec5Case("fig8_exact", 1.5, noise=True, integrator="exact",
              claim="(ours) fig8 with the exact eq.-7 step for eta/(t_c - t): no departure"),
 )
@@ -145,7 +148,8 @@ def run_case(case: Sec5Case, ts: float = 1e-4, t_f: float = 3.0, omega_source: s
     # eq. 43's t_e, on the integration grid as the paper's 1.3268 s (Euler steps then end on it exactly)
     t_sw = math.floor(P.early_switch_time(case.t_c, 5.0, NOISE_BOUND) / ts + 1e-9) * ts if case.early else case.t_c
     obs = GibbsSTSMO(J_TABLE1, t_c=case.t_c, eta=5.0, kappa1=1.0, kappa2=1.5, mode=case.mode,
-                     t_switch=t_sw if case.early else None, integrator=case.integrator)
+                     t_switch=t_sw if case.early else None, integrator=case.integrator,
+                     early_form=case.early_form)
     obs.reset(G_HAT0[None], G_HAT_DOT0[None])
     u = known_torque(t)
     wf = omega_ref(t)
@@ -161,8 +165,9 @@ def run_case(case: Sec5Case, ts: float = 1e-4, t_f: float = 3.0, omega_source: s
 def metrics(res: Sec5Result, g_tol: float = 1e-4, w_tol: float = 0.1) -> dict[str, float]:
     """Errors at t_c, the neighbourhood after it, the jump at the switch, and the settling instant.
 
-    ``departure`` = max omega error in [t_s, t_s + 0.1] / max in [t_s - 0.1, t_s) (t_s the switching
-    instant): > 1 when the error grows at the switch (Fig. 8's high-gain problem).  ``settle_time``: from
+    ``departure`` = the larger of (max g error in [t_s, t_s + 0.1]) / (max g error for t > t_c + 0.25 s)
+    and the same ratio for the omega error (t_s the switching instant): how far the errors rise at the
+    switch above the neighbourhood they settle in (Fig. 8's high-gain problem gives > 1.5).  ``settle_time``: from
     then on ||g_err|| < g_tol and ||w_err|| < w_tol.
     """
     t, ge, we = res.t, res.g_err, res.w_err
@@ -184,21 +189,23 @@ def metrics(res: Sec5Result, g_tol: float = 1e-4, w_tol: float = 0.1) -> dict[st
                 g_err_max_late=float(ge[late].max()) if late.any() else math.nan,
                 w_err_max_late=float(we[late].max()) if late.any() else math.nan,
                 w_err_max_pre_switch=float(we[pre].max()), w_err_max_post_switch=float(we[post].max()),
-                departure=float(we[post].max() / max(we[pre].max(), 1e-300)),
+                g_err_max_post_switch=float(ge[post].max()),
+                departure=float(max(ge[post].max() / max(ge[late].max(), 1e-300),
+                                    we[post].max() / max(we[late].max(), 1e-300))) if late.any() else math.nan,
                 settle_time=settle, t_switch=ts_)
 
 
 def claim_holds(name: str, m: dict[str, float]) -> bool:
     """Our yes/no reading of each claim (criteria stated in summary.md)."""
     if name in ("fig5", "fig6"):
-        return (m["g_err_tc"] < 1e-3 * m["g_err_0"] and m["g_err_half_tc"] > 10 * m["g_err_tc"]
-                and m["w_err_max_late"] < 0.1)
+        return (m["g_err_tc"] < 1e-5 * m["g_err_0"] and m["g_err_half_tc"] > 100 * m["g_err_tc"]
+                and m["g_err_max_after_tc"] < 1e-3 and m["w_err_max_after_tc"] < 0.3)
     if name == "fig7":
         return abs(m["settle_time"] - 1.6) <= 0.2
     if name == "fig8":
-        return m["departure"] > 2.0
-    if name in ("fig9", "fig8_exact"):
-        return m["departure"] < 2.0 and m["g_err_max_late"] < 1e-2 and m["w_err_max_late"] < 0.5
+        return m["departure"] > 1.5
+    if name in ("fig9", "fig9_eq44", "fig8_exact"):
+        return m["departure"] < 1.5 and m["g_err_max_late"] < 1e-2 and m["w_err_max_late"] < 0.5
     raise ValueError(f"no claim for {name!r}")
 
 
@@ -300,7 +307,7 @@ def run_all(out: pathlib.Path, quick: bool = False, omega_source: str = "forcing
         w.writerow(["t_e (43) [s], ell = sqrt(3)*0.02", EX1_CLAIMS["t_e"], f"{ex['t_e']:.4f}"])
         for k, v in ex.items():
             w.writerow([k, "", f"{v:.6g}"])
-    ts, t_f = (1e-3, 2.5) if quick else (1e-4, 3.0)
+    ts, t_f = (1e-3, 2.0) if quick else (1e-4, 3.0)
     n = int(round(t_f / ts))
     t = np.arange(n + 1) * ts
     g, w = simulate_truth(t)
@@ -329,10 +336,14 @@ def run_all(out: pathlib.Path, quick: bool = False, omega_source: str = "forcing
              f"| max abs(analytic - solve_ivp) to t1, kappa2 = 8 / 12 | - | {ex['analytic_vs_ivp_k8']:.2e} / "
              f"{ex['analytic_vs_ivp_k12']:.2e} |", "",
              "## Sec. 5, Figs. 5-9", "",
-             "Criteria: fig5/6 g err at t_c < 1e-3 g err(0), > 10x smaller than at t_c/2, late omega err "
-             "< 0.1 rad/s; fig7 settle within 0.2 s of 1.6 s (settle: g err < 1e-4 and omega err < 0.1 rad/s "
-             "from then on); fig8 departure (max omega err 0.1 s after the switch / 0.1 s before) > 2; fig9 "
-             "departure < 2 and late errors (t > t_c + 0.25 s) < 1e-2 / 0.5 rad/s.", "",
+             *(["**Quick mode: T_s = 1e-3 s is 10x the paper's step; the paper's gains chatter much more there, so "
+                "the yes/no column below is only meaningful in the full run.**", ""] if quick else []),
+             "Criteria: fig5/6 g err at t_c < 1e-5 g err(0) and > 100x smaller than at t_c/2, and after t_c "
+             "g err < 1e-3 and omega err < 0.3 rad/s (the band of the discrete STA's chattering); "
+             "fig7 settle within 0.2 s of 1.6 s (settle: g err < 1e-4 and omega err < 0.1 rad/s from then on); "
+             "fig8 departure > 1.5 (departure: the larger of max g err and max omega err in the 0.1 s after the "
+             "switch, each over its max for t > t_c + 0.25 s); fig9 departure < 1.5 and late errors "
+             "(t > t_c + 0.25 s) < 1e-2 / 0.5 rad/s.", "",
              "| fig | integrator | claim | holds | g err at t_c | w err at t_c | max g err t>t_c+0.25 | "
              "max w err t>t_c+0.25 | departure | settle [s] |",
              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
@@ -345,14 +356,15 @@ def run_all(out: pathlib.Path, quick: bool = False, omega_source: str = "forcing
     if figures:
         _fig3(out / "fig3_ptc.png")
         for name, r in results.items():
-            _fig_sec5(r, out / f"{name}.png")
+            if not quick or name == "fig5":  # quick: one Sec.-5 figure
+                _fig_sec5(r, out / f"{name}.png")
     return dict(example1=ex, sec5=mets)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fawtgym reproduce pdt-sta", description=__doc__.split("\n")[0])
     parser.add_argument("--out", default="runs/reproduce/pdt_sta", help="output folder")
-    parser.add_argument("--quick", action="store_true", help="T_s = 1e-3 s, t_f = 2.5 s (for tests)")
+    parser.add_argument("--quick", action="store_true", help="T_s = 1e-3 s, t_f = 2 s, two figures (for tests)")
     parser.add_argument("--omega", choices=("forcing", "estimate"), default="forcing",
                         help="angular velocity used in eq. 76: the paper's omega(t) or the estimate (eq. 80)")
     parser.add_argument("--no-figures", action="store_true")

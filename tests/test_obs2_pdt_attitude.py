@@ -1,0 +1,196 @@
+"""Gibbs kinematics (eqs. 45-55, 80), the STSMO (75-77, 81-82) and the env estimator ``pdt_sta``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from fawtgym.envs.measurement import EARTH_FIELD_NED
+from fawtgym.observers import make_observer
+from fawtgym.observers.gyroless_attitude import (
+    GibbsSTSMO,
+    gamma,
+    gamma_inv,
+    gibbs_accel,
+    gibbs_matrix,
+    gibbs_rate,
+    gibbs_to_rot,
+    omega_from_gibbs,
+    rigid_body_rhs,
+    rot_to_gibbs,
+)
+from fawtgym.observers.lie import exp_so3, hat, log_so3
+
+J = np.diag([0.05, 0.05, 0.02])
+
+
+def _w(t: float) -> np.ndarray:
+    return np.array([np.sin(t), 0.5 * np.cos(2 * t), 0.3])
+
+
+def test_gibbs_matrix_is_rt_and_round_trips() -> None:
+    R = exp_so3(np.random.default_rng(0).normal(size=(20, 3)))
+    g = rot_to_gibbs(R)
+    assert np.abs(gibbs_to_rot(g) - R).max() < 1e-12
+    assert np.abs(gibbs_matrix(g) - np.swapaxes(R, 1, 2)).max() < 1e-12  # D^{b/g} = R^T
+    phi = log_so3(R)
+    th = np.linalg.norm(phi, axis=1, keepdims=True)
+    assert np.abs(g - np.tan(th / 2) * phi / th).max() < 1e-10  # g = tan(theta/2) axis
+    assert np.abs(np.einsum("nij,njk->nik", gamma(g), gamma_inv(g)) - np.eye(3)).max() < 1e-12
+
+
+def test_kinematics_eq47_matches_rotation_kinematics() -> None:
+    """g' = 1/2 Gamma(g) omega integrates to the same attitude as R' = R omega^ (body rate, FRD)."""
+    g0 = np.array([0.11, 0.09, 0.11])
+    sg = solve_ivp(lambda t, g: gibbs_rate(g, _w(t)), (0, 2), g0, rtol=1e-12, atol=1e-12)
+    sr = solve_ivp(lambda t, r: (r.reshape(3, 3) @ hat(_w(t))).ravel(), (0, 2), gibbs_to_rot(g0).ravel(),
+                   rtol=1e-12, atol=1e-12)
+    assert np.abs(gibbs_to_rot(sg.y[:, -1]) - sr.y[:, -1].reshape(3, 3)).max() < 1e-9
+    g = sg.y[:, -1]
+    assert np.allclose(omega_from_gibbs(g, gibbs_rate(g, _w(2.0))), _w(2.0), atol=1e-12)  # eq. 80
+
+
+def test_gibbs_accel_eq52_matches_finite_difference() -> None:
+    u = np.array([0.01, -0.02, 0.005])
+    d = np.array([0.0, 0.01, 0.0])
+
+    def rhs(t: float, x: np.ndarray) -> np.ndarray:
+        return np.concatenate([gibbs_rate(x[:3], x[3:]), rigid_body_rhs(x[3:], J, u + d)])
+
+    x0 = np.concatenate([[0.1, -0.2, 0.3], [0.5, -0.4, 1.0]])
+    h = 1e-5
+    sol = solve_ivp(rhs, (0, 2 * h), x0, t_eval=[0, h, 2 * h], rtol=1e-13, atol=1e-14, method="DOP853")
+    gd = np.array([gibbs_rate(sol.y[:3, k], sol.y[3:, k]) for k in range(3)])
+    fd = (gd[2] - gd[0]) / (2 * h)
+    g1, w1 = sol.y[:3, 1], sol.y[3:, 1]
+    assert np.allclose(gibbs_accel(g1, gd[1], w1, J, u, d), fd, atol=1e-7)
+
+
+def _sec5_case(tc: float, mode: str, t_f: float, ts: float):  # shortened Sec. 5, noise-free
+    from fawtgym.eval.reproduce import pdt_sta as R
+
+    case = R.Sec5Case("t", tc, mode=mode, integrator="exact")
+    return R.run_case(case, ts, t_f)
+
+
+def test_predefined_observer_converges_by_tc() -> None:
+    """Fig. 6 setting (t_c = 0.5 s), T_s = 1e-4 s: the attitude error collapses at t_c."""
+    res = _sec5_case(0.5, "predefined", 0.65, 1e-4)
+    k = int(round(0.5 / 1e-4))
+    assert res.g_err[0] > 0.3
+    assert res.g_err[k // 2] > 1e-2
+    assert res.g_err[k] < 1e-4  # at t_c
+    assert res.g_err[k:].max() < 1e-3 and res.w_err[k + 500:].max() < 0.3  # stays in a small neighbourhood
+    assert res.w_err[k // 2] > 0.5
+
+
+def test_core_validation() -> None:
+    with pytest.raises(ValueError, match="mode"):
+        GibbsSTSMO(J, mode="fast")
+    with pytest.raises(ValueError, match="eta"):
+        GibbsSTSMO(J, eta=1.0)
+    with pytest.raises(ValueError, match="t_switch"):
+        GibbsSTSMO(J, t_c=1.0, t_switch=2.0)
+    with pytest.raises(ValueError, match="inertia"):
+        GibbsSTSMO(np.diag([1.0, -1.0, 1.0]))
+    o = GibbsSTSMO(J)
+    o.reset(np.zeros((1, 3)))
+    with pytest.raises(ValueError, match="dt"):
+        o.step(np.zeros((1, 3)), np.zeros(3), 0.0)
+
+
+# ---- the env estimator -------------------------------------------------------------------------
+def _imu(R: np.ndarray, gravity: float = 9.80665) -> dict[str, np.ndarray]:
+    rt = np.swapaxes(R, -1, -2)
+    return {"specific_force": rt @ np.array([0.0, 0.0, -gravity]), "magnetometer": rt @ EARTH_FIELD_NED}
+
+
+def _fly(obs, R0: np.ndarray, omega_fn, t_f: float, dt: float, rng: np.random.Generator | None = None):
+    """Rotate rigidly with a prescribed body rate (kinematics only), feed the IMU, log errors.
+
+    ``update`` with the sample at t_k integrates over [t_k, t_k + dt]: its estimate is compared with
+    the truth at t_k + dt.
+    """
+    n = R0.shape[0]
+    R = R0.copy()
+    obs.reset(_imu(R))
+    att, werr = [], []
+    steps = int(round(t_f / dt))
+    for k in range(steps):
+        R = R @ exp_so3(omega_fn(k * dt, n) * dt)
+        meas = _imu(R)
+        if rng is not None:
+            meas = {key: v + 0.002 * rng.normal(size=v.shape) * np.linalg.norm(v, axis=-1, keepdims=True)
+                    for key, v in meas.items()}
+        est = obs.update(meas, np.full(n, 10.0), np.zeros((n, 3)), dt)
+        w_next = omega_fn((k + 1) * dt, n)
+        R_next = R @ exp_so3(w_next * dt)
+        att.append(np.linalg.norm(log_so3(np.swapaxes(est.states["attitude"], 1, 2) @ R_next), axis=-1))
+        werr.append(np.linalg.norm(est.states["angular_velocity"] - w_next, axis=-1))
+    return np.array(att), np.array(werr), est
+
+
+def _slow_rate(t: float, n: int) -> np.ndarray:
+    return np.tile(0.2 * np.array([np.sin(0.5 * np.pi * t), np.cos(0.5 * np.pi * t), -0.5]), (n, 1))
+
+
+def test_env_estimator_defaults_and_interface() -> None:
+    obs = make_observer("pdt_sta", 1.0, [0.03, 0.03, 0.06])
+    assert obs.channels == frozenset()
+    R0 = exp_so3(np.array([[0.1, -0.2, 2.5]]))  # yaw 2.5 rad: works relative to the reset anchor
+    dt = 0.005
+    att, werr, est = _fly(obs, R0, _slow_rate, 2.5, dt)
+    assert est.force.shape == (1, 3) and np.all(est.force == 0) and np.all(est.torque == 0)
+    assert est.states["attitude"].shape == (1, 3, 3) and est.states["angular_velocity"].shape == (1, 3)
+    k = int(round(1.5 / dt))
+    assert att[k:].max() < 3e-3 and att[k + 100:].max() < 3e-4  # rad, noise-free, after t_c = 1.5 s
+    assert werr[k + 40:].max() < 0.15  # rad/s (discrete STA chattering at 200 Hz)
+    assert werr[: k // 3].max() > 3 * werr[k + 40:].max()  # it did have to converge
+
+
+def test_env_estimator_reanchors_through_large_yaw() -> None:
+    obs = make_observer("pdt_sta", 1.0, [0.03, 0.03, 0.06], t_c=0.5)
+
+    def spin(t: float, n: int) -> np.ndarray:
+        return np.tile(np.array([0.0, 0.0, 1.5]), (n, 1))  # 4.5 rad of yaw in 3 s, through the half turn
+
+    att, werr, _ = _fly(obs, np.eye(3)[None], spin, 3.0, 0.005)
+    assert np.all(np.isfinite(att)) and att[160:].max() < 5e-3 and werr[160:].max() < 0.2
+
+
+def test_env_estimator_batch_equals_separate_runs() -> None:
+    R0 = exp_so3(np.array([[0.1, 0.0, 0.3], [-0.2, 0.1, -1.0], [0.0, 0.3, 0.0]]))
+
+    def rates(t: float, n: int) -> np.ndarray:
+        return np.array([[0.2, 0.1, -0.1], [0.0, -0.3, 0.2], [0.1, 0.1, 0.1]])[:n] * np.cos(t)
+
+    batch = make_observer("pdt_sta", 1.0, [0.03, 0.03, 0.06], t_c=0.3)
+    a_b, w_b, est_b = _fly(batch, R0, rates, 0.5, 0.004)
+    for i in range(3):
+        one = make_observer("pdt_sta", 1.0, [0.03, 0.03, 0.06], t_c=0.3)
+
+        def rate_i(t: float, n: int, i: int = i) -> np.ndarray:
+            return rates(t, 3)[i:i + 1]
+
+        a_1, w_1, est_1 = _fly(one, R0[i:i + 1], rate_i, 0.5, 0.004)
+        assert np.allclose(est_1.states["attitude"][0], est_b.states["attitude"][i], atol=1e-12)
+        assert np.allclose(est_1.states["angular_velocity"][0], est_b.states["angular_velocity"][i], atol=1e-10)
+
+
+def test_env_estimator_bounded_with_noise() -> None:
+    obs = make_observer("pdt_sta", 1.0, [0.03, 0.03, 0.06], noise_bound=0.01)  # t_e = 1.5 - 0.05
+    att, werr, _ = _fly(obs, np.eye(3)[None], _slow_rate, 2.5, 0.005, np.random.default_rng(0))
+    assert np.all(np.isfinite(att)) and att[320:].max() < 0.02 and werr[320:].max() < 1.0
+
+
+def test_env_estimator_bad_input() -> None:
+    with pytest.raises(ValueError, match="weights"):
+        make_observer("pdt_sta", 1.0, [0.03, 0.03, 0.06], weights=(1.0, 0.0))
+    with pytest.raises(ValueError, match="t_e"):
+        make_observer("pdt_sta", 1.0, [0.03, 0.03, 0.06], noise_bound=1.0)
+    with pytest.raises(ValueError, match="magnetic_field"):
+        make_observer("pdt_sta", 1.0, [0.03, 0.03, 0.06], magnetic_field=[0, 0, 1.0])
+    obs = make_observer("pdt_sta", 1.0, [0.03, 0.03, 0.06])
+    with pytest.raises(ValueError, match="magnetometer"):
+        obs.reset({"specific_force": np.array([0.0, 0.0, -9.8])})
