@@ -71,6 +71,11 @@ class AeroModel:
         # Omega (N, 3) @ X (3, 15) = [Omega x c, Omega x r_1, ..., Omega x r_4]; Omega x r = -r^ Omega
         self._x = np.hstack([(-_hat(p)).T for p in (self.cop, *r)])
         self._cop_hat_t = _hat(self.cop).T
+        # plain-float copies for the N = 1 path
+        self._kd, self._kr = k_d, k_r
+        self._rp = [tuple(row) for row in r.tolist()]
+        self._c = tuple(self.cop.tolist())
+        self._d = tuple(self.body_drag.tolist())
 
     def wrench(self, rotation: NDArray[np.float64], velocity: NDArray[np.float64],
                angular_velocity: NDArray[np.float64], rotor_speeds: NDArray[np.float64],
@@ -81,6 +86,9 @@ class AeroModel:
         FRD, ``rotor_speeds`` (N, 4) rad/s, ``wind`` (N, 5, 3) NED at [CoM, rotor 1..4].
         """
         n = velocity.shape[0]
+        if n == 1 and self.n_rotors == 4 and wind.shape == (1, 5, 3) and rotation.shape == (1, 3, 3) \
+                and angular_velocity.shape == (1, 3) and rotor_speeds.shape == (1, 4):
+            return self._wrench_single(rotation, velocity, angular_velocity, rotor_speeds, wind)
         if wind.shape != (n, self.n_rotors + 1, 3) or rotation.shape != (n, 3, 3) \
                 or angular_velocity.shape != (n, 3) or rotor_speeds.shape != (n, self.n_rotors):
             raise ValueError(f"AeroModel.wrench shapes must be rotation ({n},3,3), velocity ({n},3), angular_velocity "
@@ -100,6 +108,47 @@ class AeroModel:
             raise ValueError("aerodynamic wrench is not finite: check rotation, velocity, angular_velocity, "
                              "rotor_speeds and wind for NaN/inf")
         return force_ned, torque
+
+    def _wrench_single(self, rotation: NDArray[np.float64], velocity: NDArray[np.float64],
+                       angular_velocity: NDArray[np.float64], rotor_speeds: NDArray[np.float64],
+                       wind: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """N = 1 path in plain float arithmetic (same model; small numpy ops cost more than the math here)."""
+        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rotation[0].tolist()
+        vx, vy, vz = velocity[0].tolist()
+        wp, wq, wr = angular_velocity[0].tolist()
+        om = rotor_speeds[0].tolist()
+        w = wind[0].tolist()
+        k_d, k_r = self._kd, self._kr
+        fx = fy = tx = ty = tz = 0.0
+        for i, (px, py, pz) in enumerate(self._rp):
+            dx, dy, dz = w[i + 1][0] - vx, w[i + 1][1] - vy, w[i + 1][2] - vz
+            ax = r00 * dx + r10 * dy + r20 * dz - (wq * pz - wr * py)
+            ay = r01 * dx + r11 * dy + r21 * dz - (wr * px - wp * pz)
+            kw, mw = k_d * om[i], k_r * om[i]
+            gx, gy = kw * ax, kw * ay
+            fx += gx
+            fy += gy
+            tx += mw * ay - pz * gy
+            ty += pz * gx - mw * ax
+            tz += px * gy - py * gx
+        cx, cy, cz = self._c
+        dx, dy, dz = w[0][0] - vx, w[0][1] - vy, w[0][2] - vz
+        ax = r00 * dx + r10 * dy + r20 * dz - (wq * cz - wr * cy)
+        ay = r01 * dx + r11 * dy + r21 * dz - (wr * cx - wp * cz)
+        az = r02 * dx + r12 * dy + r22 * dz - (wp * cy - wq * cx)
+        nrm = math.sqrt(ax * ax + ay * ay + az * az)
+        bx, by, bz = self._d[0] * ax * nrm, self._d[1] * ay * nrm, self._d[2] * az * nrm
+        tx += cy * bz - cz * by
+        ty += cz * bx - cx * bz
+        tz += cx * by - cy * bx
+        fx += bx
+        fy += by
+        fz = bz
+        force = [[r00 * fx + r01 * fy + r02 * fz, r10 * fx + r11 * fy + r12 * fz, r20 * fx + r21 * fy + r22 * fz]]
+        if not math.isfinite(force[0][0] + force[0][1] + force[0][2] + tx + ty + tz):
+            raise ValueError("aerodynamic wrench is not finite: check rotation, velocity, angular_velocity, "
+                             "rotor_speeds and wind for NaN/inf")
+        return np.array(force), np.array([[tx, ty, tz]])
 
 
 def hover_drag(preset: VehiclePreset, airspeed: float | NDArray[np.float64]) -> NDArray[np.float64]:

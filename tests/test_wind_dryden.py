@@ -154,3 +154,14 @@ def test_rates_variance_matches_spectrum():
 def test_bad_parameters_raise(kwargs, word):
     with pytest.raises(ValueError, match=word):
         DrydenParams(**kwargs)
+
+
+def test_expm_small_matches_scipy():
+    import scipy.linalg
+
+    from fawtgym.envs.wind.dryden import expm_small
+
+    for rates in (False, True):
+        a = DrydenProcess(DrydenParams(sigma=(1.0, 1.0, 1.0), length=(0.015, 0.02, 0.01)), rates=rates).a
+        for d in (1e-5, 1e-3, 0.08, 1.0, 30.0):
+            np.testing.assert_allclose(expm_small(a * d), scipy.linalg.expm(a * d), rtol=1e-10, atol=1e-13)

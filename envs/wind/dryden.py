@@ -128,12 +128,16 @@ def dryden_psd(params: DrydenParams, component: str, freq_hz: NDArray[np.float64
 
 
 def _second_order(sig: float, gain_len: float, zero: float, pole: float) -> tuple[NDArray, NDArray, NDArray]:
-    """Realization of ``sig sqrt(gain_len) (1 + zero s) / (1 + pole s)^2`` (controllable form)."""
-    # (1 + pole s)^2 = pole^2 s^2 + 2 pole s + 1 ; divide by pole^2
-    a = np.array([[0.0, 1.0], [-1.0 / pole**2, -2.0 / pole]])
-    b = np.array([[0.0], [1.0]])
-    k = sig * math.sqrt(gain_len) / pole**2
-    c = np.array([[k, k * zero]])
+    """Realization of ``sig sqrt(gain_len) (1 + zero s) / (1 + pole s)^2`` as two first-order lags in series.
+
+    ``z1' = (n - z1) / pole``, ``z2' = (z1 - z2) / pole``, ``y = K ((1 - zero / pole) z2 + (zero / pole) z1)``:
+    the entries of ``A`` are ``1 / pole`` (a companion form would have ``1 / pole^2`` and be badly scaled
+    for the centimetre length scales of the FAWT).
+    """
+    a = np.array([[-1.0 / pole, 0.0], [1.0 / pole, -1.0 / pole]])
+    b = np.array([[1.0 / pole], [0.0]])
+    k = sig * math.sqrt(gain_len)
+    c = np.array([[k * zero / pole, k * (1.0 - zero / pole)]])
     return a, b, c
 
 
@@ -149,8 +153,8 @@ def spatial_state_space(params: DrydenParams, rates: bool = False) -> tuple[NDAr
     outs_c: list[NDArray] = []
     # u: first order
     blocks_a.append(np.array([[-1.0 / lu]]))
-    blocks_b.append((0, np.array([[1.0]])))
-    outs_c.append(np.array([[su * math.sqrt(2.0 * lu) / lu]]))
+    blocks_b.append((0, np.array([[1.0 / lu]])))
+    outs_c.append(np.array([[su * math.sqrt(2.0 * lu)]]))
     for sig, length, col in ((sv, lv, 1), (sw, lw, 2)):
         if params.form == "8785c":
             a, b, c = _second_order(sig, length, math.sqrt(3.0) * length, length)
@@ -166,8 +170,8 @@ def spatial_state_space(params: DrydenParams, rates: bool = False) -> tuple[NDAr
         tp = 4.0 * span / math.pi
         gain_p = math.sqrt(math.pi * 0.8) * sw * (math.pi / (4.0 * span)) ** (1.0 / 6.0) * lw ** (-1.0 / 3.0)
         blocks_a.append(np.array([[-1.0 / tp]]))
-        blocks_b.append((3, np.array([[1.0]])))
-        outs_c.append(np.array([[gain_p / tp]]))
+        blocks_b.append((3, np.array([[1.0 / tp]])))
+        outs_c.append(np.array([[gain_p]]))
     n = sum(a.shape[0] for a in blocks_a)
     big_a = scipy.linalg.block_diag(*blocks_a)
     big_b = np.zeros((n, n_in))
@@ -200,9 +204,32 @@ def spatial_state_space(params: DrydenParams, rates: bool = False) -> tuple[NDAr
     return a_ext, b_ext, big_c
 
 
+def expm_small(m: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Matrix exponential of a small matrix by scaling and squaring of a degree-18 Taylor series.
+
+    Used at run time instead of ``scipy.linalg.expm``, whose LAPACK path spends milliseconds of CPU in
+    multi-threaded BLAS on a busy machine for a 5 x 5 matrix; for ``||m / 2^s||_1 <= 1/4`` the truncation
+    error is below 1e-23 (tested against scipy).
+    """
+    norm = float(np.abs(m).sum(axis=0).max())
+    s = max(0, int(math.ceil(math.log2(norm / 0.25)))) if norm > 0 else 0
+    x = m / 2.0**s
+    eye = np.eye(m.shape[0])
+    e = eye.copy()
+    for k in range(18, 0, -1):
+        e = eye + (x @ e) / k
+    for _ in range(s):
+        e = e @ e
+    return e
+
+
 def _psd_sqrt(q: NDArray[np.float64]) -> NDArray[np.float64]:
-    """S with S S^T = q for a symmetric positive semi-definite q (eigen-decomposition, clipped)."""
+    """S with S S^T = q for a symmetric positive semi-definite q (Cholesky, else clipped eigen-decomposition)."""
     q = 0.5 * (q + q.T)
+    try:
+        return np.linalg.cholesky(q)
+    except np.linalg.LinAlgError:
+        pass
     w, v = np.linalg.eigh(q)
     return v * np.sqrt(np.clip(w, 0.0, None))
 
@@ -251,7 +278,7 @@ class DrydenProcess:
         if self._filled[idx]:
             return self._dense[idx]
         dq = math.exp((idx + self._k0) * _BIN)
-        ad = scipy.linalg.expm(self.a * dq)
+        ad = expm_small(self.a * dq)
         if self.discretization == "exact":
             s = _psd_sqrt(self.p_stat - ad @ self.p_stat @ ad.T)
         else:

@@ -143,6 +143,26 @@ def fawt_profile(p_fawt: NDArray[np.float64], x_ref: float = HOTWIRE_X) -> tuple
     return factor, weight
 
 
+_ORIGIN = tuple(FAWT_ORIGIN_NED.tolist())
+_F_REF = 0.25 * (1 + math.erf(HALF_SPAN * _SREF)) * (1 + math.erf(HALF_HEIGHT * _SREF))
+_CORE_REF = 1.0 + DECAY_KAPPA * HOTWIRE_X
+assert np.allclose(R_FAWT_TO_NED, np.diag([1.0, -1.0, -1.0]))  # used by the float path below
+
+
+def _profile_point(x: float, y: float, z: float) -> tuple[float, float]:
+    """:func:`fawt_profile` for one point (FAWT frame, reference x = hot wire), in float arithmetic."""
+    if x <= 0.0:
+        return 0.0, 0.0
+    xs = max(x, 1e-3)
+    s = GOERTLER_SIGMA / xs
+    ey = (HALF_SPAN - abs(y)) * s
+    ez = (HALF_HEIGHT - abs(z)) * s
+    fy = 0.5 + 0.5 * math.erf(ey)
+    fz = 0.5 + 0.5 * math.erf(ez)
+    core = _CORE_REF / (1.0 + DECAY_KAPPA * xs)
+    return fy * fz * core / _F_REF, max(math.exp(-ey * ey) * fz, math.exp(-ez * ez) * fy) * core * core
+
+
 def check_points(points_ned: NDArray[np.float64], velocity_ned: NDArray[np.float64], n: int) -> None:
     """ValueError naming the bad value if points (N, K, 3) or velocities (N, 3) are malformed or not finite."""
     if points_ned.ndim != 3 or points_ned.shape[0] != n or points_ned.shape[2] != 3:
@@ -198,13 +218,14 @@ class FawtWind(WindModel):
         self.n = int(n)
         self.level = self.schedule.initial_level()
         self._t = 0.0
-        self.gust = np.zeros((self.n, 3))
 
     def step(self, t: float, dt: float, points_ned: NDArray[np.float64],
              vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
         """Wind (N, K, 3) NED at ``points_ned`` (N, K, 3) at time ``t`` (advanced by ``dt``); point 0 is the CoM."""
         if not (dt > 0 and math.isfinite(dt)):
             raise ValueError(f"dt must be a finite positive step [s], got {dt!r}")
+        if self.n == 1 and not self.rates:
+            return self._step_single(t, dt, points_ned, vehicle_velocity_ned)
         check_points(points_ned, vehicle_velocity_ned, self.n)
         self.level = self.schedule.advance(t - dt, t, self.level)
         self._t = t
@@ -235,8 +256,51 @@ class FawtWind(WindModel):
             out[..., 0] += sig * gust[..., 0]
             out[..., 1] -= sig * gust[..., 1]
             out[..., 2] -= sig * gust[..., 2]
-            self.gust = g
         return out
+
+    def _step_single(self, t: float, dt: float, points_ned: NDArray[np.float64],
+                     vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
+        """N = 1 path in plain float arithmetic: the same model as the vectorized path (tested equal)."""
+        if points_ned.ndim != 3 or points_ned.shape[0] != 1 or points_ned.shape[2] != 3 \
+                or vehicle_velocity_ned.shape != (1, 3):
+            check_points(points_ned, vehicle_velocity_ned, 1)
+        flat = points_ned.ravel().tolist()
+        vx, vy, vz = vehicle_velocity_ned[0].tolist()
+        if not math.isfinite(sum(flat) + vx + vy + vz):
+            check_points(points_ned, vehicle_velocity_ned, 1)
+        self.level = level = self.schedule.advance(t - dt, t, self.level)
+        self._t = t
+        scale = self.mean_speed * level
+        ox, oy, oz = _ORIGIN
+        sig_g, half_y, half_z, kappa, core_ref, f_ref = (GOERTLER_SIGMA, HALF_SPAN, HALF_HEIGHT, DECAY_KAPPA,
+                                                         _CORE_REF, _F_REF)
+        erf, exp = math.erf, math.exp
+        means, weights = [], []
+        for k in range(0, len(flat), 3):  # inlined _profile_point
+            x = flat[k] - ox
+            if x <= 0.0:
+                means.append(0.0)
+                weights.append(0.0)
+                continue
+            s = sig_g / x if x > 1e-3 else sig_g / 1e-3
+            ey = (half_y - abs(oy - flat[k + 1])) * s
+            ez = (half_z - abs(oz - flat[k + 2])) * s
+            fy = 0.5 + 0.5 * erf(ey)
+            fz = 0.5 + 0.5 * erf(ez)
+            core = core_ref / (1.0 + kappa * (x if x > 1e-3 else 1e-3))
+            means.append(scale * fy * fz * core / f_ref)
+            gy, gz = exp(-ey * ey) * fz, exp(-ez * ez) * fy
+            weights.append((gy if gy > gz else gz) * core * core)
+        if self.turbulence and level > 0.0:
+            rx = means[0] - vx
+            gu, gv, gw = self.process.step(dt, math.sqrt(rx * rx + vy * vy + vz * vz))[0, :3].tolist()
+            ti, sh = self.ti, (SHEAR_TI * scale) ** 2
+            out = []
+            for u, g in zip(means, weights, strict=True):
+                s = math.sqrt((ti * u) ** 2 + sh * g)
+                out.append([u + s * gu, -s * gv, -s * gw])
+            return np.array([out])
+        return np.array([[[u, 0.0, 0.0] for u in means]])
 
     def mean_wind_at(self, points_ned: Sequence[float] | NDArray[np.float64]) -> NDArray[np.float64]:
         """Mean wind (..., 3) NED at points (..., 3) for the current fan level (no turbulence)."""

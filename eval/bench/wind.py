@@ -1,0 +1,147 @@
+"""Benchmark: wind + aerodynamics update cost per step, single (N = 1) and batched (N = 1024).
+
+``fawtgym bench wind`` prints, measured in one run on this machine:
+
+* ``wind.step`` and ``AeroModel.wrench`` per call for N = 1 and N = 1024 (and per env);
+* the env step cost with ``wind="calm"`` and ``wind="fawt-50"``, alternating single steps so that
+  machine load affects both alike, and their ratio (target: the FAWT wind adds <= 20 %).  Both fly the hover
+  command open loop from the hover point; the FAWT env gets a constant external wrench cancelling the
+  mean aerodynamic wrench so that it stays near hover like the calm one (same physics being timed);
+* a numpy reference op (``a + b`` on a (1, 3) array) so numbers from loaded machines can be compared.
+
+Times are CPU time of this process (``time.process_time``), best of several repeats, so other jobs on
+a shared machine distort them less than wall-clock time.  The first env block of each wind is a
+warm-up (it fills the Dryden step-matrix table for the airspeeds met) and is not counted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from fawtgym.envs.aero import AeroModel
+from fawtgym.envs.frames import FAWT_HOVER_POINT_NED
+from fawtgym.envs.vehicles import make_vehicle
+from fawtgym.envs.wind import make_wind
+
+
+def _best_per_call(fn: Callable[[], object], calls: int, repeats: int = 5) -> float:
+    """Best-of-``repeats`` mean time per call [s] (the minimum is the least load-disturbed estimate)."""
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.process_time()
+        for _ in range(calls):
+            fn()
+        best = min(best, (time.process_time() - t0) / calls)
+    return best
+
+
+def wind_aero_costs(n: int, calls: int, preset: str = "fawt-50", vehicle: str = "s500") -> dict[str, float]:
+    """Per-call seconds of ``wind.step`` and ``aero.wrench`` with ``n`` vehicles hovering at the FAWT point."""
+    p = make_vehicle(vehicle)
+    wind = make_wind(preset)
+    wind.reset(n, seed=0)
+    aero = AeroModel(p)
+    pts = np.broadcast_to(np.vstack([FAWT_HOVER_POINT_NED, FAWT_HOVER_POINT_NED + p.rotor_positions]),
+                          (n, 5, 3)).copy()
+    vel = np.zeros((n, 3))
+    rot = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+    rate = np.zeros((n, 3))
+    omega = np.full((n, 4), p.hover_omega)
+    state = {"t": 0.0, "w": wind.step(0.01, 0.01, pts, vel)}
+
+    def step_wind() -> None:
+        state["t"] += 0.01
+        state["w"] = wind.step(state["t"], 0.01, pts, vel)
+
+    def step_aero() -> None:
+        aero.wrench(rot, vel, rate, omega, state["w"])
+
+    def both() -> None:
+        step_wind()
+        step_aero()
+
+    return {"wind": _best_per_call(step_wind, calls), "aero": _best_per_call(step_aero, calls),
+            "both": _best_per_call(both, calls)}
+
+
+def env_costs(steps: int, blocks: int) -> dict[str, float] | None:
+    """Per-step seconds of the hover env with calm and FAWT-50 wind, interleaved; None if the env is missing."""
+    try:
+        import gymnasium as gym
+
+        import fawtgym  # noqa: F401  (registers the ids)
+        envs = {name: gym.make("fawtgym/Hover-v0", wind=name, init_noise=0.0) for name in ("calm", "fawt-50")}
+    except Exception as exc:  # the env is written in parallel; report instead of failing
+        print(f"env benchmark skipped: {type(exc).__name__}: {exc}")
+        return None
+    p = make_vehicle("s500")
+    hover = (p.hover_omega - p.omega_min) / (p.omega_max - p.omega_min)
+    action = np.full(4, hover, dtype=np.float32)
+    totals = {name: [] for name in envs}
+    # cancel the FAWT mean drag with a constant external wrench so both envs fly the same near-hover states
+    # (otherwise the open-loop vehicle is blown away and the comparison times different physics)
+    fawt = make_wind("fawt-50")
+    fawt.reset(1, seed=0)
+    pts = np.vstack([FAWT_HOVER_POINT_NED, FAWT_HOVER_POINT_NED + p.rotor_positions])[None]
+    mean = fawt.mean_wind_at(pts)
+    f_mean, tau_mean = AeroModel(p).wrench(np.eye(3)[None], np.zeros((1, 3)), np.zeros((1, 3)),
+                                 np.full((1, 4), p.hover_omega), mean)
+
+    def reset(name: str) -> None:
+        envs[name].reset(seed=0)
+        if name == "fawt-50":
+            envs[name].unwrapped.set_external_wrench(-f_mean[0], -tau_mean[0])
+
+    for name in envs:
+        reset(name)
+    for _ in range(blocks):
+        t_sum = dict.fromkeys(envs, 0.0)
+        for _ in range(steps):  # alternate single steps so both envs see the same machine load
+            for name, env in envs.items():
+                t0 = time.process_time()
+                _, _, term, trunc, _ = env.step(action)
+                t_sum[name] += time.process_time() - t0
+                if term or trunc:
+                    reset(name)
+        for name in envs:
+            totals[name].append(t_sum[name] / steps)
+    for env in envs.values():
+        env.close()
+    return {name: float(np.median(v[1:] if len(v) > 1 else v)) for name, v in totals.items()}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="fawtgym bench wind", description=__doc__.split("\n")[0])
+    parser.add_argument("--calls", type=int, default=2000, help="calls per timing repeat for N = 1")
+    parser.add_argument("--batch", type=int, default=1024, help="batched N (default 1024)")
+    parser.add_argument("--env-steps", type=int, default=200, help="env steps per block")
+    parser.add_argument("--env-blocks", type=int, default=5, help="interleaved blocks per wind")
+    parser.add_argument("--no-env", action="store_true", help="skip the env comparison")
+    ns = parser.parse_args(argv)
+    a, b = np.zeros((1, 3)), np.ones((1, 3))
+    ref = _best_per_call(lambda: a + b, 20000)
+    print(f"numpy reference op (1,3)+(1,3): {ref * 1e6:.2f} us")
+    single = wind_aero_costs(1, ns.calls)
+    batch = wind_aero_costs(ns.batch, max(ns.calls // 20, 20))
+    print(f"{'':22s}{'N = 1 [us]':>12s}{f'N = {ns.batch} [us]':>16s}{'per env [us]':>14s}")
+    for key, label in (("wind", "wind.step (fawt-50)"), ("aero", "aero.wrench"), ("both", "wind + aero")):
+        print(f"{label:22s}{single[key] * 1e6:12.1f}{batch[key] * 1e6:16.1f}{batch[key] / ns.batch * 1e6:14.3f}")
+    print(f"wind + aero, N = 1, in numpy reference ops: {single['both'] / ref:.0f}")
+    if not ns.no_env:
+        env = env_costs(ns.env_steps, ns.env_blocks)
+        if env is not None:
+            ratio = env["fawt-50"] / env["calm"]
+            print(f"env step, calm:    {env['calm'] * 1e6:8.1f} us")
+            print(f"env step, fawt-50: {env['fawt-50'] * 1e6:8.1f} us")
+            verdict = "meets" if ratio <= 1.20 else "misses"
+            print(f"ratio fawt-50 / calm: {ratio:.3f}  (wind adds {100 * (ratio - 1):.1f} %; "
+                  f"{verdict} the <= 20 % target)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
