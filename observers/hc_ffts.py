@@ -165,6 +165,14 @@ class HCFFTSD:
         if not (np.isfinite(self.k3) and self.k3 > 0):
             raise ValueError(f"k3 must be a finite positive number (Theorem 1), got k3={self.k3!r}")
         hurwitz_matrix(self.k1, self.k2)
+        pm = lyapunov_p(self.k1, self.k2, np.asarray(self.q))
+        object.__setattr__(self, "_pm", pm)
+        lp = np.linalg.eigvalsh(pm)
+        lq = np.linalg.eigvalsh(np.asarray(self.q, dtype=float))
+        p = self.p
+        g1 = self.k3 * lq[0] / lp[-1]
+        g2 = lq[0] * lp[0] ** ((p - 1.0) / p) / lp[-1] * p / (3.0 * p - 2.0)
+        object.__setattr__(self, "_gammas", (float(g1), float(g2)))
 
     # ---- dynamics ----------------------------------------------------------------------
     def rhs(self, e1: ArrayLike, e2: ArrayLike, perturbation: ArrayLike | float = 0.0
@@ -178,24 +186,18 @@ class HCFFTSD:
     # ---- Lyapunov analysis ---------------------------------------------------------------
     @property
     def p_matrix(self) -> NDArray[np.float64]:
-        """P* of eq. (17) for this A* and Q*."""
-        return lyapunov_p(self.k1, self.k2, np.asarray(self.q))
+        """P* of eq. (17) for this A* and Q* (solved once, at construction)."""
+        return self._pm.copy()
 
     def gammas(self) -> tuple[float, float]:
-        """(gamma_1, gamma_2) of eq. (32)."""
-        pm = self.p_matrix
-        lp = np.linalg.eigvalsh(pm)
-        lq = np.linalg.eigvalsh(np.asarray(self.q, dtype=float))
-        p = self.p
-        g1 = self.k3 * lq[0] / lp[-1]
-        g2 = lq[0] * lp[0] ** ((p - 1.0) / p) / lp[-1] * p / (3.0 * p - 2.0)
-        return float(g1), float(g2)
+        """(gamma_1, gamma_2) of eq. (32): k3 lmin(Q)/lmax(P) and lmin(Q) lmin(P)^((p-1)/p) / lmax(P) p/(3p-2)."""
+        return self._gammas
 
     def lyapunov(self, e1: ArrayLike, e2: ArrayLike) -> NDArray[np.float64]:
         """V = zeta^T P zeta with zeta = [phi1(e1), e2], eq. (19); shape (...,)."""
         z1 = phi1(e1, self.k3, self.p)
         z2 = np.asarray(e2, dtype=float)
-        pm = self.p_matrix
+        pm = self._pm
         return (pm[0, 0] * np.sum(z1 * z1, -1) + 2 * pm[0, 1] * np.sum(z1 * z2, -1)
                 + pm[1, 1] * np.sum(z2 * z2, -1))
 
