@@ -25,10 +25,11 @@ Two channels of the rigid-body model of :mod:`fawtgym.observers.base` use the sa
 * translational: ``x0 = m v`` (world NED), ``u* = m g e3 - f R e3``, ``d = phi_D`` [N].
 
 Discretization: the observer is a linear time-invariant filter of its two inputs (u*, y).  It is
-discretized exactly with :func:`scipy.signal.cont2discrete` (zero-order hold, ``hold="zoh"``: u*
-and y held at their values at the start of the step, u* being the applied input averaged over the
-step) or with the matrix exponential of the augmented system (first-order hold on y,
-``hold="foh"``: y interpolated linearly between the previous and the new measurement).  The
+discretized exactly with the matrix exponential of the augmented system (:func:`scipy.linalg.expm`,
+the same matrices as :func:`scipy.signal.cont2discrete`): zero-order hold (``hold="zoh"``: u* and y
+held at their values at the start of the step, u* being the applied input averaged over the step) or
+first-order hold on y (``hold="foh"``, default: y interpolated linearly between the previous and the
+new measurement, u* held).  The
 discrete transition matrix is ``expm((A - L C) dt)`` whose eigenvalues are ``exp(-w_b dt)``, so the
 filter is stable for every step size, including the env's 50-1000 Hz control rates.
 """
@@ -41,7 +42,6 @@ from typing import Any
 
 import numpy as np
 import scipy.linalg
-import scipy.signal
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.envs import measurement as M
@@ -181,7 +181,8 @@ class GesoFilter:
     def discretize(self, dt: float, hold: str = "zoh") -> tuple[NDArray[np.float64], ...]:
         """Exact discrete matrices for step ``dt``.
 
-        ``"zoh"``: ``(Phi, Gamma)`` with ``x+ = Phi x + Gamma [u*, y]`` (scipy cont2discrete, zoh).
+        ``"zoh"``: ``(Phi, Gamma)`` with ``x+ = Phi x + Gamma [u*, y]`` (expm of the augmented system; equal to
+        scipy.signal.cont2discrete's zoh, checked in the tests).
         ``"foh"``: ``(Phi, Gamma0, Gamma1)`` with
         ``x+ = Phi x + Gamma0 [u*, y_k] + Gamma1 [0, y_{k+1} - y_k]`` (expm of the augmented system).
         """
@@ -193,9 +194,13 @@ class GesoFilter:
         if key not in self._cache:
             m = self.order + 1
             if hold == "zoh":
-                ad, bd, *_ = scipy.signal.cont2discrete((self.f, self.g, np.eye(m), np.zeros((m, 2))), dt,
-                                                        method="zoh")
-                self._cache[key] = (ad, bd)
+                # expm([[F, G], [0, 0]] dt) = [[Phi, Gamma], [0, I]] (what scipy.signal.cont2discrete "zoh" computes;
+                # done here directly so importing the observers does not import scipy.signal)
+                big = np.zeros((m + 2, m + 2))
+                big[:m, :m] = self.f * dt
+                big[:m, m:] = self.g * dt
+                e = scipy.linalg.expm(big)
+                self._cache[key] = (e[:m, :m], e[:m, m:])
             else:
                 big = np.zeros((m + 4, m + 4))
                 big[:m, :m] = self.f * dt
