@@ -89,7 +89,8 @@ class PX4Agent(Agent):
     params: :class:`PX4Params`, a mapping of overrides on the S500 set, a parameter file, or None (S500).
     control_rate: rate [Hz] at which ``act`` is called (the env's ``control_rate``).
     rate_loop_rate, attitude_rate, position_rate: loop rates [Hz] (defaults: control rate, control rate, 100).
-    setpoint: NED hover position (default: the FAWT hover point); ``info["setpoint"]`` overrides it.
+    setpoint: NED hover position (default: the FAWT hover point).  ``info["setpoint"]`` (the env's set
+        point), when present, is followed at every step unless :meth:`set_setpoint` was called.
     yaw_setpoint: heading [rad].
     hover_thrust: normalized hover thrust, or None to derive ``m g / (4 T_max)`` from the preset.
     gyro_key: measurement key of the (bias-corrected, unfiltered) gyro fed to the filters.
@@ -160,6 +161,7 @@ class PX4Agent(Agent):
             loop.reset()
         sp = info.get("setpoint") if isinstance(info, Mapping) else None
         self._setpoint = np.broadcast_to(np.asarray(self.setpoint if sp is None else sp, dtype=float), (n, 3)).copy()
+        self._setpoint_override = False
         self._thr_sp = np.zeros((n, 3))
         self._thr_sp[:, 2] = -self.position_control.hover_thrust
         self._att_sp = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
@@ -169,11 +171,12 @@ class PX4Agent(Agent):
         self._reset_estimator(meas, seed)
 
     def set_setpoint(self, position: ArrayLike, yaw: float | None = None) -> None:
-        """Change the NED position setpoint (and heading) during an episode."""
+        """Change the NED position setpoint (and heading) during an episode; overrides ``info["setpoint"]``."""
         pos = np.asarray(position, dtype=float)
         if pos.shape[-1:] != (3,) or not np.all(np.isfinite(pos)):
             raise ValueError(f"setpoint must be a finite NED position (3,) or (N, 3), got {position!r}")
         self._setpoint = np.broadcast_to(pos, (max(self._n, 1), 3)).copy()
+        self._setpoint_override = True
         if yaw is not None:
             self.yaw_setpoint = float(yaw)
 
@@ -183,6 +186,9 @@ class PX4Agent(Agent):
         if n != self._n:
             raise ValueError(f"act() got {n} vehicles but reset() saw {self._n}; call reset() first")
         dt = self.dt
+        sp = info.get("setpoint")
+        if sp is not None and not self._setpoint_override:
+            self._setpoint = np.broadcast_to(np.asarray(sp, dtype=float), (n, 3))
         force_hat, torque_hat = self._estimate(meas, info, dt)
         self.last_estimate = (force_hat, torque_hat)
 
