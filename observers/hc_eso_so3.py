@@ -54,16 +54,18 @@ class HcEsoGains:
     k_psi: float = 5.0
 
     def __post_init__(self) -> None:
-        if isinstance(self.gamma, bool) or not float(self.gamma).is_integer() or self.gamma < 1:
+        number = (int, float, np.integer, np.floating)
+        if (isinstance(self.gamma, bool) or not isinstance(self.gamma, number) or not float(self.gamma).is_integer()
+                or self.gamma < 1):
             raise ValueError(f"gamma must be a positive integer (Prop. 3), got {self.gamma!r}")
-        if not (0.5 < self.alpha < 1.0):
+        if isinstance(self.alpha, bool) or not isinstance(self.alpha, number) or not (0.5 < self.alpha < 1.0):
             raise ValueError(f"alpha must satisfy 1/2 < alpha < 1 (Prop. 3), got {self.alpha!r}")
         if self.gamma - 3.0 * self.alpha + 1.0 < 0:
             raise ValueError(f"gamma - 3 alpha + 1 must be >= 0 (Prop. 3), got gamma={self.gamma}, "
                              f"alpha={self.alpha}")
         for name in ("kappa", "k_sigma", "k_psi"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            if isinstance(v, bool) or not (isinstance(v, number) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite positive number, got {v!r}")
 
 

@@ -62,7 +62,8 @@ def test_geometric_step_stays_on_so3():
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(alpha=0.5), "alpha"), (dict(alpha=1.0), "alpha"), (dict(gamma=0), "gamma"), (dict(gamma=1.5), "gamma"),
+    (dict(alpha=0.5), "alpha"), (dict(alpha=1.0), "alpha"), (dict(alpha="0.8"), "alpha"), (dict(gamma=0), "gamma"),
+    (dict(gamma=1.5), "gamma"), (dict(gamma="2"), "gamma"),
     (dict(gamma=1, alpha=0.9), "gamma - 3 alpha"), (dict(kappa=0.0), "kappa"), (dict(k_sigma=-1.0), "k_sigma"),
     (dict(k_psi=float("nan")), "k_psi"), (dict(morse_gains=[1.0, 1.0, 1.0]), "k1 > k2"),
     (dict(vectors="gps"), "vectors"), (dict(rate_key="velocity"), "rate_key"), (dict(max_step=0.0), "max_step"),
