@@ -61,10 +61,21 @@ def quat_between(src: NDArray[np.float64], dst: NDArray[np.float64]) -> NDArray[
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 
+def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Row-wise cross product of (N, 3) arrays (cheaper than np.cross for small N)."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    z = np.zeros(v.shape[:-1])
-    x, y, w = v[..., 0], v[..., 1], v[..., 2]
-    return np.stack([z, -w, y, w, z, -x, -y, x, z], axis=-1).reshape(v.shape[:-1] + (3, 3))
+    k = np.zeros(v.shape[:-1] + (3, 3))
+    k[..., 0, 1], k[..., 0, 2] = -v[..., 2], v[..., 1]
+    k[..., 1, 0], k[..., 1, 2] = v[..., 2], -v[..., 0]
+    k[..., 2, 0], k[..., 2, 1] = -v[..., 1], v[..., 0]
+    return k
 
 
 def attitude_error_vector(r_e: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -106,10 +117,12 @@ class AttitudeControl:
         r = np.asarray(attitude, dtype=float)
         if r.ndim == 2:
             r = r[None]
-        r_sp = np.broadcast_to(np.asarray(attitude_sp, dtype=float), r.shape)
+        r_sp = np.asarray(attitude_sp, dtype=float)
+        if r_sp.shape != r.shape:
+            r_sp = np.broadcast_to(r_sp, r.shape)
         e_z = r[:, :, 2]
         e_z_d = r_sp[:, :, 2]
-        c = np.cross(e_z, e_z_d)
+        c = _cross(e_z, e_z_d)
         d = np.einsum("ni,ni->n", e_z, e_z_d)
         degenerate = d < -1.0 + 1e-9  # thrust axes opposite: PX4 takes the full attitude setpoint
         k = _skew(c)
@@ -117,8 +130,9 @@ class AttitudeControl:
         qd_red = np.where(degenerate[:, None, None], r_sp, r_red @ r)
         m = np.swapaxes(qd_red, 1, 2) @ r_sp  # rotation about body z by psi
         psi = self.yaw_weight * np.arctan2(m[:, 1, 0], m[:, 0, 0])
-        cy, sy, zero, one = np.cos(psi), np.sin(psi), np.zeros_like(psi), np.ones_like(psi)
-        rz = np.stack([cy, -sy, zero, sy, cy, zero, zero, zero, one], axis=1).reshape(-1, 3, 3)
+        cy, sy = np.cos(psi), np.sin(psi)
+        rz = np.zeros((psi.shape[0], 3, 3))
+        rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = cy, -sy, sy, cy, 1.0
         r_e = np.swapaxes(r, 1, 2) @ (qd_red @ rz)
         rate_sp = attitude_error_vector(r_e) * self.gain
         if yawspeed_sp is not None:

@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.envs.vehicles import GRAVITY
 
+from .px4_attitude_control import _cross
 from .px4_params import PX4Params
 
 _EPS = 1.1920929e-07  # FLT_EPSILON, as PX4 uses single precision
@@ -82,11 +83,11 @@ def bodyz_to_attitude(body_z: ArrayLike, yaw: ArrayLike) -> NDArray[np.float64]:
     z[zero] = np.array([0.0, 0.0, 1.0])
     z = z / _norm(z)[..., None]
     y_c = np.stack([-np.sin(yaw), np.cos(yaw), np.zeros_like(yaw)], axis=-1)
-    x = np.cross(y_c, z)
+    x = _cross(y_c, z)
     x = np.where((z[..., 2] < 0.0)[..., None], -x, x)
     x = np.where((np.abs(z[..., 2]) < 1e-6)[..., None], np.array([0.0, 0.0, 1.0]), x)
     x = x / _norm(x)[..., None]
-    y = np.cross(z, x)
+    y = _cross(z, x)
     return np.stack([x, y, z], axis=-1)
 
 

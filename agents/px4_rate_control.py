@@ -63,8 +63,8 @@ class RateControl:
         n = rate.shape[0]
         if self.rate_int.shape[0] != n:
             self.reset(n)
-        rate_sp = np.broadcast_to(np.asarray(rate_sp, dtype=float), rate.shape)
-        acc = np.broadcast_to(np.asarray(angular_accel, dtype=float), rate.shape)
+        rate_sp = np.asarray(rate_sp, dtype=float)
+        acc = np.asarray(angular_accel, dtype=float)
         err = rate_sp - rate
         torque = self.gain_p * err + self.rate_int - self.gain_d * acc + self.gain_ff * rate_sp
         if not landed:
