@@ -243,8 +243,10 @@ class PdtStaAttitudeObserver(Observer):
 
     Reads ``specific_force`` and ``magnetometer`` only (no gyro, no attitude), uses the applied body
     torque u and J (eq. 76), and reports ``states["attitude"]`` R_hat (N, 3, 3), ``states["angular_velocity"]``
-    omega_hat (N, 3) (eq. 80), ``states["attitude_quest"]`` (the static QUEST attitude) and
-    ``states["gibbs"]``.  It estimates no disturbance: force and torque are zeros, ``channels`` is empty.
+    omega_hat (N, 3) (eq. 80), ``states["attitude_quest"]`` (the static QUEST attitude),
+    ``states["gibbs"]`` and ``states["quest_valid"]`` (N,) (False where the vectors gave no attitude and
+    the step ran without correction, see :meth:`_quest`).  It estimates no disturbance: force and
+    torque are zeros, ``channels`` is empty.
 
     Defaults: t_c = 1.5 s and eta = 5 (paper Sec. 5); ``noise_bound`` ell = 0 (t_e = t_c; with ell > 0
     the switch is eq. 43's t_e = t_c - eta ell).  The gains are NOT the paper's (kappa1, kappa2) =
@@ -291,28 +293,46 @@ class PdtStaAttitudeObserver(Observer):
         self.references = np.stack([np.array([0.0, 0.0, -self.gravity]), m])  # specific force at rest, field
         self.anchor = np.eye(3)[None]
 
-    def _quest(self, meas: Mapping[str, NDArray[np.float64]]) -> NDArray[np.float64]:
+    def _quest(self, meas: Mapping[str, NDArray[np.float64]],
+               predicted: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """QUEST attitude and a validity mask.  A row whose accelerometer reads < 0.2 g (free fall, a
+        hard manoeuvre), whose magnetometer reads < 10 % of the reference field, or whose two vectors are
+        within 1 deg of parallel gives no usable attitude: with ``predicted`` (the current estimate) that
+        row's vectors are replaced by the predicted ones (no correction this step); without it (reset)
+        ValueError is raised."""
         for key in (SPECIFIC_FORCE, MAGNETOMETER):
             if key not in meas:
                 raise ValueError(f"pdt_sta needs measurement[{key!r}] (accelerometer + magnetometer)")
         body = np.stack([meas[SPECIFIC_FORCE], meas[MAGNETOMETER]], axis=1)
-        return quest(body, self.references, self.weights).R
+        if not np.all(np.isfinite(body)):
+            raise ValueError("specific_force/magnetometer contain non-finite values")
+        na = np.linalg.norm(body[:, 0], axis=-1)
+        nm = np.linalg.norm(body[:, 1], axis=-1)
+        sin = np.linalg.norm(_cross(body[:, 0], body[:, 1]), axis=-1) / np.maximum(na * nm, 1e-300)
+        valid = (na > 0.2 * self.gravity) & (nm > 0.1 * np.linalg.norm(self.references[1])) & (sin > 0.0175)
+        if not np.all(valid):
+            if predicted is None:
+                raise ValueError("cannot initialize pdt_sta: accelerometer/magnetometer give no attitude "
+                                 f"(rows {np.nonzero(~valid)[0].tolist()}: |a| < 0.2 g, weak field or parallel)")
+            body = body.copy()
+            body[~valid] = np.einsum("nji,kj->nki", predicted[~valid], self.references)
+        return quest(body, self.references, self.weights).R, valid
 
     def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
               torque: ArrayLike | None = None) -> None:
         from fawtgym.envs.measurement import batch_measurement
 
-        R_q = self._quest(batch_measurement(measurement))
+        R_q, _ = self._quest(batch_measurement(measurement))
         self.anchor = R_q
         self.core.reset(np.zeros((R_q.shape[0], 3)))
 
     def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
                dt: float) -> ObserverEstimate:
         meas, _, tau = self._inputs(measurement, thrust, torque, dt)
-        R_q = self._quest(meas)
-        n = R_q.shape[0]
-        if self.core.x1.shape[0] != n:
-            raise ValueError(f"batch size changed from {self.core.x1.shape[0]} to {n}; call reset first")
+        n = self.core.x1.shape[0]
+        if meas[SPECIFIC_FORCE].shape[0] != n:
+            raise ValueError(f"batch size changed from {n} to {meas[SPECIFIC_FORCE].shape[0]}; call reset first")
+        R_q, valid = self._quest(meas, predicted=self.anchor @ gibbs_to_rot(self.core.x1))
         rel = np.swapaxes(self.anchor, -1, -2) @ R_q
         y = _safe_gibbs(rel)
         self.core.step(y, np.broadcast_to(tau, (n, 3)), dt)
@@ -321,7 +341,7 @@ class PdtStaAttitudeObserver(Observer):
         zeros = np.zeros((n, 3))
         return ObserverEstimate(force=zeros, torque=zeros.copy(), states={
             "attitude": R_hat, "angular_velocity": self.core.omega, "attitude_quest": R_q,
-            "gibbs": self.core.x1.copy()})
+            "gibbs": self.core.x1.copy(), "quest_valid": valid})
 
     def _maybe_reanchor(self) -> None:
         far = np.linalg.norm(self.core.x1, axis=-1) > self.reanchor

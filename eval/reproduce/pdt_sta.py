@@ -97,7 +97,7 @@ CASES = (
     Sec5Case("fig9", 1.5, noise=True, early=True,
              claim="noise + early switch t_e = 1.3268 s: no departure, bounded neighbourhood"),
     Sec5Case("fig9_eq44", 1.5, noise=True, early=True, early_form="eq44",
-             claim="(ours) fig9 with eq. 44 as printed, eta/(t_e - t)"),
+             claim="(ours) eq. 44 as printed, eta/(t_e - t): the departure moves to t_e"),
     Sec5Case("fig8_exact", 1.5, noise=True, integrator="exact",
              claim="(ours) fig8 with the exact eq.-7 step for eta/(t_c - t): no departure"),
 )
@@ -165,9 +165,9 @@ def run_case(case: Sec5Case, ts: float = 1e-4, t_f: float = 3.0, omega_source: s
 def metrics(res: Sec5Result, g_tol: float = 1e-4, w_tol: float = 0.1) -> dict[str, float]:
     """Errors at t_c, the neighbourhood after it, the jump at the switch, and the settling instant.
 
-    ``departure`` = the larger of (max g error in [t_s, t_s + 0.1]) / (max g error for t > t_c + 0.25 s)
-    and the same ratio for the omega error (t_s the switching instant): how far the errors rise at the
-    switch above the neighbourhood they settle in (Fig. 8's high-gain problem gives > 1.5).  ``settle_time``: from
+    ``departure`` = the larger of (max g error in [t_s, t_s + 0.05 s]) / (max g error in [t_s - 0.05 s, t_s))
+    and the same ratio for the omega error (t_s the switching instant): how much the errors jump at the
+    switch (Fig. 8's high-gain problem).  ``settle_time``: from
     then on ||g_err|| < g_tol and ||w_err|| < w_tol.
     """
     t, ge, we = res.t, res.g_err, res.w_err
@@ -175,8 +175,8 @@ def metrics(res: Sec5Result, g_tol: float = 1e-4, w_tol: float = 0.1) -> dict[st
     k_c = int(np.searchsorted(t, tc - 1e-12))
     after = slice(k_c, None)
     late = t >= tc + 0.25
-    pre = (t >= ts_ - 0.1) & (t < ts_ - 1e-12)
-    post = (t >= ts_ - 1e-12) & (t <= ts_ + 0.1)
+    pre = (t >= ts_ - 0.05) & (t < ts_ - 1e-12)
+    post = (t >= ts_ - 1e-12) & (t <= ts_ + 0.05)
     ok = (ge < g_tol) & (we < w_tol)
     bad_idx = np.nonzero(~ok)[0]
     if not bad_idx.size:
@@ -190,8 +190,8 @@ def metrics(res: Sec5Result, g_tol: float = 1e-4, w_tol: float = 0.1) -> dict[st
                 w_err_max_late=float(we[late].max()) if late.any() else math.nan,
                 w_err_max_pre_switch=float(we[pre].max()), w_err_max_post_switch=float(we[post].max()),
                 g_err_max_post_switch=float(ge[post].max()),
-                departure=float(max(ge[post].max() / max(ge[late].max(), 1e-300),
-                                    we[post].max() / max(we[late].max(), 1e-300))) if late.any() else math.nan,
+                departure=float(max(ge[post].max() / max(ge[pre].max(), 1e-300),
+                                    we[post].max() / max(we[pre].max(), 1e-300))),
                 settle_time=settle, t_switch=ts_)
 
 
@@ -203,9 +203,11 @@ def claim_holds(name: str, m: dict[str, float]) -> bool:
     if name == "fig7":
         return abs(m["settle_time"] - 1.6) <= 0.2
     if name == "fig8":
-        return m["departure"] > 1.5
-    if name in ("fig9", "fig9_eq44", "fig8_exact"):
-        return m["departure"] < 1.5 and m["g_err_max_late"] < 1e-2 and m["w_err_max_late"] < 0.5
+        return m["departure"] > 3.0
+    if name == "fig9_eq44":  # ours: eq. 44 as printed re-creates the departure at t_e
+        return m["departure"] > 3.0
+    if name in ("fig9", "fig8_exact"):
+        return m["departure"] < 3.0 and m["g_err_max_late"] < 1e-2 and m["w_err_max_late"] < 0.5
     raise ValueError(f"no claim for {name!r}")
 
 
@@ -341,8 +343,8 @@ def run_all(out: pathlib.Path, quick: bool = False, omega_source: str = "forcing
              "Criteria: fig5/6 g err at t_c < 1e-5 g err(0) and > 100x smaller than at t_c/2, and after t_c "
              "g err < 1e-3 and omega err < 0.3 rad/s (the band of the discrete STA's chattering); "
              "fig7 settle within 0.2 s of 1.6 s (settle: g err < 1e-4 and omega err < 0.1 rad/s from then on); "
-             "fig8 departure > 1.5 (departure: the larger of max g err and max omega err in the 0.1 s after the "
-             "switch, each over its max for t > t_c + 0.25 s); fig9 departure < 1.5 and late errors "
+             "fig8 departure > 3 (departure: the larger of max g err and max omega err in the 0.05 s after the "
+             "switch, each over its max in the 0.05 s before); fig9 departure < 3 and late errors "
              "(t > t_c + 0.25 s) < 1e-2 / 0.5 rad/s.", "",
              "| fig | integrator | claim | holds | g err at t_c | w err at t_c | max g err t>t_c+0.25 | "
              "max w err t>t_c+0.25 | departure | settle [s] |",
