@@ -85,7 +85,7 @@ def _stack_infos(infos: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
 
 def run_cell(controller: str, duty: int, seeds: Sequence[int], hover_seconds: float, fan_on: float,
              fan_off: float, sensors: str = "mocap_imu", control_rate: float = 200.0,
-             record_hz: float = 20.0) -> dict[str, Any]:
+             record_hz: float = 20.0, spin_tau: float | None = None) -> dict[str, Any]:
     """Fly one (controller, duty) cell for every seed; batched agent, one env per seed.
 
     Returns per-seed time-averaged position error [m] and principal angle [rad] (NaN if failed),
@@ -95,7 +95,9 @@ def run_cell(controller: str, duty: int, seeds: Sequence[int], hover_seconds: fl
 
     import fawtgym  # noqa: F401  (registers the env)
 
-    wind = {"name": f"fawt-{duty}", "on_time": fan_on, "off_time": fan_off}
+    wind: dict[str, Any] = {"name": f"fawt-{duty}", "on_time": fan_on, "off_time": fan_off}
+    if spin_tau is not None:
+        wind["spin_tau"] = spin_tau
     envs = [gym.make("fawtgym/Hover-v0", vehicle="s500", wind=wind, sensors=sensors, control_rate=control_rate,
                      episode_seconds=hover_seconds, init_noise=0.0) for _ in seeds]
     agent = make_agent(controller, envs[0])
@@ -288,7 +290,9 @@ def write_report(results: Mapping[tuple[str, int], Mapping[str, Any]], duties: S
              f"Command: `fawtgym reproduce table4 {' '.join(args.argv)}`  ",
              f"s500 at the FAWT point, sensors `{args.sensors}`, control rate {args.control_rate:g} Hz "
              f"(rate/attitude loops; position loop 100 Hz), 1 kHz physics; hover {args.hover_seconds:g} s with the "
-             f"fan on from {args.fan_on:g} s to {args.fan_off:g} s; seeds {args.seeds}; wall time {wall:.0f} s.", ""]
+             f"fan on from {args.fan_on:g} s to {args.fan_off:g} s"
+             + (f" (fan spin-up time constant {args.spin_tau:g} s)" if args.spin_tau is not None else "")
+             + f"; seeds {args.seeds}; wall time {wall:.0f} s.", ""]
     if extrapolated:
         lines += ["Table 4's metrics, **on the paper's schedule** (210 s hover, fan on 20-170 s): our run's measured "
                   f"switch-on/off transients ({TRANSIENT_WINDOW:g} s windows, integrated as flown) plus its calm and "
@@ -363,6 +367,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help=f"hover length [s] (default {DEFAULT_SCHEDULE[0]:g}; paper 210)")
     parser.add_argument("--fan-on", type=float, default=DEFAULT_SCHEDULE[1], help="fan switch-on time [s]")
     parser.add_argument("--fan-off", type=float, default=DEFAULT_SCHEDULE[2], help="fan switch-off time [s]")
+    parser.add_argument("--spin-tau", type=float, default=None,
+                        help="fan spin-up/down time constant [s] of the wind model (default: the model's, 1 s)")
     parser.add_argument("--sensors", type=str, default="mocap_imu", help="env sensor preset (default mocap_imu)")
     parser.add_argument("--control-rate", type=float, default=200.0,
                         help="agent/env control rate [Hz]; must be a multiple of the 100 Hz mocap pose rate")
@@ -408,7 +414,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for c in columns:
             t1 = time.time()
             cell = run_cell(c, d, seeds, args.hover_seconds, args.fan_on, args.fan_off, args.sensors,
-                            args.control_rate)
+                            args.control_rate, spin_tau=args.spin_tau)
             results[(c, d)] = cell
             v = _cell_value(cell, "mean_position_error")
             print(f"duty {d} % {c:>16s}: pos {_fmt(v)} m, Phi {_fmt(_cell_value(cell, 'mean_attitude_error'))} rad "
