@@ -35,8 +35,9 @@ from numpy.typing import NDArray
 
 from .vehicles import GRAVITY, VehiclePreset
 
-#: Linear (rotor) drag per unit vehicle mass at hover [N/(m/s)/kg] used to calibrate ``rotor_drag``;
-#: between rotorpy's Hummingbird (0.32) and the Neural-Fly two-point fit (0.37 linear part), see docs/wind.md.
+#: Linear (rotor) drag per unit vehicle mass at hover [N/(m/s)/kg] used to calibrate ``rotor_drag``: rotorpy's
+#: Hummingbird gives 0.31, the linear part of a fit F = a V + b V^2 to Neural-Fly's mid-values gives 0.37; rounded
+#: up to 0.40 so that the s500 reaches the 2 N low end of Neural-Fly's 4.2 m/s range (docs/wind.md).
 LINEAR_DRAG_PER_KG = 0.40
 
 

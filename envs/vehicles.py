@@ -158,7 +158,7 @@ def _s500() -> VehiclePreset:
 
     Aerodynamics (calibration in docs/wind.md, rule in fawtgym.envs.aero.calibrated_rotor_drag):
     rotor drag k_d = 0.40 N/(m/s) per kg / (4 omega_hover) = 2.2e-4 (linear drag 0.40 N s/m at
-    hover, between rotorpy's Hummingbird 0.32 and a Neural-Fly two-point fit 0.37-0.5); body drag
+    hover; rotorpy's Hummingbird has 0.31 per kg, a two-point fit to Neural-Fly's data 0.37); body drag
     0.5 rho C_D A with C_D ~ 1.1, frontal area ~0.025 m^2 (frame plates, battery, landing gear)
     -> 0.017, top area ~0.045 m^2 (arms, plates; the discs are in the rotor model) -> 0.03;
     flapping-moment coefficient 1e-6 (PX4 gz x500 rollingMomentCoefficient magnitude);
