@@ -1,0 +1,151 @@
+"""Per-update cost of every registered observer, single (N = 1) and batched (N = 1024).
+
+``fawtgym bench observers [--repeats R] [--n N ...] [--only NAME ...]``
+
+Every observer is built from the registry with its documented defaults (``make_observer(name, m, J)``,
+seed-000 vehicle m = 4.34 kg, J = diag(0.082, 0.0845, 0.1377)) and updated with a hover-like measurement.
+The unit of comparison is one MuJoCo physics step (``mj_step``) of a 4-rotor free body built inline and
+measured in the same run.  Times are process CPU time (``time.process_time``, best of a few repeats), so
+that other jobs on a shared machine inflate them less (a VM's steal time still counts); the ratios are
+the robust figures.  Targets (issue 4): FFTS-ESO < 50 us per single update, and per vehicle at N = 1024
+cheaper than one mj_step.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+MASS = 4.34
+INERTIA = np.diag([0.0820, 0.0845, 0.1377])
+G = 9.80665
+
+QUAD_XML = """
+<mujoco model="bench_quad">
+  <option timestep="0.001" gravity="0 0 -9.81"/>
+  <worldbody>
+    <body name="quad" pos="0 0 1">
+      <freejoint/>
+      <inertial pos="0 0 0" mass="4.34" diaginertia="0.0820 0.0845 0.1377"/>
+      <geom type="box" size="0.15 0.15 0.04" contype="0" conaffinity="0"/>
+      <site name="r0" pos="0.2 0 0"/>
+      <site name="r1" pos="0 0.2 0"/>
+      <site name="r2" pos="-0.2 0 0"/>
+      <site name="r3" pos="0 -0.2 0"/>
+    </body>
+  </worldbody>
+  <actuator>
+    <general site="r0" gear="0 0 1 0 0 0.02" ctrlrange="0 30"/>
+    <general site="r1" gear="0 0 1 0 0 -0.02" ctrlrange="0 30"/>
+    <general site="r2" gear="0 0 1 0 0 0.02" ctrlrange="0 30"/>
+    <general site="r3" gear="0 0 1 0 0 -0.02" ctrlrange="0 30"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def mj_step_seconds(steps: int = 5000, repeats: int = 5) -> float:
+    """Best-of-``repeats`` mean CPU time of one mj_step of the inline 4-rotor free body."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(QUAD_XML)
+    data = mujoco.MjData(model)
+    data.ctrl[:] = MASS * 9.81 / 4
+    best = np.inf
+    for _ in range(repeats):
+        mujoco.mj_resetData(model, data)
+        data.ctrl[:] = MASS * 9.81 / 4
+        t0 = time.process_time()
+        for _ in range(steps):
+            mujoco.mj_step(model, data)
+        best = min(best, (time.process_time() - t0) / steps)
+    return best
+
+
+def hover_measurement(n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """A plausible measurement for n vehicles near hover, with every key of envs/measurement.py."""
+    from fawtgym.envs.measurement import EARTH_FIELD_NED
+    from fawtgym.observers.lie import exp_so3
+
+    r = exp_so3(0.05 * rng.standard_normal((n, 3)))
+    w = 0.1 * rng.standard_normal((n, 3))
+    return {"position": 0.01 * rng.standard_normal((n, 3)), "velocity": 0.05 * rng.standard_normal((n, 3)),
+            "attitude": r, "angular_velocity": w, "gyro": w.copy(),
+            "specific_force": np.einsum("nji,j->ni", r, np.array([0.0, 0.0, -G])),
+            "magnetometer": np.einsum("nji,j->ni", r, EARTH_FIELD_NED), "time": np.zeros(n)}
+
+
+def time_observer(name: str, n: int, repeats: int, rng: np.random.Generator) -> float:
+    """Best-of mean CPU seconds per update(); raises what the observer raises."""
+    from fawtgym.observers import make_observer
+
+    obs = make_observer(name, MASS, INERTIA)
+    meas = hover_measurement(n, rng)
+    obs.reset(meas)
+    f = np.full(n, MASS * G)
+    tau = np.zeros((n, 3))
+    dt = 1e-3
+    calls = max(5, int(2000 / max(1, n ** 0.5)))
+    best = np.inf
+    for r in range(repeats):
+        meas["time"] = np.full(n, r * calls * dt)
+        t0 = time.process_time()
+        for _k in range(calls):
+            meas["time"] = meas["time"] + dt
+            obs.update(meas, f, tau, dt)
+        best = min(best, (time.process_time() - t0) / calls)
+    return best
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="fawtgym bench observers", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeats", type=int, default=3, help="best-of repeats per measurement")
+    ap.add_argument("--n", type=int, nargs="+", default=[1, 1024], help="batch sizes")
+    ap.add_argument("--only", nargs="*", default=None, help="observer names (default: all registered)")
+    ns = ap.parse_args(list(argv) if argv is not None else None)
+    if ns.repeats < 1 or any(n < 1 for n in ns.n):
+        raise ValueError(f"--repeats and --n must be >= 1, got {ns.repeats}, {ns.n}")
+    import warnings
+
+    from fawtgym.observers import observer_names
+
+    names = ns.only or observer_names()
+    unknown = sorted(set(names) - set(observer_names()))
+    if unknown:
+        raise ValueError(f"unknown observers {unknown}; valid: {observer_names()}")
+    rng = np.random.default_rng(0)
+    step = mj_step_seconds()
+    print(f"one mj_step of a 4-rotor free body (inline MJCF): {step * 1e6:.2f} us CPU (the unit of the ratios)")
+    header = "observer".ljust(22) + "".join(f"{'N=' + str(n) + ' us/update':>20}{'per-vehicle/mj_step':>22}"
+                                           for n in ns.n)
+    print(header)
+    results: dict[tuple[str, int], float] = {}
+    for name in names:
+        row = name.ljust(22)
+        for n in ns.n:
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    sec = time_observer(name, n, ns.repeats, rng)
+            except Exception as exc:   # report, don't hide: an observer that cannot run here says why
+                row += f"{'error':>20}{type(exc).__name__:>22}"
+                print(f"  ({name}, N={n}: {type(exc).__name__}: {exc})")
+                continue
+            results[(name, n)] = sec
+            row += f"{sec * 1e6:>20.1f}{sec / n / step:>22.3f}"
+        print(row)
+    if ("ffts_eso", 1) in results:
+        single = results[("ffts_eso", 1)] * 1e6
+        print(f"FFTS-ESO single update: {single:.1f} us (target < 50 us): {'met' if single < 50 else 'NOT met'}")
+    big = max(ns.n)
+    if ("ffts_eso", big) in results:
+        ratio = results[("ffts_eso", big)] / big / step
+        print(f"FFTS-ESO per vehicle at N={big}: {ratio:.3f} mj_step (target < 1): {'met' if ratio < 1 else 'NOT met'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
