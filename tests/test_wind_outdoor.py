@@ -85,3 +85,18 @@ def test_dryden_process_used_by_outdoor_is_exact():
     p = low_altitude_params("light", 30.0)
     assert DrydenProcess(p).stationary_std() == pytest.approx(p.sigma, rel=1e-9)
     assert math.isclose(p.length[2], 30.0)
+
+
+def test_turbulence_advected_by_the_spec_wind_without_mean_output():
+    """Turbulence-only output still evolves on L / W(h): lag-1 autocorrelation exp(-W dt / L_u)."""
+    from fawtgym.envs.wind.outdoor import log_profile_speed
+
+    wind = DrydenWind("light", altitude=10.0, length_scale=20.0)
+    wind.reset(32, seed=2)
+    pts = np.zeros((32, 1, 3))
+    u = np.stack([wind.step((k + 1) * 0.1, 0.1, pts, np.zeros((32, 3)))[:, 0, 0].copy() for k in range(1500)])
+    u = u - u.mean(axis=0)
+    rho = float((u[:-1] * u[1:]).sum() / (u * u).sum())
+    w_h = log_profile_speed("light", 10.0)
+    assert np.all(wind.mean == 0.0)
+    assert rho == pytest.approx(math.exp(-w_h * 0.1 / 20.0), abs=0.02)

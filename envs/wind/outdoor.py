@@ -15,7 +15,9 @@ Mean wind (option ``mean_wind``): ``False`` (default: turbulence only, as MATLAB
 ``True`` (the MIL-F-8785C log profile ``W(h) = W20 ln(h / z0) / ln(20 / z0)``, ``z0 = 0.15 ft``,
 flight phase C), or a speed [m/s].  It blows horizontally toward ``direction_deg`` (NED heading,
 0 = toward north).  Gust axes: ``u`` along that direction, ``v`` 90 deg to its right, ``w`` down.
-Frozen-turbulence speed ``V = |mean wind - v_vehicle|`` floored at ``dryden.V_FLOOR``.
+Frozen-turbulence speed ``V = |W_adv - v_vehicle|`` floored at ``dryden.V_FLOOR``, where ``W_adv`` is the
+mean wind, or, with ``mean_wind=False``, the log-profile wind the spec's intensity belongs to (so a
+hovering vehicle sees gusts evolving on ``L / W(h)``, not frozen at the 1 m/s floor).
 
 Discrete gust (MIL-F-8785C Sec. 3.7.5): ``v(x) = V_m (1 - cos(pi x / d_m)) / 2`` for
 ``0 <= x <= d_m`` and ``V_m`` beyond (``shape="rise"``), or back to 0 at ``x = 2 d_m``
@@ -108,6 +110,9 @@ class DrydenWind(WindModel):
             raise ValueError(f"mean_wind must be False, True or a speed >= 0 [m/s], got {mean_wind!r}")
         d = _direction(direction_deg)
         self.mean = speed * d  # NED
+        # the air mass carrying the turbulence moves at the mean wind; without a mean-wind output it still
+        # moves at the spec's log-profile speed (the W20 that sets the intensity), so gusts evolve on L / W(h)
+        self.advection = (speed if speed > 0 else log_profile_speed(intensity, altitude)) * d
         # gust axes (rows: u, v, w) in NED
         self.axes = np.array([d, [-d[1], d[0], 0.0], [0.0, 0.0, 1.0]])
         self.rates = bool(rates)
@@ -123,7 +128,7 @@ class DrydenWind(WindModel):
         if not (dt > 0 and math.isfinite(dt)):
             raise ValueError(f"dt must be a finite positive step [s], got {dt!r}")
         check_points(points_ned, vehicle_velocity_ned, self.n)
-        rel = self.mean - vehicle_velocity_ned
+        rel = self.advection - vehicle_velocity_ned
         speed = np.sqrt((rel * rel).sum(axis=1))
         y = self.process.step(dt, float(speed[0]) if self.n == 1 else speed)
         if self.rates:
