@@ -335,7 +335,8 @@ def solve_qb_lmi(problem: QBProblem, alpha: float, solver: str | None = None, p_
 # ------------------------------------------------------- trade-off (eqs. 21-25) ----
 @dataclasses.dataclass(frozen=True, eq=False)
 class AlphaSweep:
-    """Vol(eps_X^+)(alpha) over a grid (seed-001 Fig. 4); infeasible grid points are NaN-free: dropped."""
+    """Vol(eps_X^+)(alpha) over a grid (seed-001 Fig. 4); grid points where eq. 31 failed are listed in
+    ``failed`` and left out of the arrays (never NaN)."""
 
     alphas: NDArray[np.float64]
     log_volumes: NDArray[np.float64]

@@ -27,9 +27,11 @@ world frame, eq. 34); ``states``: ``velocity`` = p_lin / m, ``angular_velocity``
 
 Vehicle: the matrices of the design do not depend on m and J (pure selection/shift matrices), but
 the noise ellipsoid Q2 (eq. 58) was identified for the AscTec Hummingbird (m = 1.023 kg) of Sec. 4.
-The shipped gains ``qb_gain_hummingbird_mu*.npz`` are for that vehicle; they run on any vehicle
-(m and J are used to form u and y) but the guaranteed error ellipsoid then refers to the
-Hummingbird's noise.  Design for another vehicle with ``fawtgym reproduce qb --design-for <preset>``
+The shipped gains ``qb_gain_hummingbird_mu{0p2,0p5,0p95}.npz`` are for that vehicle;
+``qb_gain_s500_mu0p5.npz`` and ``qb_gain_x500_mu0p5.npz`` were designed with Q2 rescaled to those
+presets (same velocity/rate/accelerometer errors, :func:`~fawtgym.observers.qb_uav_model.scaled_q2`)
+and are picked automatically for a matching mass and inertia.  A gain runs on any vehicle (m and J
+form u and y) but its guaranteed error ellipsoid refers to the noise it was designed for.  Design for another vehicle with ``fawtgym reproduce qb --design-for <preset>``
 or :func:`design_uav_gain` (which rescales Q2 with :func:`~fawtgym.observers.qb_uav_model.scaled_q2`).
 """
 
@@ -114,6 +116,21 @@ def resolve_gain_path(gain_file: str | os.PathLike[str] | None) -> Path:
     return p
 
 
+def shipped_gain_for(mass: float, inertia: ArrayLike, mu: float = 0.5) -> str:
+    """Name of the shipped gain designed for this (mass, inertia) and mu (1 % match), else the default."""
+    j = np.asarray(inertia, dtype=float)
+    j = np.diag(j) if j.shape == (3,) else j
+    for path in sorted(GAIN_DIR.glob("qb_gain_*.npz")):
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(str(z["meta"])) if "meta" in z.files else {}
+        if meta.get("mu") != mu or "mass" not in meta or "inertia" not in meta:
+            continue
+        jm = np.asarray(meta["inertia"], dtype=float)
+        if abs(meta["mass"] - mass) <= 0.01 * mass and np.allclose(jm, j, rtol=0.01, atol=0.0):
+            return path.stem
+    return DEFAULT_GAIN
+
+
 def load_gain(gain_file: str | os.PathLike[str] | None = None) -> QBGain:
     """Load a gain saved by :meth:`QBGain.save` (no cvxpy needed)."""
     path = resolve_gain_path(gain_file)
@@ -146,8 +163,10 @@ def discretize(gain: QBGain, dt: float) -> tuple[NDArray[np.float64], ...]:
 class QBObserver(Observer):
     """Quadratic-boundedness optimal disturbance observer on the momentum model (seed-001 Secs. 2-4).
 
-    ``make_observer("qb", mass, inertia)`` loads the shipped Hummingbird gain (r = 3, mu = 0.5);
-    ``gain_file`` selects another saved gain (path or shipped name).  Estimates force and torque.
+    ``make_observer("qb", mass, inertia)`` loads the shipped mu = 0.5, r = 3 gain designed for this
+    mass/inertia if there is one (``qb_gain_<vehicle>_mu0p5.npz``: hummingbird, s500, x500), else the
+    Hummingbird gain (with a warning); ``gain_file`` selects another saved gain (path or shipped name).
+    Estimates force and torque.
     """
 
     channels = frozenset({"force", "torque"})
@@ -155,15 +174,17 @@ class QBObserver(Observer):
     def __init__(self, mass: float, inertia: ArrayLike, gain_file: str | os.PathLike[str] | None = None,
                  gravity: float = 9.80665) -> None:
         super().__init__(mass, inertia, gravity)
+        if gain_file is None:
+            gain_file = shipped_gain_for(self.mass, self.inertia)
         self.gain = load_gain(gain_file)
         if self.gain.C.shape[0] != 9 or self.gain.A.shape[0] < 12 or self.gain.meta.get("model") != "uav_momentum":
             raise ValueError("gain_file must hold a gain designed on the UAV momentum model (qb_uav_model)")
         self.order = (self.gain.A.shape[0] - 6) // 6
         m_d = float(self.gain.meta.get("mass", mass))
         if abs(m_d - self.mass) > 0.01 * m_d:
-            warnings.warn(f"QB gain {Path(str(gain_file or DEFAULT_GAIN)).name}: its noise ellipsoid Q2 was "
-                          f"designed for m = {m_d} kg, used here with m = {self.mass} kg; for guarantees design "
-                          f"for this vehicle (fawtgym reproduce qb --design-for <preset>)", stacklevel=2)
+            warnings.warn(f"QB gain {Path(str(gain_file)).name}: its noise ellipsoid Q2 was designed for "
+                          f"m = {m_d} kg, used here with m = {self.mass} kg; for guarantees design for this "
+                          f"vehicle (fawtgym reproduce qb --design-for <preset>)", stacklevel=2)
         self._disc: dict[float, NDArray[np.float64]] = {}
         self._x: NDArray[np.float64] | None = None
         self._y: NDArray[np.float64] | None = None
