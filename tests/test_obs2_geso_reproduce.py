@@ -31,15 +31,15 @@ def test_case2_reference_is_eq50():
 
 
 def test_shortened_reproduction_supports_the_paper_claims(tmp_path):
-    # 3 s of both cases, all four variants, 1 kHz, through the CLI; RMS after the first 1.5 s (transient excluded)
-    assert rep.main(["--out", str(tmp_path), "--t-end", "3", "--steady-from", "1.5"]) == 0
+    # 2.5 s of both cases, all four variants, 1 kHz, through the CLI; RMS after 1.25 s (transient excluded)
+    assert rep.main(["--out", str(tmp_path), "--t-end", "2.5", "--steady-from", "1.25"]) == 0
     for name in ("geso_rms.csv", "geso_summary.md", "geso_case1_attitude.png", "geso_case2_estimation.png",
                  "geso_bode.png"):
         assert (tmp_path / name).stat().st_size > 0
     with open(tmp_path / "geso_rms.csv") as fh:
         table = list(csv.DictReader(fh))
     assert len(table) == 16  # 4 variants x 2 cases x 2 windows
-    rows = [{k: (v if k == "variant" else float(v)) for k, v in r.items()} for r in table if float(r["t_from"]) == 1.5]
+    rows = [{k: (v if k == "variant" else float(v)) for k, v in r.items()} for r in table if float(r["t_from"]) == 1.25]
     claims = rep.check_claims(rows)
     assert len(claims) == 6
     failed = [(c, n) for c, ok, n in claims if not ok]
