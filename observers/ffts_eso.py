@@ -41,6 +41,7 @@ default K = diag(1.2, 1.1, 1.0) is our choice (satisfies K1 > K2 > K3 >= 1 of Le
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -138,6 +139,8 @@ class FFTSESO(Observer):
         self._c = (1.0 - p) / p
         self._k = (p - 1.0) / p
         self._ge3 = self.gravity * _E3
+        self._j_list = self.inertia.tolist()
+        self._jinv_list = self.inertia_inv.tolist()
 
     # ---- interface -------------------------------------------------------------------------
     def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
@@ -155,6 +158,8 @@ class FFTSESO(Observer):
                dt: float) -> ObserverEstimate:
         if self._state is None:
             raise RuntimeError("ffts_eso: call reset(measurement) before update()")
+        if self._state["b"].shape[0] == 1 and self.integrator == "euler":
+            return self._update_single(measurement, thrust, torque, dt)
         _, f, tau = self._inputs({}, thrust, torque, dt)
         m = require(measurement, _KEYS, "ffts_eso")
         s = self._state
@@ -174,6 +179,110 @@ class FFTSESO(Observer):
         if not all_finite(new["v"], new["w"], new["phi"], new["tau"], new["b"], new["R"]):
             check_finite("ffts_eso", **new)
         self._state = new
+        return self.estimate()
+
+    def _update_single(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
+                       dt: float) -> ObserverEstimate:
+        """N = 1 fast path: the same equations as :meth:`_rhs` + :meth:`_advance` (Euler) in Python floats.
+
+        numpy's per-call overhead dominates a single 3-vector update; this path is checked against the
+        batched one in the tests (batch-equals-separate-runs).
+        """
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
+        try:
+            pm, vm, om = (np.asarray(measurement[k], dtype=float).ravel().tolist()
+                          for k in ("position", "velocity", "angular_velocity"))
+            rm = np.asarray(measurement["attitude"], dtype=float).ravel().tolist()
+        except KeyError as exc:
+            raise ValueError(f"ffts_eso needs measurement keys {list(_KEYS)}; missing {exc} "
+                             f"(got {sorted(measurement)})") from None
+        if len(pm) != 3 or len(vm) != 3 or len(om) != 3 or len(rm) != 9:
+            raise ValueError("ffts_eso: measurement batch size does not match the reset batch size 1 "
+                             f"(got {len(pm) // 3} vehicles)")
+        fl = np.asarray(thrust, dtype=float).ravel().tolist()
+        tq = np.asarray(torque, dtype=float).ravel().tolist()
+        if len(fl) != 1 or len(tq) != 3:
+            raise ValueError(f"ffts_eso: thrust must have shape (1,) and torque (3,) or (1, 3) for N = 1, "
+                             f"got {np.shape(thrust)} and {np.shape(torque)}")
+        if not math.isfinite(sum(pm) + sum(vm) + sum(om) + sum(rm)):
+            raise ValueError("ffts_eso: measurement contains non-finite values")
+        if not math.isfinite(fl[0] + sum(tq)):
+            raise ValueError(f"ffts_eso: thrust/torque contain non-finite values: {fl}, {tq}")
+        st = self._state
+        b, v, phi, w, th = (st[k][0].tolist() for k in ("b", "v", "phi", "w", "tau"))
+        rh = st["R"][0].ravel().tolist()
+        mass, eps, c, k2c, a, tiny = self.mass, self.eps, self._c, 2.0 * self._k, self._a, _TINY
+        # translational, eqs. (45), (49), (50)
+        eb = [pm[i] - b[i] for i in range(3)]
+        ev = [vm[i] - v[i] for i in range(3)]
+        r2 = eb[0] * eb[0] + eb[1] * eb[1] + eb[2] * eb[2]
+        rb = max(r2, eps)
+        pw = rb**c
+        coef = k2c * (eb[0] * ev[0] + eb[1] * ev[1] + eb[2] * ev[2]) / rb if r2 > eps else 0.0
+        kt = self.kappa_t
+        psi = [ev[i] + kt * (eb[i] + pw * eb[i]) for i in range(3)]
+        pa = max(psi[0] * psi[0] + psi[1] * psi[1] + psi[2] * psi[2], tiny) ** a
+        g1 = self.kt1 * (self.kt3 + pa)
+        g2 = mass * self.kt2 * (self.kt3 * self.kt3 + self._c1t * pa + self._c2 * pa * pa)
+        fm = fl[0] / mass
+        ge3 = (0.0, 0.0, self.gravity)
+        vdot = [ge3[i] - fm * rm[3 * i + 2] + g1 * psi[i] + kt * (pw * (ev[i] - coef * eb[i]) + ev[i]) + phi[i] / mass
+                for i in range(3)]
+        phidot = [g2 * psi[i] for i in range(3)]
+        # rotational, eqs. (46), (47), (66), (68), (69)
+        e = [[rh[i] * rm[j] + rh[3 + i] * rm[3 + j] + rh[6 + i] * rm[6 + j] for j in range(3)] for i in range(3)]
+        kv = self.morse_k.tolist()
+        er = [kv[2] * e[2][1] - kv[1] * e[1][2], kv[0] * e[0][2] - kv[2] * e[2][0], kv[1] * e[1][0] - kv[0] * e[0][1]]
+        eo = [om[i] - (e[0][i] * w[0] + e[1][i] * w[1] + e[2][i] * w[2]) for i in range(3)]
+        tr = kv[0] * e[0][0] + kv[1] * e[1][1] + kv[2] * e[2][2]
+        keo = [kv[i] * eo[i] for i in range(3)]
+        ew = [tr * eo[i] - (e[0][i] * keo[0] + e[1][i] * keo[1] + e[2][i] * keo[2]) for i in range(3)]
+        r2a = er[0] * er[0] + er[1] * er[1] + er[2] * er[2]
+        ra = max(r2a, eps)
+        pwa = ra**c
+        coefa = k2c * (er[0] * ew[0] + er[1] * ew[1] + er[2] * ew[2]) / ra if r2a > eps else 0.0
+        ka = self.kappa_a
+        psa = [eo[i] + ka * (er[i] + pwa * er[i]) for i in range(3)]
+        qa = max(psa[0] * psa[0] + psa[1] * psa[1] + psa[2] * psa[2], tiny) ** a
+        h1 = self.ka1 * (self.ka3 + qa)
+        h2 = self.ka2 * (self.ka3 * self.ka3 + self._c1a * qa + self._c2 * qa * qa)
+        jm, ji = self._j_list, self._jinv_list
+        jo = [jm[i][0] * om[0] + jm[i][1] * om[1] + jm[i][2] * om[2] for i in range(3)]
+        tot = [jo[1] * om[2] - jo[2] * om[1] + th[0] + tq[0], jo[2] * om[0] - jo[0] * om[2] + th[1] + tq[1],
+               jo[0] * om[1] - jo[1] * om[0] + th[2] + tq[2]]
+        body = [ji[i][0] * tot[0] + ji[i][1] * tot[1] + ji[i][2] * tot[2] + h1 * psa[i]
+                + ka * (pwa * (ew[i] - coefa * er[i]) + ew[i]) for i in range(3)]
+        eeo = [e[i][0] * eo[0] + e[i][1] * eo[1] + e[i][2] * eo[2] for i in range(3)]
+        wdot = [e[i][0] * body[0] + e[i][1] * body[1] + e[i][2] * body[2] for i in range(3)]
+        wdot = [wdot[0] + eeo[1] * w[2] - eeo[2] * w[1], wdot[1] + eeo[2] * w[0] - eeo[0] * w[2],
+                wdot[2] + eeo[0] * w[1] - eeo[1] * w[0]]
+        tdot = [h2 * (jm[i][0] * psa[0] + jm[i][1] * psa[1] + jm[i][2] * psa[2]) for i in range(3)]
+        # advance (same scheme as _advance)
+        hh = 0.5 * dt * dt
+        nb = [b[i] + dt * v[i] + hh * vdot[i] for i in range(3)]
+        nv = [v[i] + dt * vdot[i] for i in range(3)]
+        nphi = [phi[i] + dt * phidot[i] for i in range(3)]
+        nw = [w[i] + dt * wdot[i] for i in range(3)]
+        nth = [th[i] + dt * tdot[i] for i in range(3)]
+        x = [dt * (w[i] + 0.5 * dt * wdot[i]) for i in range(3)]
+        t2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2]
+        if t2 < 1e-8:   # the same Taylor branch as lie.exp_so3
+            ca, cb = 1.0 - t2 / 6.0 + t2 * t2 / 120.0, 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+        else:
+            tt = math.sqrt(t2)
+            ca, cb = math.sin(tt) / tt, (1.0 - math.cos(tt)) / (tt * tt)
+        kx = [[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]]
+        ex = [[(1.0 if i == j else 0.0) + ca * kx[i][j] + cb * (kx[i][0] * kx[0][j] + kx[i][1] * kx[1][j]
+                                                               + kx[i][2] * kx[2][j]) for j in range(3)]
+              for i in range(3)]
+        nr = [[rh[3 * i] * ex[0][j] + rh[3 * i + 1] * ex[1][j] + rh[3 * i + 2] * ex[2][j] for j in range(3)]
+              for i in range(3)]
+        if not math.isfinite(sum(nb) + sum(nv) + sum(nphi) + sum(nw) + sum(nth) + sum(map(sum, nr))):
+            check_finite("ffts_eso", b=np.array(nb), v=np.array(nv), phi=np.array(nphi), w=np.array(nw),
+                         tau=np.array(nth), R=np.array(nr))
+        self._state = {"b": np.array([nb]), "v": np.array([nv]), "phi": np.array([nphi]), "R": np.array([nr]),
+                       "w": np.array([nw]), "tau": np.array([nth])}
         return self.estimate()
 
     def estimate(self) -> ObserverEstimate:

@@ -74,8 +74,9 @@ def test_batch_equals_separate_runs(name):
         eb = batch.update(meas, f, tau, h)
         for i, o in enumerate(singles):
             es = o.update({k: v[i] for k, v in meas.items()}, f[i:i + 1], tau[i], h)
-            np.testing.assert_allclose(es.force[0], eb.force[i], rtol=1e-12, atol=1e-12)
-            np.testing.assert_allclose(es.torque[0], eb.torque[i], rtol=1e-12, atol=1e-12)
+            # rounding-level agreement (the FFTS-ESO's N = 1 path is scalar Python, the batch path numpy)
+            np.testing.assert_allclose(es.force[0], eb.force[i], rtol=1e-9, atol=1e-9)
+            np.testing.assert_allclose(es.torque[0], eb.torque[i], rtol=1e-9, atol=1e-10)
 
 
 def test_s_k_closed_forms_match_eqs_41_66_and_lemma5():
