@@ -28,11 +28,12 @@ world frame, eq. 34); ``states``: ``velocity`` = p_lin / m, ``angular_velocity``
 Vehicle: the matrices of the design do not depend on m and J (pure selection/shift matrices), but
 the noise ellipsoid Q2 (eq. 58) was identified for the AscTec Hummingbird (m = 1.023 kg) of Sec. 4.
 The shipped gains ``qb_gain_hummingbird_mu{0p2,0p5,0p95}.npz`` are for that vehicle;
-``qb_gain_s500_mu0p5.npz`` and ``qb_gain_x500_mu0p5.npz`` were designed with Q2 rescaled to those
+``qb_gain_{s500,x500,pounds_x4}_mu0p5.npz`` were designed with Q2 rescaled to those
 presets (same velocity/rate/accelerometer errors, :func:`~fawtgym.observers.qb_uav_model.scaled_q2`)
 and are picked automatically for a matching mass and inertia.  A gain runs on any vehicle (m and J
-form u and y) but its guaranteed error ellipsoid refers to the noise it was designed for.  Design for another vehicle with ``fawtgym reproduce qb --design-for <preset>``
-or :func:`design_uav_gain` (which rescales Q2 with :func:`~fawtgym.observers.qb_uav_model.scaled_q2`).
+form u and y) but its guaranteed error ellipsoid refers to the noise it was designed for.
+Design for another vehicle with ``fawtgym reproduce qb --design-for <preset>`` or
+:func:`design_uav_gain` (which rescales Q2 with :func:`~fawtgym.observers.qb_uav_model.scaled_q2`).
 """
 
 from __future__ import annotations
@@ -164,9 +165,9 @@ class QBObserver(Observer):
     """Quadratic-boundedness optimal disturbance observer on the momentum model (seed-001 Secs. 2-4).
 
     ``make_observer("qb", mass, inertia)`` loads the shipped mu = 0.5, r = 3 gain designed for this
-    mass/inertia if there is one (``qb_gain_<vehicle>_mu0p5.npz``: hummingbird, s500, x500), else the
-    Hummingbird gain (with a warning); ``gain_file`` selects another saved gain (path or shipped name).
-    Estimates force and torque.
+    mass/inertia if there is one (``qb_gain_<vehicle>_mu0p5.npz``: hummingbird, s500, x500,
+    pounds_x4), else the Hummingbird gain (with a warning); ``gain_file`` selects another saved gain
+    (path or shipped name).  Estimates force and torque.
     """
 
     channels = frozenset({"force", "torque"})
