@@ -83,14 +83,14 @@ def test_lee_controller_hovers_from_an_offset():
 
 
 def test_shortened_study_ordering(tmp_path):
-    """3.5 s of HV and HP with and without noise (the full 30 s run is the long test below).
+    """3.2 s of HV and HP with and without noise (the full 30 s run is the long test below).
 
     Asserted ordering (the paper's qualitative claims that hold already at this horizon):
     * with noise, FxTSDO's force error is > 10x FFTS-ESO's (Remark 2);
     * in HP, LESO's torque error is > 3x FFTS-ESO's and > 2x LESO's own HV error (Euler angles);
     * FFTS-ESO's errors are small in every case (force < 0.5 N, torque < 0.03 N m).
     """
-    res = sim.run_study(seconds=3.5, trajectories=("HV", "HP"), observers=("ffts_eso", "leso", "fxtsdo"))
+    res = sim.run_study(seconds=3.2, trajectories=("HV", "HP"), observers=("ffts_eso", "leso", "fxtsdo"))
     i = {name: k for k, name in enumerate(res.names)}
     rf, rt = res.rms_force, res.rms_torque
     for case in ("HV+noise", "HP+noise"):
@@ -102,7 +102,7 @@ def test_shortened_study_ordering(tmp_path):
     assert not res.diverged
     figs = sim.plot(res, tmp_path)
     sim.write_csv(res, tmp_path / "rms.csv")
-    sim.write_markdown(res, tmp_path / "rms.md", figs, 3.5)
+    sim.write_markdown(res, tmp_path / "rms.md", figs, 3.2)
     assert len(figs) == 4 and all(p.stat().st_size > 0 for p in figs)
     text = (tmp_path / "rms.md").read_text()
     assert "claims vs our results" in text and "ffts_eso" in text
