@@ -168,8 +168,10 @@ def test_registry_names_and_options():
             "dryden-moderate", "dryden-severe", "gust-1cos"} <= names
     w = make_wind({"name": "fawt", "duty": 0.45, "form": "1797", "spin_tau": 2.0})
     assert isinstance(w, FawtWind) and w.duty == 0.45 and w.form == "1797"
-    with pytest.raises(ValueError, match="fixed duty"):
+    with pytest.raises(ValueError, match="duty is fixed"):
         make_wind({"name": "fawt-50", "duty": 0.3})
+    with pytest.raises(ValueError, match="bogus.*valid options"):
+        make_wind({"name": "dryden-light", "bogus": 1})
     with pytest.raises(ValueError, match="form"):
         make_wind({"name": "fawt-50", "form": "x"})
 

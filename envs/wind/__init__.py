@@ -15,7 +15,8 @@ Registered names (``make_wind(name)`` or ``make_wind({"name": ..., **options})``
 
 from __future__ import annotations
 
-import functools
+import inspect
+from collections.abc import Callable
 from typing import Any
 
 from .base import CalmWind, WindModel, make_wind, register_wind, wind_names
@@ -25,18 +26,28 @@ from .outdoor import DrydenWind, OneCosineGust
 from .schedule import FanSchedule
 
 
-def _fawt_preset(duty: float, /, **options: Any) -> FawtWind:
-    if "duty" in options:
-        raise ValueError(f"preset fawt-{round(duty * 100)} has a fixed duty; use the 'fawt' wind with duty=...")
-    return FawtWind(duty, **options)
+def _checked(name: str, cls: Callable[..., WindModel], *fixed: Any) -> Callable[..., WindModel]:
+    """Factory for ``name``: unknown option names raise ValueError listing the valid ones."""
+    params = list(inspect.signature(cls).parameters)[len(fixed):]
+
+    def factory(**options: Any) -> WindModel:
+        unknown = sorted(set(options) - set(params))
+        if unknown:
+            hint = " (its duty is fixed; use the 'fawt' wind with duty=...)" if "duty" in unknown and fixed else ""
+            raise ValueError(f"unknown option(s) {unknown} for wind {name!r}{hint}; valid options: {params}")
+        return cls(*fixed, **options)
+
+    factory.__doc__ = f"{name}: {cls.__doc__}"
+    return factory
 
 
 for _duty in sorted(TABLE3):
-    register_wind(f"fawt-{round(_duty * 100)}", functools.partial(_fawt_preset, _duty))
-register_wind("fawt", FawtWind)
+    _name = f"fawt-{round(_duty * 100)}"
+    register_wind(_name, _checked(_name, FawtWind, _duty))
+register_wind("fawt", _checked("fawt", FawtWind))
 for _level in ("light", "moderate", "severe"):
-    register_wind(f"dryden-{_level}", functools.partial(DrydenWind, _level))
-register_wind("gust-1cos", OneCosineGust)
+    register_wind(f"dryden-{_level}", _checked(f"dryden-{_level}", DrydenWind, _level))
+register_wind("gust-1cos", _checked("gust-1cos", OneCosineGust))
 
 __all__ = ["TABLE3", "CalmWind", "DrydenParams", "DrydenProcess", "DrydenWind", "FanSchedule", "FawtWind",
            "OneCosineGust", "WindModel", "dryden_psd", "fawt_statistics", "make_wind", "register_wind",
