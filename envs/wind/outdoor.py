@@ -144,7 +144,8 @@ class DrydenWind(WindModel):
 class OneCosineGust(WindModel):
     """Discrete (1 - cosine) gust, MIL-F-8785C Sec. 3.7.5 (module docstring).
 
-    ``amplitude`` [m/s]: a float (horizontal, toward ``direction_deg``) or an NED 3-vector;
+    ``amplitude`` [m/s]: a float (horizontal, toward ``direction_deg``) or an NED 3-vector (e.g. a
+    vertical gust); the front always travels horizontally toward ``direction_deg``;
     ``length`` d_m [m]; ``speed`` [m/s] the front's advection speed; ``start_time`` [s]; ``shape``
     "rise" | "full".
     """
@@ -169,7 +170,7 @@ class OneCosineGust(WindModel):
         self.length = float(length)
         self.speed = float(speed)
         self.start_time = float(start_time)
-        self.direction = d if np.linalg.norm(amp) == 0 else amp / np.linalg.norm(amp)
+        self.direction = d  # the front travels horizontally toward direction_deg whatever the amplitude's direction
         self.shape = shape
         self.n = 0
 
