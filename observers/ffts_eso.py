@@ -26,7 +26,7 @@ e_Omega = Omega^m - E_R^T Omega_hat), e_R = s_K(E_R) (Lemma 5, eq. 41) and e_w =
 ``s_K(E) = vee(K E - E^T K)`` and ``e_w = tr(K E) e_Omega - E^T K e_Omega``.
 
 Discretisation: the measurement and the applied thrust/torque are held over ``dt`` (zero-order hold);
-the vector states are advanced by explicit Euler (default) or Heun, the kinematic chains b_hat' = v_hat and
+the vector states are advanced by explicit Euler, the kinematic chains b_hat' = v_hat and
 R_hat' = R_hat Omega_hat^ exactly for the held accelerations (R_hat by the exponential map,
 :func:`fawtgym.observers.lie.integrate_rotation`, so R_hat stays on SO(3)).  The time derivative of
 the fractional power (the H-terms) is unbounded at e = 0, so the fractional power is regularised as
@@ -116,12 +116,9 @@ class FFTSESO(Observer):
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, p: float = 1.2,
                  kt1: float = 3.0, kt2: float = 2.0, kt3: float = 6.0, kappa_t: float = 0.8,
                  ka1: float = 3.0, ka2: float = 2.0, ka3: float = 4.0, kappa_a: float = 0.6,
-                 morse_k: Sequence[float] = (1.2, 1.1, 1.0), eps: float = DEFAULT_EPS,
-                 integrator: str = "euler") -> None:
+                 morse_k: Sequence[float] = (1.2, 1.1, 1.0), eps: float = DEFAULT_EPS) -> None:
         super().__init__(mass, inertia, gravity)
         validate_gains(p, kt1, kt2, kt3, kappa_t, ka1, ka2, ka3, kappa_a, morse_k)
-        if integrator not in ("euler", "heun"):
-            raise ValueError(f"integrator must be 'euler' or 'heun', got {integrator!r}")
         if not (np.isfinite(eps) and eps > 0):
             raise ValueError(f"eps must be a small positive number, got {eps!r}")
         self.p, self.kappa_t, self.kappa_a = float(p), float(kappa_t), float(kappa_a)
@@ -129,7 +126,6 @@ class FFTSESO(Observer):
         self.ka1, self.ka2, self.ka3 = float(ka1), float(ka2), float(ka3)
         self.morse_k = np.asarray(morse_k, dtype=float)
         self.eps = float(eps)
-        self.integrator = integrator
         self._state: dict[str, NDArray[np.float64]] | None = None
         # constants of eq. (9) and of the fractional power (1-p)/p, (p-1)/p
         self._a = (1.0 - p) / (3.0 * p - 2.0)
@@ -158,7 +154,7 @@ class FFTSESO(Observer):
                dt: float) -> ObserverEstimate:
         if self._state is None:
             raise RuntimeError("ffts_eso: call reset(measurement) before update()")
-        if self._state["b"].shape[0] == 1 and self.integrator == "euler":
+        if self._state["b"].shape[0] == 1:
             return self._update_single(measurement, thrust, torque, dt)
         _, f, tau = self._inputs({}, thrust, torque, dt)
         m = require(measurement, _KEYS, "ffts_eso")
@@ -168,14 +164,7 @@ class FFTSESO(Observer):
             raise ValueError(f"ffts_eso: measurement batch size {m['position'].shape[0]} != reset batch size {n}")
         f = batch_thrust(f, n, "ffts_eso")
         tau = batch_torque(tau, n, "ffts_eso")
-        d1 = self._rhs(s, m, f, tau)
-        if self.integrator == "euler":
-            new = self._advance(s, d1, dt)
-        else:
-            pred = self._advance(s, d1, dt)
-            d2 = self._rhs(pred, m, f, tau)
-            avg = {k: 0.5 * (d1[k] + d2[k]) for k in d1}
-            new = self._advance(s, avg, dt)
+        new = self._advance(s, self._rhs(s, m, f, tau), dt)
         if not all_finite(new["v"], new["w"], new["phi"], new["tau"], new["b"], new["R"]):
             check_finite("ffts_eso", **new)
         self._state = new
