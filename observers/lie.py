@@ -49,17 +49,17 @@ def exp_so3(w: ArrayLike) -> NDArray[np.float64]:
 def log_so3(r: ArrayLike) -> NDArray[np.float64]:
     """Rotation vector (..., 3) of R (..., 3, 3), angle in [0, pi]; robust near 0 and pi."""
     r = np.asarray(r, dtype=float)
-    cos = np.clip((np.trace(r, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
-    th = np.arccos(cos)
+    cos = 0.5 * (np.trace(r, axis1=-2, axis2=-1) - 1.0)
     v = vee(r)  # = sin(th) * axis
+    th = np.arctan2(np.linalg.norm(v, axis=-1), cos)  # well conditioned at every angle (unlike arccos)
     small = th < 1e-6
     factor = np.where(small, 1.0 + th**2 / 6.0, th / np.sin(np.where(small, 1.0, th)))
     out = factor[..., None] * v
-    near_pi = th > np.pi - 1e-3
+    near_pi = th > np.pi - 0.1
     if np.any(near_pi):
         # near pi, sin(th) -> 0: the axis comes from the symmetric part (R + R^T)/2 = cos I + (1 - cos) a a^T
         rs = r[near_pi]
-        c = cos[near_pi][..., None, None]
+        c = np.clip(cos[near_pi], -1.0, 1.0)[..., None, None]
         aat = ((rs + np.swapaxes(rs, -1, -2)) / 2.0 - c * np.eye(3)) / (1.0 - c)
         col = np.argmax(np.diagonal(aat, axis1=-2, axis2=-1), axis=-1)
         axis = aat[np.arange(aat.shape[0]), col, :]
