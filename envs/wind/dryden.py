@@ -260,6 +260,7 @@ class DrydenProcess:
         n_keys = int(math.floor(math.log(_D_MAX) / _BIN + 0.5)) - self._k0 + 1
         self._dense = np.zeros((n_keys, 2 * self.n_states, self.n_states + self.c.shape[0]))
         self._filled = np.zeros(n_keys, dtype=bool)
+        self._last_d, self._last_m = -1.0, self._dense[0]
         self._ct = np.ascontiguousarray(self.c.T)
         self.n = 0
 
@@ -326,7 +327,10 @@ class DrydenProcess:
         self._k += 1
         row[:, :ns] = self.x
         if isinstance(airspeed, (float, int)) or np.ndim(airspeed) == 0:
-            out = row @ self._matrix(max(float(airspeed), V_FLOOR) * dt)
+            d = max(float(airspeed), V_FLOOR) * dt
+            if d != self._last_d:  # same step length as last time: reuse the matrix
+                self._last_d, self._last_m = d, self._matrix(d)
+            out = row @ self._last_m
         else:
             d = np.clip(np.maximum(np.asarray(airspeed, dtype=float), V_FLOOR) * dt, _D_MIN, _D_MAX)
             idx = np.floor(np.log(d) / _BIN + 0.5).astype(np.intp) - self._k0

@@ -298,9 +298,12 @@ class FawtWind(WindModel):
             out = []
             for u, g in zip(means, weights, strict=True):
                 s = math.sqrt((ti * u) ** 2 + sh * g)
-                out.append([u + s * gu, -s * gv, -s * gw])
-            return np.array([out])
-        return np.array([[[u, 0.0, 0.0] for u in means]])
+                out += (u + s * gu, -s * gv, -s * gw)
+            return np.array(out).reshape(1, -1, 3)
+        out = []
+        for u in means:
+            out += (u, 0.0, 0.0)
+        return np.array(out).reshape(1, -1, 3)
 
     def mean_wind_at(self, points_ned: Sequence[float] | NDArray[np.float64]) -> NDArray[np.float64]:
         """Mean wind (..., 3) NED at points (..., 3) for the current fan level (no turbulence)."""
