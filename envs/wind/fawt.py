@@ -15,9 +15,10 @@ value (``var = (TI U)^2``).  Duty below 0 or above 1 raises ValueError.
 
 *Integral length scale* ``L`` (default per duty, about 15-23 mm).  For isotropic turbulence the
 dissipation is ``eps = 15 nu u'^2 / lambda^2`` (Taylor microscale ``lambda``) and also
-``eps = C_eps u'^3 / L`` with ``C_eps ~ 0.5`` (Pope, Turbulent Flows, Sec. 6.5 / Fig. 6.17 for
-Re_lambda >~ 100), so ``L = C_eps Re_lambda lambda / 15 = C_eps Re_lambda^2 nu / (15 u')`` with
-``Re_lambda = u' lambda / nu`` from Table 3 and ``nu = 1.5e-5 m^2/s``.  Check against the geometry:
+``eps = C_eps u'^3 / L`` with ``C_eps ~ 0.5`` (the normalized dissipation rate at Re_lambda >~ 100;
+Sreenivasan 1998; Pope, Turbulent Flows, 2000, Ch. 6), so
+``L = C_eps Re_lambda lambda / 15 = C_eps Re_lambda^2 nu / (15 u')`` with ``Re_lambda = u' lambda / nu``
+from Table 3 and ``nu = 1.5e-5 m^2/s``.  Check against the geometry:
 grid/fan-array turbulence at ``x / M = 1.2 / 0.08 = 15`` mesh lengths has ``L`` of roughly
 0.1-0.5 ``M`` = 8-40 mm; the Re_lambda estimate falls inside that bracket (tested).  The gust
 spectrum is Dryden with this ``L`` for ``u`` and, as isotropic turbulence, the same ``L``
@@ -34,8 +35,8 @@ with shear layers whose width grows linearly with ``x``; ``kappa = 0.02 /m`` giv
 the core (0.6 % between the hot wire and the hover point; the paper treats them as equal).  Mean
 speed is zero behind the array plane (x < 0).  Turbulence: ``sigma^2 = (TI U)^2 + (TI_sl U_c(x))^2 g``
 with ``g = max_edges exp(-(sigma_G (|q| - h) / x)^2)`` peaking in the shear layers, where the
-r.m.s. fluctuation of a mixing layer is ``TI_sl = 0.17`` of the velocity difference (Bell & Mehta
-1990; Pope Fig. 5.24).  One Dryden realization per field is scaled by the local ``sigma`` at each
+peak r.m.s. fluctuation of a mixing layer is ``TI_sl = 0.17`` of the velocity difference (e.g. Bell &
+Mehta 1990; Pope 2000 Ch. 5).  One Dryden realization per field is scaled by the local ``sigma`` at each
 point (points share the gust; with ``rates=True`` the Dryden gust gradients add a linear spatial
 variation across the vehicle).  ``s(t)`` is the fan level of :class:`FanSchedule`.
 
@@ -73,7 +74,7 @@ GOERTLER_SIGMA = 13.5  #: spreading parameter of the erf mixing-layer profile
 DECAY_KAPPA = 0.02  #: [1/m] slow stream-wise decay of the core speed
 SHEAR_TI = 0.17  #: peak r.m.s. u' / delta U in a plane mixing layer
 NU_AIR = 1.5e-5  #: [m^2/s] kinematic viscosity of air at ~20 C
-C_EPS = 0.5  #: dissipation constant eps L / u'^3 (Pope 2000, Sec. 6.5)
+C_EPS = 0.5  #: normalized dissipation rate eps L / u'^3 (Sreenivasan 1998; Pope 2000 Ch. 6)
 _DUTIES = np.array(sorted(TABLE3))
 
 
