@@ -56,7 +56,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-import scipy.signal
 from numpy.typing import NDArray
 
 FORMS = ("8785c", "1797")
@@ -284,6 +283,8 @@ class DrydenProcess:
             s = _psd_sqrt(self.p_stat - ad @ self.p_stat @ ad.T)
         else:
             # noise held over the step at intensity 1/dq, zero-order-hold input matrix Bd
+            import scipy.signal  # only this comparison option needs it (slow to import)
+
             ns = self.n_states
             sysd = scipy.signal.cont2discrete((self.a, self.b, np.eye(ns), np.zeros((ns, self.b.shape[1]))), dq,
                                               method="zoh")

@@ -298,7 +298,7 @@ class FawtWind(WindModel):
             ti, sh = self.ti, (SHEAR_TI * scale) ** 2
             out = []
             for u, g in zip(means, weights, strict=True):
-                s = math.sqrt((ti * u) ** 2 + sh * g)
+                s = math.sqrt((ti * u) ** 2 + sh * g) if g > 0.0 else ti * u
                 out += (u + s * gu, -s * gv, -s * gw)
             return np.array(out).reshape(1, -1, 3)
         out = []
