@@ -118,6 +118,8 @@ def quest(body: ArrayLike, reference: ArrayLike, weights: ArrayLike | None = Non
         df = 2 * lam * (2 * lam**2 - a1 - b1) - c1
         step = np.where(np.abs(df) > 1e-14, f / np.where(df == 0, 1.0, df), 0.0)
         lam = lam - step
+        if np.max(np.abs(step)) < 1e-15:  # quadratic convergence: usually 2-4 iterations
+            break
 
     # eq. 65: g = [(lambda + rho) I - S]^{-1} z
     M = (lam + rho)[:, None, None] * np.eye(3) - S

@@ -149,3 +149,19 @@ def test_bad_parameters_raise() -> None:
         P.kappa2_interval_36(X0, 0.3, TC)
     with pytest.raises(ValueError, match="t_c"):
         P.analytic_solution([0.6], X0, TC, ETA, K2)
+
+
+def test_exact_linear_step_matches_integration() -> None:
+    """The eq.-7 step of x1' = -eta/(t_c - t)(x1 - y) + x2 (y, x2 held) against solve_ivp, up to t_c."""
+    t_c, eta, y, x2 = 0.5, 5.0, 0.3, -1.2
+    for t, h in ((0.0, 0.1), (0.3, 0.15), (0.45, 0.05), (0.49, 0.01)):
+        sol = solve_ivp(lambda s, x: [-eta / (t_c - s) * (x[0] - y) + x2], (t, t + h * (1 - 1e-9)), [1.0],
+                        rtol=1e-12, atol=1e-13, method="DOP853")
+        ours = float(P.exact_linear_step(1.0, x2, y, t, h, t_c, eta))
+        assert abs(ours - sol.y[0, -1]) < 1e-6
+    assert float(P.exact_linear_step(1.0, x2, y, 0.4, 0.1, t_c, eta)) == pytest.approx(y, abs=1e-15)  # lands on y
+    batch = P.exact_linear_step(np.ones((2, 3)), np.zeros((2, 3)), np.zeros((2, 3)), np.array([0.0, 0.25]),
+                                np.array([0.1, 0.1]), t_c, eta)
+    assert np.allclose(batch[0], (0.4 / 0.5) ** eta) and np.allclose(batch[1], (0.15 / 0.25) ** eta)
+    with pytest.raises(ValueError, match="t_s"):
+        P.exact_linear_step(1.0, 0.0, 0.0, 0.45, 0.1, t_c, eta)
