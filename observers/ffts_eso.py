@@ -127,6 +127,7 @@ class FFTSESO(Observer):
         self.morse_k = np.asarray(morse_k, dtype=float)
         self.eps = float(eps)
         self._state: dict[str, NDArray[np.float64]] | None = None
+        self._single_cache: tuple | None = None
         # constants of eq. (9) and of the fractional power (1-p)/p, (p-1)/p
         self._a = (1.0 - p) / (3.0 * p - 2.0)
         self._c1t = 2.0 * kt3 * (2.0 * p - 1.0) / (3.0 * p - 2.0)
@@ -199,8 +200,12 @@ class FFTSESO(Observer):
         if not math.isfinite(fl[0] + sum(tq)):
             raise ValueError(f"ffts_eso: thrust/torque contain non-finite values: {fl}, {tq}")
         st = self._state
-        b, v, phi, w, th = (st[k][0].tolist() for k in ("b", "v", "phi", "w", "tau"))
-        rh = st["R"][0].ravel().tolist()
+        cache = self._single_cache
+        if cache is not None and cache[0] is st:     # state written by the previous N = 1 step: reuse its floats
+            b, v, phi, w, th, rh = cache[1:]
+        else:
+            b, v, phi, w, th = (st[k][0].tolist() for k in ("b", "v", "phi", "w", "tau"))
+            rh = st["R"][0].ravel().tolist()
         mass, eps, c, k2c, a, tiny = self.mass, self.eps, self._c, 2.0 * self._k, self._a, _TINY
         # translational, eqs. (45), (49), (50)
         eb = [pm[i] - b[i] for i in range(3)]
@@ -261,17 +266,22 @@ class FFTSESO(Observer):
         else:
             tt = math.sqrt(t2)
             ca, cb = math.sin(tt) / tt, (1.0 - math.cos(tt)) / (tt * tt)
-        kx = [[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]]
-        ex = [[(1.0 if i == j else 0.0) + ca * kx[i][j] + cb * (kx[i][0] * kx[0][j] + kx[i][1] * kx[1][j]
-                                                               + kx[i][2] * kx[2][j]) for j in range(3)]
-              for i in range(3)]
-        nr = [[rh[3 * i] * ex[0][j] + rh[3 * i + 1] * ex[1][j] + rh[3 * i + 2] * ex[2][j] for j in range(3)]
-              for i in range(3)]
-        if not math.isfinite(sum(nb) + sum(nv) + sum(nphi) + sum(nw) + sum(nth) + sum(map(sum, nr))):
+        # exp(x^) = (1 - cb t2) I + ca x^ + cb x x^T  (x^ x^ = x x^T - t2 I), same coefficients as lie.exp_so3
+        d0 = 1.0 - cb * t2
+        x0, x1, x2 = x
+        ex = (d0 + cb * x0 * x0, -ca * x2 + cb * x0 * x1, ca * x1 + cb * x0 * x2,
+              ca * x2 + cb * x1 * x0, d0 + cb * x1 * x1, -ca * x0 + cb * x1 * x2,
+              -ca * x1 + cb * x2 * x0, ca * x0 + cb * x2 * x1, d0 + cb * x2 * x2)
+        nr = [rh[3 * i] * ex[j] + rh[3 * i + 1] * ex[3 + j] + rh[3 * i + 2] * ex[6 + j]
+              for i in range(3) for j in range(3)]
+        flat = nb + nv + nphi + nw + nth + nr
+        if not math.isfinite(sum(flat)):
             check_finite("ffts_eso", b=np.array(nb), v=np.array(nv), phi=np.array(nphi), w=np.array(nw),
                          tau=np.array(nth), R=np.array(nr))
-        self._state = {"b": np.array([nb]), "v": np.array([nv]), "phi": np.array([nphi]), "R": np.array([nr]),
-                       "w": np.array([nw]), "tau": np.array([nth])}
+        buf = np.array(flat)
+        self._state = {"b": buf[0:3].reshape(1, 3), "v": buf[3:6].reshape(1, 3), "phi": buf[6:9].reshape(1, 3),
+                       "w": buf[9:12].reshape(1, 3), "tau": buf[12:15].reshape(1, 3), "R": buf[15:].reshape(1, 3, 3)}
+        self._single_cache = (self._state, nb, nv, nphi, nw, nth, nr)
         return self.estimate()
 
     def estimate(self) -> ObserverEstimate:
