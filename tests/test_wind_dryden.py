@@ -165,3 +165,17 @@ def test_expm_small_matches_scipy():
         a = DrydenProcess(DrydenParams(sigma=(1.0, 1.0, 1.0), length=(0.015, 0.02, 0.01)), rates=rates).a
         for d in (1e-5, 1e-3, 0.08, 1.0, 30.0):
             np.testing.assert_allclose(expm_small(a * d), scipy.linalg.expm(a * d), rtol=1e-10, atol=1e-13)
+
+
+@pytest.mark.parametrize("rates", [False, True])
+def test_float_path_equals_numpy_path(rates):
+    """step1 (N = 1 float arithmetic) follows the same trajectory as step, and the two can be mixed."""
+    p = DrydenParams(sigma=(1.0, 0.8, 0.5), length=(0.02, 0.02, 0.02))
+    a, b = DrydenProcess(p, rates=rates), DrydenProcess(p, rates=rates)
+    a.reset(1, seed=4)
+    b.reset(1, seed=4)
+    for k in range(600):  # crosses block refills; airspeed varies
+        v = 8.0 + np.sin(0.05 * k)
+        ya = a.step1(0.01, v) if k % 7 else a.step(0.01, v)[0].tolist()
+        yb = b.step(0.01, v)[0]
+        np.testing.assert_allclose(ya, yb, rtol=1e-9, atol=1e-12)

@@ -37,8 +37,9 @@ stationary covariance (``A P + P A^T + B B^T = 0``, scipy's Lyapunov solver).  T
 sample instants, so the realized sigma does not depend on the step (unlike the common practice of
 scaling unit noise without ``sqrt(dt)``).  A changing airspeed (the frozen-turbulence speed
 ``V = |mean wind - vehicle velocity|``, floored at ``v_floor``) only changes ``d``; the matrices are
-cached on a logarithmic grid of ``d`` (1 % bins, i.e. the step length is exact to +-0.5 %;
-``d`` is clipped to [1e-5, 200] m).
+cached on a logarithmic grid of ``d`` (2 % bins: the step length, hence the gust time scale, is exact
+to +-1 %, while the variance stays exact because ``Qd`` is built from the same ``Ad``; ``d`` is clipped
+to [1e-5, 200] m; a vehicle whose airspeed wanders fills more bins, each costing one small ``expm``).
 
 Option ``discretization="zoh"``: zero-order hold of the state space with the noise held over the
 step at intensity ``1/dt`` (``scipy.signal.cont2discrete``), as many simulators do; its variance
@@ -63,7 +64,7 @@ FORMS = ("8785c", "1797")
 #: and L/V would freeze the gusts of a vehicle hovering in still mean air; 1 m/s keeps the time
 #: scale finite (MATLAB's Dryden block has no floor and divides by zero at V = 0).
 V_FLOOR = 1.0
-_BIN = 0.01  # log-bin width of the cached step length d = V dt
+_BIN = 0.02  # log-bin width of the cached step length d = V dt
 _D_MIN, _D_MAX = 1e-5, 200.0  # [m] range of d = V dt held in the table (clipped outside)
 
 
@@ -254,12 +255,16 @@ class DrydenProcess:
         self.n_states = self.a.shape[0]
         self.p_stat = scipy.linalg.solve_continuous_lyapunov(self.a, -self.b @ self.b.T)
         self.p_stat = 0.5 * (self.p_stat + self.p_stat.T)
-        # dense lazily-filled table of step matrices on the log grid of d (1 % bins)
+        # dense lazily-filled table of step matrices on the log grid of d (2 % bins)
         self._k0 = int(math.floor(math.log(_D_MIN) / _BIN + 0.5))
         n_keys = int(math.floor(math.log(_D_MAX) / _BIN + 0.5)) - self._k0 + 1
         self._dense = np.zeros((n_keys, 2 * self.n_states, self.n_states + self.c.shape[0]))
         self._filled = np.zeros(n_keys, dtype=bool)
         self._last_d, self._last_m = -1.0, self._dense[0]
+        self._last_d1, self._sp = -1.0, []
+        self._sparse_cache: dict[int, list[tuple[int, int, float]]] = {}
+        self._n_out_total = self.n_states + self.c.shape[0]
+        self._x, self._xl = np.zeros((0, self.n_states)), None
         self._ct = np.ascontiguousarray(self.c.T)
         self.n = 0
 
@@ -308,13 +313,57 @@ class DrydenProcess:
         self.x = np.stack([chol @ g.standard_normal(self.n_states) for g in self._rngs])
         self._buf = np.zeros((self.block, n, 2 * self.n_states))
         self._k = self.block
+        self._zl = None
         self.y = self.x @ self._ct
+
+    @property
+    def x(self) -> NDArray[np.float64]:
+        """Filter state (N, n_states)."""
+        if self._xl is not None:  # the float path holds the newest state
+            self._x = np.array([self._xl])
+            self._xl = None
+        return self._x
+
+    @x.setter
+    def x(self, value: NDArray[np.float64]) -> None:
+        self._x = value
+        self._xl = None
 
     def _refill(self) -> None:
         ns = self.n_states
         for i, g in enumerate(self._rngs):
             self._buf[:, i, ns:] = g.standard_normal((self.block, ns))
         self._k = 0
+        self._zl = self._buf[:, 0, ns:].tolist() if self.n == 1 else None
+
+    def _sparse(self, d: float) -> list[tuple[int, int, float]]:
+        """Non-zero entries ``(i, j, M_ij)`` of the step matrix for the float path (|M_ij| > 1e-14 max|M|)."""
+        m = self._matrix(d)
+        tol = 1e-14 * float(np.abs(m).max())
+        rows, cols = np.nonzero(np.abs(m) > tol)
+        return [(int(i), int(j), float(m[i, j])) for i, j in zip(rows, cols, strict=True)]
+
+    def step1(self, dt: float, airspeed: float) -> list[float]:
+        """N = 1 :meth:`step` in float arithmetic (same update, sparse step matrix); outputs as a list."""
+        if self.n != 1:
+            raise ValueError(f"step1 needs n = 1 field, have {self.n}")
+        if self._k >= self.block:
+            self._refill()
+        ns = self.n_states
+        d = (airspeed if airspeed > V_FLOOR else V_FLOOR) * dt
+        if d != self._last_d1:
+            idx = int(math.floor(math.log(min(max(d, _D_MIN), _D_MAX)) / _BIN + 0.5)) - self._k0
+            sp = self._sparse_cache.get(idx)
+            if sp is None:
+                sp = self._sparse_cache[idx] = self._sparse(d)
+            self._last_d1, self._sp = d, sp
+        xz = (self._xl if self._xl is not None else self._x[0].tolist()) + self._zl[self._k]
+        self._k += 1
+        out = [0.0] * self._n_out_total
+        for i, j, v in self._sp:
+            out[j] += xz[i] * v
+        self._xl = out[:ns]
+        return out[ns:]
 
     def step(self, dt: float, airspeed: float | NDArray[np.float64]) -> NDArray[np.float64]:
         """Advance every field by ``dt`` [s] at ``airspeed`` [m/s] (floored at ``V_FLOOR``); return outputs.

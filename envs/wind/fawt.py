@@ -294,7 +294,7 @@ class FawtWind(WindModel):
             weights.append((gy if gy > gz else gz) * core * core)
         if self.turbulence and level > 0.0:
             rx = means[0] - vx
-            gu, gv, gw = self.process.step(dt, math.sqrt(rx * rx + vy * vy + vz * vz))[0, :3].tolist()
+            gu, gv, gw = self.process.step1(dt, math.sqrt(rx * rx + vy * vy + vz * vz))[:3]
             ti, sh = self.ti, (SHEAR_TI * scale) ** 2
             out = []
             for u, g in zip(means, weights, strict=True):
