@@ -58,7 +58,7 @@ from .aero import AeroModel
 from .ctbr import MAX_RATES, RateLoop
 from .frames import FAWT_HOVER_POINT_NED, rot_ned_to_quat_mj, vec_ned_to_mj
 from .mjcf import INTEGRATORS, vehicle_mjcf
-from .motors import allocation_matrix, command_to_omega, hover_command, lag_speeds
+from .motors import allocation_matrix, hover_command
 from .sensors import SensorModel, make_sensor_spec
 from .vehicles import GRAVITY, VehiclePreset, make_vehicle
 from .wind import WindModel, make_wind
@@ -187,7 +187,14 @@ class HoverEnv(gym.Env):
         self._obs_high = self.observation_space.high.astype(float)
         self._act_low = self.action_space.low.astype(float)
         self._act_high = self.action_space.high.astype(float)
-        self._lag_times = np.append(self._mid_times, self.dt)
+        # exact motor lag sample times: mid-substep (thrust) and end of step (speed), negated for exp()
+        self._neg_lag_times = -np.append(self._mid_times, self.dt)[:, None]
+        self._neg_half_full = -np.array([[0.5 * self.physics_dt], [self.physics_dt]])
+        self._inv_tau_up, self._inv_tau_down = 1.0 / self.preset.tau_up, 1.0 / self.preset.tau_down
+        # views into MuJoCo's buffers (stable for the life of self.data)
+        self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
+        self._ctrl4 = self.data.ctrl[0:4]
+        self._xfrc = self.data.xfrc_applied[self._body]
         self.time = 0.0
 
     # ---- public helpers -------------------------------------------------------------------
@@ -241,7 +248,6 @@ class HoverEnv(gym.Env):
         self._set_state(self.setpoint + u("position"), u("velocity"), exp_so3(u("attitude")), u("angular_velocity"))
         mujoco.mj_forward(self.model, self.data)
         self._read_state()
-        self._last_good = (self.data.qpos.copy(), self.data.qvel.copy())
         self.rotor_speeds = np.full(4, self.preset.hover_omega)
         self._last_action = self.hover_action()
         self._step_count = 0
@@ -271,56 +277,59 @@ class HoverEnv(gym.Env):
         a = np.asarray(action, dtype=float).reshape(-1)
         if a.shape != (4,):
             raise ValueError(f"action must have 4 entries, got shape {np.shape(action)}")
-        bad = np.flatnonzero(~np.isfinite(a))
-        if bad.size:
-            raise ValueError(f"action[{bad[0]}] is {a[bad[0]]}; every action entry must be finite "
+        if not math.isfinite(a.sum()):
+            i = int(np.flatnonzero(~np.isfinite(a))[0])
+            raise ValueError(f"action[{i}] is {a[i]}; every action entry must be finite "
                              f"(bounds {self.action_space.low.tolist()} .. {self.action_space.high.tolist()})")
         clipped = np.minimum(np.maximum(a, self._act_low), self._act_high)
         action_clipped = bool((clipped != a).any())
 
         force, torque, _ = self._disturbance
-        self.data.xfrc_applied[self._body, 0:3] = vec_ned_to_mj(force)
-        self.data.xfrc_applied[self._body, 3:6] = 0.0
-        self.data.ctrl[4:7] = vec_ned_to_mj(torque)
-        vel_before = self.data.qvel[0:3].copy()
+        self._xfrc[0:3] = force * _SIGN
+        self._ctrl[4:7] = torque * _SIGN
         if self.action_type == "motors":
-            thrusts = self._run_motors(clipped)
+            self._applied_thrusts = self._run_motors(clipped)
         else:
-            thrusts = self._run_ctbr(clipped)
-        self._applied_thrusts = thrusts
+            self._applied_thrusts = self._run_ctbr(clipped)
         self.time += self.dt
         self._step_count += 1
 
-        if not (np.isfinite(self.data.qpos).all() and np.isfinite(self.data.qvel).all()) or \
-                self.data.warning[_BADQACC].number > 0:
+        d = self.data
+        if not math.isfinite(self._qpos.sum() + self._qvel.sum()) or d.warning[_BADQACC].number > 0:
+            # keep the last finite state (self._state) for the observation; MuJoCo's data is unusable now
             self._failure = "diverged"
-            self._restore_last_good()
         else:
-            self._accel = (self.data.qvel[0:3] - vel_before) * (_SIGN / self.dt)
-            self._last_good = (self.data.qpos.copy(), self.data.qvel.copy())
+            v_before = self._state[1]
             self._read_state()
+            self._accel = (self._state[1] - v_before) / self.dt
             self._disturbance = self._compute_disturbance()
-            if self.data.ncon and self._floor_contact():
+            if d.ncon and self._floor_contact():
                 self._failure = "ground_contact"
-            elif (np.abs(self._state[0] - self.setpoint) > self.max_position_error).any():
+            elif np.abs(self._state[0] - self.setpoint).max() > self.max_position_error:
                 self._failure = "out_of_bounds"
         info = self._info(action_clipped)
-        obs = self._observation(info["measurement"])
-        reward = self._reward(info["measurement"], clipped)
-        self._last_action = clipped.astype(np.float32)
+        meas = info["measurement"]
+        obs = self._observation(meas)
+        reward = self._reward(meas, clipped)
+        self._last_action = clipped
         terminated = bool(self._failure)
         truncated = (not terminated) and self._step_count >= self.max_steps
         return obs, reward, terminated, truncated, info
 
+    def _motor_lag(self, omega_ref: NDArray[np.float64], neg_times: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Exact speeds (K, 4) at the times ``-neg_times`` from the current speeds (see :mod:`.motors`)."""
+        w0 = self.rotor_speeds
+        inv_tau = np.where(omega_ref > w0, self._inv_tau_up, self._inv_tau_down)
+        return omega_ref + (w0 - omega_ref) * np.exp(neg_times * inv_tau)
+
     def _run_motors(self, u: NDArray[np.float64]) -> NDArray[np.float64]:
         """Exact motor lag over the control step; rotor thrust per substep from the mid-substep speed."""
         p = self.preset
-        omega_ref = command_to_omega(p, u)
-        speeds = lag_speeds(p, self.rotor_speeds, omega_ref, self._lag_times)
+        speeds = self._motor_lag(p.omega_min + u * (p.omega_max - p.omega_min), self._neg_lag_times)
         thrusts = p.k_thrust * speeds[:-1] ** 2
-        ctrl, m, d, step = self.data.ctrl, self.model, self.data, mujoco.mj_step
-        for k in range(self.n_substeps):
-            ctrl[0:4] = thrusts[k]
+        ctrl4, m, d, step = self._ctrl4, self.model, self.data, mujoco.mj_step
+        for row in thrusts:
+            ctrl4[:] = row
             step(m, d)
         self.rotor_speeds = speeds[-1]
         return thrusts.sum(axis=0) / self.n_substeps
@@ -330,24 +339,17 @@ class HoverEnv(gym.Env):
         collective = a[0] * 4.0 * p.max_thrust_per_rotor
         rate_sp = a[1:] * MAX_RATES
         total = np.zeros(4)
-        h = self.physics_dt
         for _ in range(self.n_substeps):
             omega = self.data.qvel[3:6] * _SIGN
             t_cmd = self._rate_loop.rotor_thrusts(collective, rate_sp, omega)
             omega_ref = np.sqrt(t_cmd / p.k_thrust)
-            mid, end = lag_speeds(p, self.rotor_speeds, omega_ref, (0.5 * h, h))
+            mid, end = self._motor_lag(omega_ref, self._neg_half_full)
             thrust = p.k_thrust * mid**2
             self.data.ctrl[0:4] = thrust
             mujoco.mj_step(self.model, self.data)
             self.rotor_speeds = end
             total += thrust
         return total / self.n_substeps
-
-    def _restore_last_good(self) -> None:
-        qpos, qvel = getattr(self, "_last_good", (None, None))
-        if qpos is not None:
-            self.data.qpos[:], self.data.qvel[:] = qpos, qvel
-            mujoco.mj_forward(self.model, self.data)
 
     def _floor_contact(self) -> bool:
         d = self.data
@@ -364,10 +366,11 @@ class HoverEnv(gym.Env):
         force, torque, wind = self._disturbance
         return {
             "measurement": meas,
-            "applied": {"thrust": np.asarray(f_torque[0]), "torque": f_torque[1:].copy(),
-                        "rotor_thrusts": self._applied_thrusts.copy(), "motor_speeds": self.rotor_speeds.copy()},
-            "truth": {M.POSITION: b.copy(), M.VELOCITY: v.copy(), M.ATTITUDE: r.copy(), M.ANGULAR_VELOCITY: w.copy(),
-                      "wind": wind.copy(), "force": force.copy(), "torque": torque.copy()},
+            "applied": {"thrust": f_torque[0], "torque": f_torque[1:],
+                        "rotor_thrusts": self._applied_thrusts, "motor_speeds": self.rotor_speeds},
+            # the state arrays and the wrench are fresh every step (see _read_state/_compute_disturbance)
+            "truth": {M.POSITION: b, M.VELOCITY: v, M.ATTITUDE: r, M.ANGULAR_VELOCITY: w,
+                      "wind": wind.copy(), "force": force, "torque": torque},
             "setpoint": self.setpoint.copy(),
             "action_clipped": action_clipped,
             "failure": self._failure,
