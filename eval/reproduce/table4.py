@@ -31,6 +31,7 @@ import json
 import math
 import sys
 import time
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -265,7 +266,8 @@ def write_figures(results: Mapping[tuple[str, int], Mapping[str, Any]], duties: 
         for ax, d in zip(axes[:, 0], duties, strict=True):
             for c in columns:
                 cell = results[(c, d)]
-                with np.errstate(invalid="ignore"):
+                with warnings.catch_warnings():  # all-NaN rows after every seed failed
+                    warnings.simplefilter("ignore", RuntimeWarning)
                     y = np.nanmean(cell[key], axis=1) if cell[key].size else np.array([])
                 ax.plot(cell["trace_time"][: len(y)], y, lw=0.8, color=colors.get(c), label=c)
             ax.set_ylabel(f"{d} %\n{label}", fontsize=8)
