@@ -1,0 +1,42 @@
+"""Shared test helper: run observers on the hover env's measurements at its control rate.
+
+Used by tests/test_obs2_geso_env.py and tests/test_obs2_hceso_env.py (not a test module itself).
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+
+import fawtgym  # noqa: F401  (registers the env ids)
+from fawtgym.observers import make_observer
+
+EXT_FORCE = np.array([0.5, -0.3, 0.2])
+EXT_TORQUE = np.array([0.02, -0.01, 0.005])
+
+
+def run_hover_with_observers(names: list[str], steps: int = 150, sensors: str = "none") -> list[tuple[dict, dict]]:
+    """Hover fawtgym/Hover-v0 (calm wind, CTBR hover thrust, 100 Hz) under the constant external wrench
+    (EXT_FORCE world NED, EXT_TORQUE body FRD) and feed every step to the default-gain observers `names`.
+
+    Returns one (estimates by observer name, info["truth"]) pair per step.
+    """
+    env = gym.make("fawtgym/Hover-v0", wind="calm", sensors=sensors, init_noise=0.0, action_type="ctbr",
+                   control_rate=100.0)
+    u = env.unwrapped
+    _, info = env.reset(seed=0)
+    u.set_external_wrench(EXT_FORCE, EXT_TORQUE)
+    p = u.preset
+    action = np.array([p.mass * 9.80665 / (4 * p.max_thrust_per_rotor), 0.0, 0.0, 0.0])
+    observers = {n: make_observer(n, p.mass, p.inertia_matrix) for n in names}
+    for o in observers.values():
+        o.reset(info["measurement"])
+    rows = []
+    for _ in range(steps):
+        _, _, term, _, info = env.step(action)
+        assert not term, info["failure"]
+        ap = info["applied"]
+        est = {n: o.update(info["measurement"], ap["thrust"], ap["torque"], u.dt) for n, o in observers.items()}
+        rows.append((est, info["truth"]))
+    env.close()
+    return rows
