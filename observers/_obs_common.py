@@ -6,11 +6,15 @@ Not an observer itself (the leading underscore keeps it out of the auto-import/r
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.envs.measurement import batch_measurement
+
+if TYPE_CHECKING:
+    from fawtgym.observers.base import Observer
 
 
 def require(measurement: Mapping[str, ArrayLike], keys: Sequence[str], who: str) -> dict[str, NDArray[np.float64]]:
@@ -55,6 +59,21 @@ def batch_torque(tau: NDArray[np.float64], n: int, who: str) -> NDArray[np.float
     if tau.shape != (n, 3):
         raise ValueError(f"{who}: torque must have shape (3,) or ({n}, 3), got {tau.shape}")
     return tau
+
+
+def step_inputs(obs: Observer, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
+                dt: float, keys: Sequence[str], n: int, who: str
+                ) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.float64], NDArray[np.float64]]:
+    """The common input checks of ``update()`` for an observer whose state holds ``n`` vehicles (fixed at reset).
+
+    ``dt``, thrust and torque as in :meth:`Observer._inputs`; the measurement through :func:`require`; its batch
+    size (that of ``keys[0]``) must equal ``n``.  Returns (measurement, thrust (n,), torque (n, 3)).
+    """
+    _, f, tau = obs._inputs({}, thrust, torque, dt)
+    m = require(measurement, keys, who)
+    if m[keys[0]].shape[0] != n:
+        raise ValueError(f"{who}: measurement batch size {m[keys[0]].shape[0]} != reset batch size {n}")
+    return m, batch_thrust(f, n, who), batch_torque(tau, n, who)
 
 
 def check_finite(who: str, **arrays: NDArray[np.float64]) -> None:

@@ -49,12 +49,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.observers._obs_common import (
     all_finite,
-    batch_thrust,
-    batch_torque,
     batch_vec,
     check_finite,
     cross,
     require,
+    step_inputs,
 )
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 from fawtgym.observers.hc_ffts import DEFAULT_EPS, check_p, hurwitz_matrix
@@ -157,14 +156,8 @@ class FFTSESO(Observer):
             raise RuntimeError("ffts_eso: call reset(measurement) before update()")
         if self._state["b"].shape[0] == 1:
             return self._update_single(measurement, thrust, torque, dt)
-        _, f, tau = self._inputs({}, thrust, torque, dt)
-        m = require(measurement, _KEYS, "ffts_eso")
         s = self._state
-        n = s["b"].shape[0]
-        if m["position"].shape[0] != n:
-            raise ValueError(f"ffts_eso: measurement batch size {m['position'].shape[0]} != reset batch size {n}")
-        f = batch_thrust(f, n, "ffts_eso")
-        tau = batch_torque(tau, n, "ffts_eso")
+        m, f, tau = step_inputs(self, measurement, thrust, torque, dt, _KEYS, s["b"].shape[0], "ffts_eso")
         new = self._advance(s, self._rhs(s, m, f, tau), dt)
         if not all_finite(new["v"], new["w"], new["phi"], new["tau"], new["b"], new["R"]):
             check_finite("ffts_eso", **new)

@@ -26,14 +26,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.observers._obs_common import (
-    batch_thrust,
-    batch_torque,
     batch_vec,
     check_finite,
     cross,
     positive,
     require,
     sig,
+    step_inputs,
 )
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 
@@ -69,14 +68,8 @@ class FxTSDO(Observer):
                dt: float) -> ObserverEstimate:
         if self._s is None:
             raise RuntimeError("fxtsdo: call reset(measurement) before update()")
-        _, f, tau = self._inputs({}, thrust, torque, dt)
-        m = require(measurement, _KEYS, "fxtsdo")
         s = self._s
-        n = s["v_prev"].shape[0]
-        if m["velocity"].shape[0] != n:
-            raise ValueError(f"fxtsdo: measurement batch size {m['velocity'].shape[0]} != reset batch size {n}")
-        f = batch_thrust(f, n, "fxtsdo")
-        tau = batch_torque(tau, n, "fxtsdo")
+        m, f, tau = step_inputs(self, measurement, thrust, torque, dt, _KEYS, s["v_prev"].shape[0], "fxtsdo")
         v, w = m["velocity"], m["angular_velocity"]
         acc = (v - s["v_prev"]) / dt
         wdot = (w - s["w_prev"]) / dt

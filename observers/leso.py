@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.envs.frames import rot_to_euler
-from fawtgym.observers._obs_common import batch_thrust, batch_torque, batch_vec, check_finite, positive, require
+from fawtgym.observers._obs_common import batch_vec, check_finite, positive, require, step_inputs
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 
 _E3 = np.array([0.0, 0.0, 1.0])
@@ -72,14 +72,8 @@ class LESO(Observer):
                dt: float) -> ObserverEstimate:
         if self._s is None:
             raise RuntimeError("leso: call reset(measurement) before update()")
-        _, f, tau = self._inputs({}, thrust, torque, dt)
-        m = require(measurement, _KEYS, "leso")
         s = self._s
-        n = s["p1"].shape[0]
-        if m["position"].shape[0] != n:
-            raise ValueError(f"leso: measurement batch size {m['position'].shape[0]} != reset batch size {n}")
-        f = batch_thrust(f, n, "leso")
-        tau = batch_torque(tau, n, "leso")
+        m, f, tau = step_inputs(self, measurement, thrust, torque, dt, _KEYS, s["p1"].shape[0], "leso")
         b1, b2, b3 = self.beta_t
         e = m["position"] - s["p1"]
         u = self.gravity * _E3 - (f / self.mass)[:, None] * m["attitude"][:, :, 2]

@@ -32,14 +32,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.observers._obs_common import (
-    batch_thrust,
-    batch_torque,
     batch_vec,
     check_finite,
     cross,
     positive,
     require,
     sig,
+    step_inputs,
 )
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 
@@ -76,14 +75,8 @@ class SuperTwistingObserver(Observer):
                dt: float) -> ObserverEstimate:
         if self._s is None:
             raise RuntimeError("sto: call reset(measurement) before update()")
-        _, f, tau = self._inputs({}, thrust, torque, dt)
-        m = require(measurement, _KEYS, "sto")
         s = self._s
-        n = s["v"].shape[0]
-        if m["velocity"].shape[0] != n:
-            raise ValueError(f"sto: measurement batch size {m['velocity'].shape[0]} != reset batch size {n}")
-        f = batch_thrust(f, n, "sto")
-        tau = batch_torque(tau, n, "sto")
+        m, f, tau = step_inputs(self, measurement, thrust, torque, dt, _KEYS, s["v"].shape[0], "sto")
         wm = m["angular_velocity"]
         j = self.inertia
         s_t = m["velocity"] - s["v"]
