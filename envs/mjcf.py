@@ -8,6 +8,10 @@ Actuators (all ``ctrl`` in physical units, unlimited):
 * ``ext_tx/ty/tz``: a body torque at the CoM site, in body FLU axes.  The env writes the
   disturbance torque (body FRD, converted) here, so it stays fixed in the body over a control step.
 
+Contacts are disabled: the only thing the vehicle could touch is the floor, and touching it ends the
+episode, which the env detects analytically from the hull and rotor points (:func:`hull_points`);
+MuJoCo's collision pipeline would cost a quarter of every physics step for nothing.
+
 The external force (world frame) goes through ``data.xfrc_applied``, which MuJoCo applies at the
 body's centre of mass in world coordinates.  Gravity is ``GRAVITY`` along -z.  The body frame is
 the CoM frame (``inertial pos = 0``), principal or full inertia from the preset.
@@ -15,11 +19,25 @@ the CoM frame (``inertial pos = 0``), principal or full inertia from the preset.
 
 from __future__ import annotations
 
+import numpy as np
+
 from .frames import vec_ned_to_mj
 from .vehicles import GRAVITY, VehiclePreset
 
 #: MuJoCo integrators allowed by the env; the default is justified in :class:`HoverEnv`.
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
+
+
+def hull_half_size(preset: VehiclePreset) -> tuple[float, float]:
+    """Half sizes (horizontal, vertical) [m] of the hull box drawn and used for ground contact."""
+    return 0.25 * preset.arm_length, 0.04
+
+
+def hull_points(preset: VehiclePreset) -> np.ndarray:
+    """Body-FRD points whose height decides ground contact: the 8 hull corners and the 4 rotor hubs, (12, 3)."""
+    h, hz = hull_half_size(preset)
+    corners = np.array([[sx * h, sy * h, sz * hz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    return np.vstack([corners, preset.rotor_positions])
 
 
 def vehicle_mjcf(preset: VehiclePreset, physics_dt: float = 0.001, integrator: str = "Euler",
@@ -29,9 +47,8 @@ def vehicle_mjcf(preset: VehiclePreset, physics_dt: float = 0.001, integrator: s
         raise ValueError(f"unknown integrator {integrator!r}; valid: {list(INTEGRATORS)}")
     j = preset.inertia_matrix
     full = " ".join(f"{x:.9g}" for x in (j[0, 0], j[1, 1], j[2, 2], j[0, 1], j[0, 2], j[1, 2]))
-    arm = preset.arm_length
     r = preset.rotor_radius
-    body_half = 0.25 * arm
+    body_half, body_half_z = hull_half_size(preset)
     rotors = []
     actuators = []
     for i, (pos, d) in enumerate(zip(preset.rotor_positions, preset.rotor_directions, strict=True), start=1):
@@ -50,7 +67,9 @@ def vehicle_mjcf(preset: VehiclePreset, physics_dt: float = 0.001, integrator: s
     act_xml = "\n    ".join(actuators)
     return f"""<mujoco model="fawtgym_{preset.name}">
   <compiler angle="radian" autolimits="true"/>
-  <option timestep="{physics_dt:.9g}" integrator="{integrator}" gravity="0 0 {-GRAVITY:.9g}" density="0" viscosity="0"/>
+  <option timestep="{physics_dt:.9g}" integrator="{integrator}" gravity="0 0 {-GRAVITY:.9g}" density="0" viscosity="0">
+    <flag contact="disable"/>
+  </option>
   <visual><global offwidth="{render_width}" offheight="{render_height}"/></visual>
   <asset>
     <texture name="grid" type="2d" builtin="checker" rgb1="0.25 0.28 0.32" rgb2="0.35 0.38 0.42"
@@ -66,7 +85,8 @@ def vehicle_mjcf(preset: VehiclePreset, physics_dt: float = 0.001, integrator: s
       <freejoint name="root"/>
       <inertial pos="0 0 0" mass="{preset.mass:.9g}" fullinertia="{full}"/>
       <site name="com" pos="0 0 0" size="0.01"/>
-      <geom name="hull" type="box" size="{body_half:.6g} {body_half:.6g} 0.04" mass="0" rgba="0.15 0.15 0.15 1"/>
+      <geom name="hull" type="box" size="{body_half:.6g} {body_half:.6g} {body_half_z:.6g}" mass="0"
+            rgba="0.15 0.15 0.15 1"/>
       {rotor_xml}
     </body>
   </worldbody>

@@ -73,6 +73,7 @@ class SensorSpec:
             raise ValueError(f"sensor field 'pose_rate' must be > 0 Hz, got {self.pose_rate!r}")
 
 
+_GRAVITY_NED = np.array([0.0, 0.0, GRAVITY])
 _IMU_250 = dict(gyro_density=0.015 / math.sqrt(250.0), accel_density=0.35 / math.sqrt(250.0), mag_sigma=0.005)
 
 SENSOR_PRESETS: dict[str, SensorSpec] = {
@@ -134,9 +135,8 @@ class SensorModel:
                 rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],
                 acceleration: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
         """Measurement at time ``t`` from the true state and NED acceleration."""
-        rt = rotation.T
-        f_sp = rt @ (acceleration - np.array([0.0, 0.0, GRAVITY]))
-        mag = rt @ M.EARTH_FIELD_NED
+        # one product for both body-frame vectors: R^T [a - g e3, m_E]
+        f_sp, mag = (np.column_stack((acceleration - _GRAVITY_NED, M.EARTH_FIELD_NED)).T @ rotation)
         if not self.noisy:
             pose = {M.POSITION: position.copy(), M.VELOCITY: velocity.copy(), M.ATTITUDE: rotation.copy()}
             return {**pose, M.ANGULAR_VELOCITY: angular_velocity.copy(), M.SPECIFIC_FORCE: f_sp,
