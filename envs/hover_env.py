@@ -27,8 +27,8 @@ CoM, disturbance force NED and torque FRD exactly as applied; for metrics only),
 
 Observation (float32, shape (19,)), from *measurements*, never the truth:
 ``[b^m - b_sp (3, NED m), v^m (3, NED m/s), R^m[:, 0], R^m[:, 1] (6, the continuous 6-D attitude
-representation of Zhou et al. 2019), Omega^m (3, FRD rad/s), last action (4)]``, clipped to the
-box bounds.
+representation of Zhou et al. 2019), Omega^m (3, FRD rad/s), the action just applied (4; at reset
+the hover action)]``, clipped to the box bounds.
 
 Reward (dense, bounded in [-1, 1]): ``exp(-(w_pos |e_b|^2 + w_vel |v|^2 + w_att Phi^2 +
 w_rate |Omega|^2 + w_action |u - u_prev|^2))`` with Phi the attitude error angle (tilt + yaw) from
@@ -149,7 +149,9 @@ class HoverEnv(gym.Env):
                 raise ValueError(f"reward weight {key!r} must be finite and >= 0, got {value!r}")
             self.reward_weights[key] = float(value)
         w = self.reward_weights
-        self._reward_w = np.repeat([w["pos"], w["vel"], w["rate"], w["action"]], [3, 3, 3, 4])
+        # weights over the observation layout [e_b, v, R[:, 0], R[:, 1], Omega, action]; attitude enters via Phi
+        self._reward_w = np.repeat([w["pos"], w["vel"], 0.0, w["rate"], w["action"]], [3, 3, 6, 3, 4])
+        self._w_att = w["att"]
         self.action_type = action_type
         self.wind = make_wind(wind)
         self.aero = AeroModel(self.preset)
@@ -187,6 +189,7 @@ class HoverEnv(gym.Env):
         self._obs_high = self.observation_space.high.astype(float)
         self._act_low = self.action_space.low.astype(float)
         self._act_high = self.action_space.high.astype(float)
+        self._act_low_list, self._act_high_list = self._act_low.tolist(), self._act_high.tolist()
         # exact motor lag sample times: mid-substep (thrust) and end of step (speed), negated for exp()
         step_times = np.append(self._mid_times, self.dt)[:, None]
         sub_times = np.array([[0.5 * self.physics_dt], [self.physics_dt]])
@@ -267,7 +270,7 @@ class HoverEnv(gym.Env):
         self._disturbance = self._compute_disturbance()
         self._failure = ""
         info = self._info(action_clipped=False)
-        return self._observation(info["measurement"]), info
+        return self._observation_and_reward(info["measurement"], self._last_action)[0], info
 
     def _compute_disturbance(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         b, v, r, w = self._state
@@ -282,12 +285,15 @@ class HoverEnv(gym.Env):
         a = np.asarray(action, dtype=float).reshape(-1)
         if a.shape != (4,):
             raise ValueError(f"action must have 4 entries, got shape {np.shape(action)}")
-        if not math.isfinite(a.sum()):
-            i = int(np.flatnonzero(~np.isfinite(a))[0])
-            raise ValueError(f"action[{i}] is {a[i]}; every action entry must be finite "
-                             f"(bounds {self.action_space.low.tolist()} .. {self.action_space.high.tolist()})")
-        clipped = np.minimum(np.maximum(a, self._act_low), self._act_high)
-        action_clipped = bool((clipped != a).any())
+        values = a.tolist()
+        clipped_list = []
+        for i, (x, lo, hi) in enumerate(zip(values, self._act_low_list, self._act_high_list, strict=True)):
+            if not math.isfinite(x):
+                raise ValueError(f"action[{i}] is {x}; every action entry must be finite "
+                                 f"(bounds {self._act_low_list} .. {self._act_high_list})")
+            clipped_list.append(lo if x < lo else hi if x > hi else x)
+        action_clipped = clipped_list != values
+        clipped = np.array(clipped_list)
 
         force, torque, _ = self._disturbance
         self._xfrc[0:3] = force * _SIGN
@@ -314,9 +320,7 @@ class HoverEnv(gym.Env):
             elif np.abs(self._state[0] - self.setpoint).max() > self.max_position_error:
                 self._failure = "out_of_bounds"
         info = self._info(action_clipped)
-        meas = info["measurement"]
-        obs = self._observation(meas)
-        reward = self._reward(meas, clipped)
+        obs, reward = self._observation_and_reward(info["measurement"], clipped)
         self._last_action = clipped
         terminated = bool(self._failure)
         truncated = (not terminated) and self._step_count >= self.max_steps
@@ -379,20 +383,18 @@ class HoverEnv(gym.Env):
             "time": self.time,
         }
 
-    def _observation(self, meas: Mapping[str, NDArray[np.float64]]) -> NDArray[np.float32]:
+    def _observation_and_reward(self, meas: Mapping[str, NDArray[np.float64]],
+                                action: NDArray[np.float64]) -> tuple[NDArray[np.float32], float]:
+        """The observation (with ``action``, the action just applied) and the reward, from one vector."""
         r = meas[M.ATTITUDE]
-        obs = np.concatenate([meas[M.POSITION] - self.setpoint, meas[M.VELOCITY], r[:, 0], r[:, 1],
-                              meas[M.ANGULAR_VELOCITY], self._last_action])
-        return np.minimum(np.maximum(obs, self._obs_low), self._obs_high).astype(np.float32)
-
-    def _reward(self, meas: Mapping[str, NDArray[np.float64]], action: NDArray[np.float64]) -> float:
+        x = np.concatenate([meas[M.POSITION] - self.setpoint, meas[M.VELOCITY], r[:, 0], r[:, 1],
+                            meas[M.ANGULAR_VELOCITY], action])
+        obs = x.clip(self._obs_low, self._obs_high).astype(np.float32)
         if self._failure:
-            return -self.reward_weights["failure"]
-        r = meas[M.ATTITUDE]
+            return obs, -self.reward_weights["failure"]
         phi = math.acos(min(1.0, max(-1.0, 0.5 * (r[0, 0] + r[1, 1] + r[2, 2] - 1.0))))
-        x = np.concatenate([meas[M.POSITION] - self.setpoint, meas[M.VELOCITY], meas[M.ANGULAR_VELOCITY],
-                            action - self._last_action])
-        return math.exp(-(float(self._reward_w @ (x * x)) + self.reward_weights["att"] * phi * phi))
+        x[15:] -= self._last_action  # the action-rate term
+        return obs, math.exp(-(float(self._reward_w @ (x * x)) + self._w_att * phi * phi))
 
     # ---- rendering ----------------------------------------------------------------------
     def render(self) -> NDArray[np.uint8] | None:

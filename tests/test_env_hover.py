@@ -201,3 +201,14 @@ def test_truncation_at_episode_end():
     env.reset(seed=0)
     flags = [env.step(env.hover_action())[3] for _ in range(10)]
     assert flags == [False] * 9 + [True]
+
+
+def test_observation_carries_the_action_just_applied():
+    env = HoverEnv(init_noise=0.0)
+    obs, _ = env.reset(seed=0)
+    assert np.allclose(obs[-4:], env.hover_action())
+    a = np.array([0.3, 0.4, 0.5, 0.6], dtype=np.float32)
+    obs, *_ = env.step(a)
+    assert np.allclose(obs[-4:], a)
+    obs, *_ = env.step(np.array([0.3, 0.4, 1.5, 0.6]))
+    assert np.allclose(obs[-4:], [0.3, 0.4, 1.0, 0.6])  # the clipped action is what was applied
