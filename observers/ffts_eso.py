@@ -67,6 +67,13 @@ _VB = np.array([1, 2, 0])
 _KEYS = ("position", "velocity", "attitude", "angular_velocity")
 
 
+def _floats(x: ArrayLike) -> list[float]:
+    """All entries of ``x`` as a flat list of Python floats (one call for a float64 ndarray)."""
+    if type(x) is np.ndarray and x.dtype.char == "d":
+        return x.ravel().tolist()
+    return np.asarray(x, dtype=float).ravel().tolist()
+
+
 def s_k(r: ArrayLike, k: ArrayLike) -> NDArray[np.float64]:
     """s_K(R) = sum_i K_i (R^T e_i) x e_i (eq. 41) = vee(K R - R^T K); R (..., 3, 3), K the 3 diagonal entries."""
     r = np.asarray(r, dtype=float)
@@ -137,6 +144,7 @@ class FFTSESO(Observer):
         self._ge3 = self.gravity * _E3
         self._j_list = self.inertia.tolist()
         self._jinv_list = self.inertia_inv.tolist()
+        self._kv = tuple(self.morse_k.tolist())
 
     # ---- interface -------------------------------------------------------------------------
     def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
@@ -168,114 +176,150 @@ class FFTSESO(Observer):
                        dt: float) -> ObserverEstimate:
         """N = 1 fast path: the same equations as :meth:`_rhs` + :meth:`_advance` (Euler) in Python floats.
 
-        numpy's per-call overhead dominates a single 3-vector update; this path is checked against the
-        batched one in the tests (batch-equals-separate-runs).
+        numpy's per-call overhead dominates a single 3-vector update, so everything is unrolled into scalar
+        float arithmetic (same operation order as the list form it replaced); this path is checked against
+        the batched one in the tests (batch-equals-separate-runs).
         """
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
         try:
-            pm, vm, om = (np.asarray(measurement[k], dtype=float).ravel().tolist()
-                          for k in ("position", "velocity", "angular_velocity"))
-            rm = np.asarray(measurement["attitude"], dtype=float).ravel().tolist()
+            pm0, pm1, pm2, vm0, vm1, vm2, om0, om1, om2 = (
+                _floats(measurement["position"]) + _floats(measurement["velocity"])
+                + _floats(measurement["angular_velocity"]))
+            rm = _floats(measurement["attitude"])
         except KeyError as exc:
             raise ValueError(f"ffts_eso needs measurement keys {list(_KEYS)}; missing {exc} "
                              f"(got {sorted(measurement)})") from None
-        if len(pm) != 3 or len(vm) != 3 or len(om) != 3 or len(rm) != 9:
+        except ValueError:      # wrong number of entries in the unpacking above
+            rm = []
+        if len(rm) != 9:
+            sizes = [np.size(measurement[k]) for k in _KEYS]
             raise ValueError("ffts_eso: measurement batch size does not match the reset batch size 1 "
-                             f"(got {len(pm) // 3} vehicles)")
-        fl = np.asarray(thrust, dtype=float).ravel().tolist()
-        tq = np.asarray(torque, dtype=float).ravel().tolist()
+                             f"(got sizes {dict(zip(_KEYS, sizes, strict=True))}, expected 3, 3, 9, 3)")
+        fl = _floats(thrust)
+        tq = _floats(torque)
         if len(fl) != 1 or len(tq) != 3:
             raise ValueError(f"ffts_eso: thrust must have shape (1,) and torque (3,) or (1, 3) for N = 1, "
                              f"got {np.shape(thrust)} and {np.shape(torque)}")
-        if not math.isfinite(sum(pm) + sum(vm) + sum(om) + sum(rm)):
+        if not math.isfinite(pm0 + pm1 + pm2 + vm0 + vm1 + vm2 + om0 + om1 + om2 + sum(rm)):
             raise ValueError("ffts_eso: measurement contains non-finite values")
-        if not math.isfinite(fl[0] + sum(tq)):
+        tq0, tq1, tq2 = tq
+        if not math.isfinite(fl[0] + tq0 + tq1 + tq2):
             raise ValueError(f"ffts_eso: thrust/torque contain non-finite values: {fl}, {tq}")
         st = self._state
         cache = self._single_cache
         if cache is not None and cache[0] is st:     # state written by the previous N = 1 step: reuse its floats
-            b, v, phi, w, th, rh = cache[1:]
+            flat = cache[1]
         else:
-            b, v, phi, w, th = (st[k][0].tolist() for k in ("b", "v", "phi", "w", "tau"))
-            rh = st["R"][0].ravel().tolist()
+            flat = np.concatenate([st[k].ravel() for k in ("b", "v", "phi", "w", "tau", "R")]).tolist()
+        (b0, b1, b2, v0, v1, v2, ph0, ph1, ph2, w0, w1, w2, th0, th1, th2,
+         h00, h01, h02, h10, h11, h12, h20, h21, h22) = flat
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rm
         mass, eps, c, k2c, a, tiny = self.mass, self.eps, self._c, 2.0 * self._k, self._a, _TINY
         # translational, eqs. (45), (49), (50)
-        eb = [pm[i] - b[i] for i in range(3)]
-        ev = [vm[i] - v[i] for i in range(3)]
-        r2 = eb[0] * eb[0] + eb[1] * eb[1] + eb[2] * eb[2]
-        rb = max(r2, eps)
+        eb0, eb1, eb2 = pm0 - b0, pm1 - b1, pm2 - b2
+        ev0, ev1, ev2 = vm0 - v0, vm1 - v1, vm2 - v2
+        r2 = eb0 * eb0 + eb1 * eb1 + eb2 * eb2
+        rb = eps if eps > r2 else r2
         pw = rb**c
-        coef = k2c * (eb[0] * ev[0] + eb[1] * ev[1] + eb[2] * ev[2]) / rb if r2 > eps else 0.0
+        coef = k2c * (eb0 * ev0 + eb1 * ev1 + eb2 * ev2) / rb if r2 > eps else 0.0
         kt = self.kappa_t
-        psi = [ev[i] + kt * (eb[i] + pw * eb[i]) for i in range(3)]
-        pa = max(psi[0] * psi[0] + psi[1] * psi[1] + psi[2] * psi[2], tiny) ** a
+        ps0 = ev0 + kt * (eb0 + pw * eb0)
+        ps1 = ev1 + kt * (eb1 + pw * eb1)
+        ps2 = ev2 + kt * (eb2 + pw * eb2)
+        pa = ps0 * ps0 + ps1 * ps1 + ps2 * ps2
+        pa = (tiny if tiny > pa else pa) ** a
         g1 = self.kt1 * (self.kt3 + pa)
         g2 = mass * self.kt2 * (self.kt3 * self.kt3 + self._c1t * pa + self._c2 * pa * pa)
         fm = fl[0] / mass
-        ge3 = (0.0, 0.0, self.gravity)
-        vdot = [ge3[i] - fm * rm[3 * i + 2] + g1 * psi[i] + kt * (pw * (ev[i] - coef * eb[i]) + ev[i]) + phi[i] / mass
-                for i in range(3)]
-        phidot = [g2 * psi[i] for i in range(3)]
-        # rotational, eqs. (46), (47), (66), (68), (69)
-        e = [[rh[i] * rm[j] + rh[3 + i] * rm[3 + j] + rh[6 + i] * rm[6 + j] for j in range(3)] for i in range(3)]
-        kv = self.morse_k.tolist()
-        er = [kv[2] * e[2][1] - kv[1] * e[1][2], kv[0] * e[0][2] - kv[2] * e[2][0], kv[1] * e[1][0] - kv[0] * e[0][1]]
-        eo = [om[i] - (e[0][i] * w[0] + e[1][i] * w[1] + e[2][i] * w[2]) for i in range(3)]
-        tr = kv[0] * e[0][0] + kv[1] * e[1][1] + kv[2] * e[2][2]
-        keo = [kv[i] * eo[i] for i in range(3)]
-        ew = [tr * eo[i] - (e[0][i] * keo[0] + e[1][i] * keo[1] + e[2][i] * keo[2]) for i in range(3)]
-        r2a = er[0] * er[0] + er[1] * er[1] + er[2] * er[2]
-        ra = max(r2a, eps)
+        vd0 = 0.0 - fm * r02 + g1 * ps0 + kt * (pw * (ev0 - coef * eb0) + ev0) + ph0 / mass
+        vd1 = 0.0 - fm * r12 + g1 * ps1 + kt * (pw * (ev1 - coef * eb1) + ev1) + ph1 / mass
+        vd2 = self.gravity - fm * r22 + g1 * ps2 + kt * (pw * (ev2 - coef * eb2) + ev2) + ph2 / mass
+        # rotational, eqs. (46), (47), (66), (68), (69); E = R_hat^T R^m
+        e00 = h00 * r00 + h10 * r10 + h20 * r20
+        e01 = h00 * r01 + h10 * r11 + h20 * r21
+        e02 = h00 * r02 + h10 * r12 + h20 * r22
+        e10 = h01 * r00 + h11 * r10 + h21 * r20
+        e11 = h01 * r01 + h11 * r11 + h21 * r21
+        e12 = h01 * r02 + h11 * r12 + h21 * r22
+        e20 = h02 * r00 + h12 * r10 + h22 * r20
+        e21 = h02 * r01 + h12 * r11 + h22 * r21
+        e22 = h02 * r02 + h12 * r12 + h22 * r22
+        k0, k1, k2 = self._kv
+        er0, er1, er2 = k2 * e21 - k1 * e12, k0 * e02 - k2 * e20, k1 * e10 - k0 * e01
+        eo0 = om0 - (e00 * w0 + e10 * w1 + e20 * w2)
+        eo1 = om1 - (e01 * w0 + e11 * w1 + e21 * w2)
+        eo2 = om2 - (e02 * w0 + e12 * w1 + e22 * w2)
+        tr = k0 * e00 + k1 * e11 + k2 * e22
+        ke0, ke1, ke2 = k0 * eo0, k1 * eo1, k2 * eo2
+        ew0 = tr * eo0 - (e00 * ke0 + e10 * ke1 + e20 * ke2)
+        ew1 = tr * eo1 - (e01 * ke0 + e11 * ke1 + e21 * ke2)
+        ew2 = tr * eo2 - (e02 * ke0 + e12 * ke1 + e22 * ke2)
+        r2a = er0 * er0 + er1 * er1 + er2 * er2
+        ra = eps if eps > r2a else r2a
         pwa = ra**c
-        coefa = k2c * (er[0] * ew[0] + er[1] * ew[1] + er[2] * ew[2]) / ra if r2a > eps else 0.0
+        coefa = k2c * (er0 * ew0 + er1 * ew1 + er2 * ew2) / ra if r2a > eps else 0.0
         ka = self.kappa_a
-        psa = [eo[i] + ka * (er[i] + pwa * er[i]) for i in range(3)]
-        qa = max(psa[0] * psa[0] + psa[1] * psa[1] + psa[2] * psa[2], tiny) ** a
+        pa0 = eo0 + ka * (er0 + pwa * er0)
+        pa1 = eo1 + ka * (er1 + pwa * er1)
+        pa2 = eo2 + ka * (er2 + pwa * er2)
+        qa = pa0 * pa0 + pa1 * pa1 + pa2 * pa2
+        qa = (tiny if tiny > qa else qa) ** a
         h1 = self.ka1 * (self.ka3 + qa)
         h2 = self.ka2 * (self.ka3 * self.ka3 + self._c1a * qa + self._c2 * qa * qa)
-        jm, ji = self._j_list, self._jinv_list
-        jo = [jm[i][0] * om[0] + jm[i][1] * om[1] + jm[i][2] * om[2] for i in range(3)]
-        tot = [jo[1] * om[2] - jo[2] * om[1] + th[0] + tq[0], jo[2] * om[0] - jo[0] * om[2] + th[1] + tq[1],
-               jo[0] * om[1] - jo[1] * om[0] + th[2] + tq[2]]
-        body = [ji[i][0] * tot[0] + ji[i][1] * tot[1] + ji[i][2] * tot[2] + h1 * psa[i]
-                + ka * (pwa * (ew[i] - coefa * er[i]) + ew[i]) for i in range(3)]
-        eeo = [e[i][0] * eo[0] + e[i][1] * eo[1] + e[i][2] * eo[2] for i in range(3)]
-        wdot = [e[i][0] * body[0] + e[i][1] * body[1] + e[i][2] * body[2] for i in range(3)]
-        wdot = [wdot[0] + eeo[1] * w[2] - eeo[2] * w[1], wdot[1] + eeo[2] * w[0] - eeo[0] * w[2],
-                wdot[2] + eeo[0] * w[1] - eeo[1] * w[0]]
-        tdot = [h2 * (jm[i][0] * psa[0] + jm[i][1] * psa[1] + jm[i][2] * psa[2]) for i in range(3)]
+        (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._j_list
+        (i00, i01, i02), (i10, i11, i12), (i20, i21, i22) = self._jinv_list
+        jo0 = j00 * om0 + j01 * om1 + j02 * om2
+        jo1 = j10 * om0 + j11 * om1 + j12 * om2
+        jo2 = j20 * om0 + j21 * om1 + j22 * om2
+        t0 = jo1 * om2 - jo2 * om1 + th0 + tq0
+        t1 = jo2 * om0 - jo0 * om2 + th1 + tq1
+        t2 = jo0 * om1 - jo1 * om0 + th2 + tq2
+        bd0 = i00 * t0 + i01 * t1 + i02 * t2 + h1 * pa0 + ka * (pwa * (ew0 - coefa * er0) + ew0)
+        bd1 = i10 * t0 + i11 * t1 + i12 * t2 + h1 * pa1 + ka * (pwa * (ew1 - coefa * er1) + ew1)
+        bd2 = i20 * t0 + i21 * t1 + i22 * t2 + h1 * pa2 + ka * (pwa * (ew2 - coefa * er2) + ew2)
+        ee0 = e00 * eo0 + e01 * eo1 + e02 * eo2
+        ee1 = e10 * eo0 + e11 * eo1 + e12 * eo2
+        ee2 = e20 * eo0 + e21 * eo1 + e22 * eo2
+        wd0 = e00 * bd0 + e01 * bd1 + e02 * bd2 + ee1 * w2 - ee2 * w1
+        wd1 = e10 * bd0 + e11 * bd1 + e12 * bd2 + ee2 * w0 - ee0 * w2
+        wd2 = e20 * bd0 + e21 * bd1 + e22 * bd2 + ee0 * w1 - ee1 * w0
         # advance (same scheme as _advance)
         hh = 0.5 * dt * dt
-        nb = [b[i] + dt * v[i] + hh * vdot[i] for i in range(3)]
-        nv = [v[i] + dt * vdot[i] for i in range(3)]
-        nphi = [phi[i] + dt * phidot[i] for i in range(3)]
-        nw = [w[i] + dt * wdot[i] for i in range(3)]
-        nth = [th[i] + dt * tdot[i] for i in range(3)]
-        x = [dt * (w[i] + 0.5 * dt * wdot[i]) for i in range(3)]
-        t2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2]
-        if t2 < 1e-8:   # the same Taylor branch as lie.exp_so3
-            ca, cb = 1.0 - t2 / 6.0 + t2 * t2 / 120.0, 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+        hd = 0.5 * dt
+        x0, x1, x2 = dt * (w0 + hd * wd0), dt * (w1 + hd * wd1), dt * (w2 + hd * wd2)
+        q2 = x0 * x0 + x1 * x1 + x2 * x2
+        if q2 < 1e-8:   # the same Taylor branch as lie.exp_so3
+            ca, cb = 1.0 - q2 / 6.0 + q2 * q2 / 120.0, 0.5 - q2 / 24.0 + q2 * q2 / 720.0
         else:
-            tt = math.sqrt(t2)
+            tt = math.sqrt(q2)
             ca, cb = math.sin(tt) / tt, (1.0 - math.cos(tt)) / (tt * tt)
         # exp(x^) = (1 - cb t2) I + ca x^ + cb x x^T  (x^ x^ = x x^T - t2 I), same coefficients as lie.exp_so3
-        d0 = 1.0 - cb * t2
-        x0, x1, x2 = x
-        ex = (d0 + cb * x0 * x0, -ca * x2 + cb * x0 * x1, ca * x1 + cb * x0 * x2,
-              ca * x2 + cb * x1 * x0, d0 + cb * x1 * x1, -ca * x0 + cb * x1 * x2,
-              -ca * x1 + cb * x2 * x0, ca * x0 + cb * x2 * x1, d0 + cb * x2 * x2)
-        nr = [rh[3 * i] * ex[j] + rh[3 * i + 1] * ex[3 + j] + rh[3 * i + 2] * ex[6 + j]
-              for i in range(3) for j in range(3)]
-        flat = nb + nv + nphi + nw + nth + nr
+        d0 = 1.0 - cb * q2
+        x00, x11, x22 = d0 + cb * x0 * x0, d0 + cb * x1 * x1, d0 + cb * x2 * x2
+        x01, x02, x12 = -ca * x2 + cb * x0 * x1, ca * x1 + cb * x0 * x2, -ca * x0 + cb * x1 * x2
+        x10, x20, x21 = ca * x2 + cb * x1 * x0, -ca * x1 + cb * x2 * x0, ca * x0 + cb * x2 * x1
+        flat = [b0 + dt * v0 + hh * vd0, b1 + dt * v1 + hh * vd1, b2 + dt * v2 + hh * vd2,
+                v0 + dt * vd0, v1 + dt * vd1, v2 + dt * vd2,
+                ph0 + dt * (g2 * ps0), ph1 + dt * (g2 * ps1), ph2 + dt * (g2 * ps2),
+                w0 + dt * wd0, w1 + dt * wd1, w2 + dt * wd2,
+                th0 + dt * (h2 * (j00 * pa0 + j01 * pa1 + j02 * pa2)),
+                th1 + dt * (h2 * (j10 * pa0 + j11 * pa1 + j12 * pa2)),
+                th2 + dt * (h2 * (j20 * pa0 + j21 * pa1 + j22 * pa2)),
+                h00 * x00 + h01 * x10 + h02 * x20, h00 * x01 + h01 * x11 + h02 * x21, h00 * x02 + h01 * x12 + h02 * x22,
+                h10 * x00 + h11 * x10 + h12 * x20, h10 * x01 + h11 * x11 + h12 * x21, h10 * x02 + h11 * x12 + h12 * x22,
+                h20 * x00 + h21 * x10 + h22 * x20, h20 * x01 + h21 * x11 + h22 * x21, h20 * x02 + h21 * x12 + h22 * x22]
         if not math.isfinite(sum(flat)):
-            check_finite("ffts_eso", b=np.array(nb), v=np.array(nv), phi=np.array(nphi), w=np.array(nw),
-                         tau=np.array(nth), R=np.array(nr))
+            check_finite("ffts_eso", b=np.array(flat[0:3]), v=np.array(flat[3:6]), phi=np.array(flat[6:9]),
+                         w=np.array(flat[9:12]), tau=np.array(flat[12:15]), R=np.array(flat[15:]))
         buf = np.array(flat)
-        self._state = {"b": buf[0:3].reshape(1, 3), "v": buf[3:6].reshape(1, 3), "phi": buf[6:9].reshape(1, 3),
-                       "w": buf[9:12].reshape(1, 3), "tau": buf[12:15].reshape(1, 3), "R": buf[15:].reshape(1, 3, 3)}
-        self._single_cache = (self._state, nb, nv, nphi, nw, nth, nr)
-        return self.estimate()
+        self._state = st = {"b": buf[None, 0:3], "v": buf[None, 3:6], "phi": buf[None, 6:9], "w": buf[None, 9:12],
+                            "tau": buf[None, 12:15], "R": buf[15:].reshape(1, 3, 3)}
+        self._single_cache = (st, flat)
+        out = np.array(flat)     # the returned arrays are fresh (the caller may modify them), not views of the state
+        return ObserverEstimate(force=out[None, 6:9], torque=out[None, 12:15], states={
+            "position": out[None, 0:3], "velocity": out[None, 3:6], "attitude": out[15:].reshape(1, 3, 3),
+            "angular_velocity": out[None, 9:12]})
 
     def estimate(self) -> ObserverEstimate:
         if self._state is None:
