@@ -126,6 +126,7 @@ class SensorModel:
 
     def reset(self, rng: np.random.Generator) -> None:
         self.rng = rng
+        self._vecs = np.array([np.zeros(3), M.EARTH_FIELD_NED])
         self.gyro_bias = rng.normal(0.0, self.spec.gyro_bias_sigma, 3) if self.spec.gyro_bias_sigma else np.zeros(3)
         self.accel_bias = rng.normal(0.0, self.spec.accel_bias_sigma, 3) if self.spec.accel_bias_sigma else np.zeros(3)
         self._pose: dict[str, NDArray[np.float64]] | None = None
@@ -135,8 +136,10 @@ class SensorModel:
                 rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],
                 acceleration: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
         """Measurement at time ``t`` from the true state and NED acceleration."""
-        # one product for both body-frame vectors: R^T [a - g e3, m_E]
-        f_sp, mag = (np.column_stack((acceleration - _GRAVITY_NED, M.EARTH_FIELD_NED)).T @ rotation)
+        # one product for both body-frame vectors: rows [a - g e3, m_E] @ R = (R^T [a - g e3, m_E])^T
+        vecs = self._vecs
+        np.subtract(acceleration, _GRAVITY_NED, out=vecs[0])
+        f_sp, mag = vecs @ rotation
         if not self.noisy:
             pose = {M.POSITION: position.copy(), M.VELOCITY: velocity.copy(), M.ATTITUDE: rotation.copy()}
             return {**pose, M.ANGULAR_VELOCITY: angular_velocity.copy(), M.SPECIFIC_FORCE: f_sp,
