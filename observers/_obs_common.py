@@ -109,3 +109,13 @@ def cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]
 def all_finite(*arrays: NDArray[np.float64]) -> bool:
     """True iff every entry of every array is finite (one reduction per array)."""
     return bool(np.isfinite(sum(float(np.sum(a)) for a in arrays)))
+
+
+def floats(x: object) -> list[float]:
+    """All entries of ``x`` as a flat list of Python floats (the N = 1 fast paths; one call for a float64 ndarray).
+
+    Raises what ``np.asarray(x, dtype=float)`` raises for input that is not numeric.
+    """
+    if type(x) is np.ndarray and x.dtype.char == "d":
+        return x.ravel().tolist()
+    return np.asarray(x, dtype=float).ravel().tolist()

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import warnings
 from collections.abc import Mapping, Sequence
@@ -52,6 +53,7 @@ from scipy.linalg import expm
 
 from fawtgym.envs import measurement as M
 
+from ._obs_common import floats
 from .base import Observer, ObserverEstimate, register_observer
 from .qb_uav_model import momentum_input, momentum_output
 
@@ -190,6 +192,9 @@ class QBObserver(Observer):
         self._x: NDArray[np.float64] | None = None
         self._y: NDArray[np.float64] | None = None
         self._R: NDArray[np.float64] | None = None
+        self._single: tuple | None = None    # (x, x as floats, y as floats, R as floats) of the last N = 1 step
+        self._jl = self.inertia.tolist()
+        self._jil = self.inertia_inv.tolist()
 
     # -------------------------------------------------------------------------------
     def _y_of(self, meas: Mapping[str, NDArray[np.float64]], thrust: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -225,6 +230,10 @@ class QBObserver(Observer):
 
     def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
                dt: float) -> ObserverEstimate:
+        if self._x is not None and self._x.shape[0] == 1:
+            est = self._update_single(measurement, thrust, torque, dt)
+            if est is not None:
+                return est
         meas, f, tau = self._inputs(measurement, thrust, torque, dt)
         if self._x is None or self._y is None or self._R is None:
             raise RuntimeError("QB observer: call reset(measurement) before update()")
@@ -236,13 +245,7 @@ class QBObserver(Observer):
             f = np.broadcast_to(f, (n_b,))
         if tau.shape != (n_b, 3):
             tau = np.broadcast_to(tau, (n_b, 3))
-        key = float(dt)
-        stacked = self._disc.get(key)
-        if stacked is None:
-            phi, gu, gy0, gy1 = discretize(self.gain, key)
-            # x+ = Phi x + Gu u + Gy0 y_prev + Gy1 (y - y_prev), as one product with [x, u, y_prev, y]
-            stacked = np.vstack([phi.T, gu.T, (gy0 - gy1).T, gy1.T])
-            self._disc[key] = stacked
+        stacked = self._stacked(dt)
         u = momentum_input(self.mass, self.gravity, 0.5 * (self._R + R), f, tau)
         y = self._y_of(meas, f)
         x = np.concatenate([self._x, u, self._y, y], axis=1) @ stacked
@@ -250,6 +253,78 @@ class QBObserver(Observer):
             raise FloatingPointError("QB observer state became non-finite")
         self._x, self._y, self._R = x, y, R.copy()
         return self.estimate()
+
+    def _stacked(self, dt: float) -> NDArray[np.float64]:
+        """The discrete step for ``dt`` as one matrix (cached per dt)."""
+        key = float(dt)
+        stacked = self._disc.get(key)
+        if stacked is None:
+            phi, gu, gy0, gy1 = discretize(self.gain, key)
+            # x+ = Phi x + Gu u + Gy0 y_prev + Gy1 (y - y_prev), as one product with [x, u, y_prev, y]
+            stacked = np.vstack([phi.T, gu.T, (gy0 - gy1).T, gy1.T])
+            self._disc[key] = stacked
+        return stacked
+
+    def _update_single(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
+                       dt: float) -> ObserverEstimate | None:
+        """N = 1 fast path: :meth:`update`'s u, y (eqs. 52, 54) and estimate in Python floats, one matrix product.
+
+        Returns None, touching nothing, unless the step is a well-formed, finite N = 1 step; :meth:`update`'s
+        general path then runs and raises its usual errors.
+        """
+        try:
+            rm = floats(measurement[M.ATTITUDE])
+            vm = floats(measurement[M.VELOCITY])
+            om = floats(measurement[M.ANGULAR_VELOCITY])
+            am = floats(measurement[M.SPECIFIC_FORCE])
+            fl = floats(thrust)
+            tq = floats(torque)
+        except (KeyError, ValueError, TypeError):
+            return None
+        if (len(rm) != 9 or len(vm) != 3 or len(om) != 3 or len(am) != 3 or len(fl) != 1 or len(tq) != 3
+                or not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0)
+                or not math.isfinite(sum(rm) + sum(vm) + sum(om) + sum(am) + fl[0] + sum(tq))):
+            return None
+        stacked = self._stacked(dt)
+        cache = self._single
+        if cache is not None and cache[0] is self._x:
+            xl, yp, rp = cache[1:]
+        else:
+            xl, yp, rp = self._x[0].tolist(), self._y[0].tolist(), self._R[0].ravel().tolist()
+        mass, f = self.mass, fl[0]
+        t0, t1, t2 = tq
+        # u (eq. 52) with Rbar = (R_prev + R) / 2
+        b00, b01, b02, b10, b11, b12, b20, b21, b22 = (0.5 * (rp[k] + rm[k]) for k in range(9))
+        u = [-f * b02, -f * b12, -f * b22 + mass * self.gravity,
+             b00 * t0 + b01 * t1 + b02 * t2, b10 * t0 + b11 * t1 + b12 * t2, b20 * t0 + b21 * t1 + b22 * t2]
+        # y (eq. 54): (m v, R J Omega, R (m a_sf + f e3))
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rm
+        (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._jl
+        w0, w1, w2 = om
+        s0, s1, s2 = w0 * j00 + w1 * j01 + w2 * j02, w0 * j10 + w1 * j11 + w2 * j12, w0 * j20 + w1 * j21 + w2 * j22
+        a0, a1, a2 = mass * am[0], mass * am[1], mass * am[2] + f
+        y = [mass * vm[0], mass * vm[1], mass * vm[2],
+             r00 * s0 + r01 * s1 + r02 * s2, r10 * s0 + r11 * s1 + r12 * s2, r20 * s0 + r21 * s1 + r22 * s2,
+             r00 * a0 + r01 * a1 + r02 * a2, r10 * a0 + r11 * a1 + r12 * a2, r20 * a0 + r21 * a1 + r22 * a2]
+        x = np.array([xl + u + yp + y]) @ stacked
+        xl = x[0].tolist()
+        if not math.isfinite(sum(xl)):
+            raise FloatingPointError("QB observer state became non-finite")
+        buf = np.array(y + rm)
+        self._x, self._y, self._R = x, buf[None, :9], buf[9:].reshape(1, 3, 3)
+        self._single = (x, xl, y, rm)
+        # estimate: torque = R^T d_tau, Omega = J^-1 R^T p_ang, velocity = p_lin / m
+        d0, d1, d2 = xl[9:12]
+        p0, p1, p2 = xl[3:6]
+        q0, q1, q2 = r00 * p0 + r10 * p1 + r20 * p2, r01 * p0 + r11 * p1 + r21 * p2, r02 * p0 + r12 * p1 + r22 * p2
+        (i00, i01, i02), (i10, i11, i12), (i20, i21, i22) = self._jil
+        out = np.array(xl[6:9] + [r00 * d0 + r10 * d1 + r20 * d2, r01 * d0 + r11 * d1 + r21 * d2,
+                                  r02 * d0 + r12 * d1 + r22 * d2,
+                                  xl[0] / mass, xl[1] / mass, xl[2] / mass,
+                                  q0 * i00 + q1 * i01 + q2 * i02, q0 * i10 + q1 * i11 + q2 * i12,
+                                  q0 * i20 + q1 * i21 + q2 * i22] + xl[12:])
+        return ObserverEstimate(force=out[None, 0:3], torque=out[None, 3:6], states={
+            "velocity": out[None, 6:9], "angular_velocity": out[None, 9:12], "disturbance_derivatives": out[None, 12:]})
 
     def estimate(self) -> ObserverEstimate:
         """The current estimate (after reset/update)."""
