@@ -33,7 +33,7 @@ so the step stays stable up to t_s for any dt; everything else is forward Euler 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -44,7 +44,8 @@ from fawtgym.envs.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FOR
 from .base import Observer, ObserverEstimate, register_observer
 from .lie import hat, vee
 from .pdt_sta import check_params, switch_and_gain_times
-from .quest import quest
+from .quest import _cross as _cross_any
+from .quest import quest_unit
 
 _EYE = np.eye(3)
 
@@ -59,9 +60,19 @@ def gibbs_matrix(g: ArrayLike) -> NDArray[np.float64]:
     return ((1.0 - gg) * _EYE + 2.0 * g[..., :, None] * g[..., None, :] - 2.0 * hat(g)) / (1.0 + gg)
 
 
+# hat(g) flattened row-major = g @ _HAT_FLAT (entries 0, +-1: exact)
+_HAT_FLAT = np.zeros((3, 9))
+_HAT_FLAT[[2, 1, 2, 0, 1, 0], [1, 2, 3, 5, 6, 7]] = [-1.0, 1.0, 1.0, -1.0, -1.0, 1.0]
+_EYE_FLAT = _EYE.reshape(9)
+
+
 def gibbs_to_rot(g: ArrayLike) -> NDArray[np.float64]:
-    """R = D(g)^T, body -> world (NED/FRD)."""
-    return np.swapaxes(gibbs_matrix(g), -1, -2)
+    """R = D(g)^T = ((1 - g.g) I + 2 g g^T + 2 [g x]) / (1 + g.g), body -> world (NED/FRD)."""
+    g = np.asarray(g, dtype=float)
+    gg = (g * g).sum(axis=-1)[..., None]
+    outer = (g[..., :, None] * g[..., None, :]).reshape(g.shape[:-1] + (9,))
+    R = ((1.0 - gg) * _EYE_FLAT + 2.0 * outer + 2.0 * (g @ _HAT_FLAT)) / (1.0 + gg)
+    return R.reshape(g.shape[:-1] + (3, 3))
 
 
 def rot_to_gibbs(R: ArrayLike) -> NDArray[np.float64]:
@@ -119,19 +130,23 @@ def rigid_body_rhs(omega: ArrayLike, inertia: ArrayLike, torque: ArrayLike) -> N
 # --------------------------------------------------------------------------------------------------
 # the observer core, eqs. 75-77 (modified) and 81-82 (conventional)
 # --------------------------------------------------------------------------------------------------
+def _units(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(x / ||x||, x / ||x||^(1/2)) row-wise, 0 at x = 0 (the set-valued sign's zero selection)."""
+    n = np.sqrt(np.einsum("ni,ni->n", x, x))[:, None]
+    pos = n > 0
+    if pos.all():
+        return x / n**1.0, x / n**0.5
+    safe = np.where(pos, n, 1.0)
+    return np.where(pos, x / safe**1.0, 0.0), np.where(pos, x / safe**0.5, 0.0)
+
+
 def _unit(x: NDArray[np.float64], power: float) -> NDArray[np.float64]:
     """x / ||x||^power row-wise, 0 at x = 0 (the set-valued sign's zero selection)."""
     n = np.sqrt(np.einsum("ni,ni->n", x, x))[:, None]
     return np.where(n > 0, x / np.where(n > 0, n, 1.0) ** power, 0.0)
 
 
-def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Row-wise a x b for (N, 3) arrays (cheaper than np.cross for small N)."""
-    out = np.empty(a.shape)
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out
+_cross = _cross_any  # row-wise a x b for (N, 3) arrays
 
 
 def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -199,16 +214,19 @@ class GibbsSTSMO:
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
         y = np.asarray(y, dtype=float)
-        u = np.broadcast_to(np.asarray(torque, dtype=float), self.x1.shape)
+        u = np.asarray(torque, dtype=float)
+        if u.shape != self.x1.shape:
+            u = np.broadcast_to(u, self.x1.shape)
         x1, x2, t = self.x1, self.x2, self.t
         e1 = y - x1  # eq. 79
         w = self.omega if omega is None else np.broadcast_to(np.asarray(omega, dtype=float), x1.shape)
+        unit1, sta = _units(e1)
         # eq. 76 / 82 with Gamma'(g) w = g (g'.w) + g' (g.w) + g' x w and Gamma(g) v = g (g.v) + g x v + v
         gamma_dot_w = x1 * _dot(x2, w) + x2 * _dot(x1, w) + _cross(x2, w)
-        v = (_cross(w @ self.J.T, w) + u + self.kappa2 * _unit(e1, 1.0)) @ self.J_inv.T
+        v = (_cross(w @ self.J.T, w) + u + self.kappa2 * unit1) @ self.J_inv.T
         x2_dot = 0.5 * (gamma_dot_w + x1 * _dot(x1, v) + _cross(x1, v) + v)
         # eq. 75 / 77 / 81
-        sta = self.kappa1 * _unit(e1, 0.5)
+        sta = self.kappa1 * sta
         if self.mode == "conventional":
             x1_new = x1 + dt * (x2 + sta)
         elif self.integrator == "euler":
@@ -218,7 +236,7 @@ class GibbsSTSMO:
         else:
             h1 = np.clip(self.t_s - t, 0.0, dt)
             h2 = (dt - h1)[:, None]
-            if np.any(h1 > 0):
+            if (h1 > 0).any():
                 tau0 = np.maximum(self.t_d - t, 1e-300)
                 r = ((tau0 - h1) / tau0)[:, None]
                 phi = r**self.eta  # eq. 7 transition (see pdt_sta.exact_linear_step)
@@ -230,7 +248,7 @@ class GibbsSTSMO:
         self.x1 = x1_new
         self.x2 = x2 + dt * x2_dot
         self.t = t + dt
-        if not (np.all(np.isfinite(self.x1)) and np.all(np.isfinite(self.x2))):
+        if not (np.isfinite(self.x1).all() and np.isfinite(self.x2).all()):
             raise ValueError("observer state became non-finite (step too large for the gains?)")
 
 
@@ -291,32 +309,42 @@ class PdtStaAttitudeObserver(Observer):
             raise ValueError(f"reanchor must lie in (0, 10] (a Gibbs-vector norm), got {reanchor!r}")
         self.reanchor = float(reanchor)
         self.references = np.stack([np.array([0.0, 0.0, -self.gravity]), m])  # specific force at rest, field
+        self._ref_unit = (self.references / np.sqrt((self.references**2).sum(axis=-1, keepdims=True)))[None]
+        self._weights_row = w[None]
+        self._min_field = 0.1 * float(np.linalg.norm(m))
         self.anchor = np.eye(3)[None]
 
     def _quest(self, meas: Mapping[str, NDArray[np.float64]],
-               predicted: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+               predict: Callable[[], NDArray[np.float64]] | None = None
+               ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         """QUEST attitude and a validity mask.  A row whose accelerometer reads < 0.2 g (free fall, a
         hard manoeuvre), whose magnetometer reads < 10 % of the reference field, or whose two vectors are
-        within 1 deg of parallel gives no usable attitude: with ``predicted`` (the current estimate) that
-        row's vectors are replaced by the predicted ones (no correction this step); without it (reset)
-        ValueError is raised."""
+        within 1 deg of parallel gives no usable attitude: with ``predict`` (returning the current
+        estimate) that row's vectors are replaced by the predicted ones (no correction this step);
+        without it (reset) ValueError is raised.  The checks here are QUEST's preconditions, so
+        :func:`quest_unit` runs without repeating :func:`~fawtgym.observers.quest.quest`'s validation."""
         for key in (SPECIFIC_FORCE, MAGNETOMETER):
             if key not in meas:
                 raise ValueError(f"pdt_sta needs measurement[{key!r}] (accelerometer + magnetometer)")
-        body = np.stack([meas[SPECIFIC_FORCE], meas[MAGNETOMETER]], axis=1)
-        if not np.all(np.isfinite(body)):
+        sf, mag = meas[SPECIFIC_FORCE], meas[MAGNETOMETER]
+        body = np.empty(np.broadcast_shapes(sf.shape, mag.shape)[:1] + (2, 3))
+        body[:, 0] = sf
+        body[:, 1] = mag
+        if not np.isfinite(body).all():
             raise ValueError("specific_force/magnetometer contain non-finite values")
-        na = np.linalg.norm(body[:, 0], axis=-1)
-        nm = np.linalg.norm(body[:, 1], axis=-1)
-        sin = np.linalg.norm(_cross(body[:, 0], body[:, 1]), axis=-1) / np.maximum(na * nm, 1e-300)
-        valid = (na > 0.2 * self.gravity) & (nm > 0.1 * np.linalg.norm(self.references[1])) & (sin > 0.0175)
-        if not np.all(valid):
-            if predicted is None:
+        norms = np.sqrt((body * body).sum(axis=-1))
+        na, nm = norms[:, 0], norms[:, 1]
+        c = _cross(body[:, 0], body[:, 1])
+        sin = np.sqrt((c * c).sum(axis=-1)) / np.maximum(na * nm, 1e-300)
+        valid = (na > 0.2 * self.gravity) & (nm > self._min_field) & (sin > 0.0175)
+        if not valid.all():
+            if predict is None:
                 raise ValueError("cannot initialize pdt_sta: accelerometer/magnetometer give no attitude "
                                  f"(rows {np.nonzero(~valid)[0].tolist()}: |a| < 0.2 g, weak field or parallel)")
-            body = body.copy()
-            body[~valid] = np.einsum("nji,kj->nki", predicted[~valid], self.references)
-        return quest(body, self.references, self.weights).R, valid
+            body[~valid] = np.einsum("nji,kj->nki", predict()[~valid], self.references)
+            norms = np.sqrt((body * body).sum(axis=-1))
+        body /= norms[:, :, None]
+        return quest_unit(body, self._ref_unit, self._weights_row).R, valid
 
     def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
               torque: ArrayLike | None = None) -> None:
@@ -332,10 +360,10 @@ class PdtStaAttitudeObserver(Observer):
         n = self.core.x1.shape[0]
         if meas[SPECIFIC_FORCE].shape[0] != n:
             raise ValueError(f"batch size changed from {n} to {meas[SPECIFIC_FORCE].shape[0]}; call reset first")
-        R_q, valid = self._quest(meas, predicted=self.anchor @ gibbs_to_rot(self.core.x1))
+        R_q, valid = self._quest(meas, predict=lambda: self.anchor @ gibbs_to_rot(self.core.x1))
         rel = np.swapaxes(self.anchor, -1, -2) @ R_q
         y = _safe_gibbs(rel)
-        self.core.step(y, np.broadcast_to(tau, (n, 3)), dt)
+        self.core.step(y, tau if tau.shape == (n, 3) else np.broadcast_to(tau, (n, 3)), dt)
         self._maybe_reanchor()
         R_hat = self.anchor @ gibbs_to_rot(self.core.x1)
         zeros = np.zeros((n, 3))
@@ -344,8 +372,9 @@ class PdtStaAttitudeObserver(Observer):
             "gibbs": self.core.x1.copy(), "quest_valid": valid})
 
     def _maybe_reanchor(self) -> None:
-        far = np.linalg.norm(self.core.x1, axis=-1) > self.reanchor
-        if not np.any(far):
+        x1 = self.core.x1
+        far = np.sqrt((x1 * x1).sum(axis=-1)) > self.reanchor
+        if not far.any():
             return
         omega = self.core.omega[far]
         self.anchor = self.anchor.copy()
@@ -360,7 +389,14 @@ class PdtStaAttitudeObserver(Observer):
 
 def _safe_gibbs(R: NDArray[np.float64]) -> NDArray[np.float64]:
     """Gibbs vector of D = R^T, clipped to norm 1e3 at a half turn (a measurement far from the anchor)."""
-    den = 1.0 + np.trace(R, axis1=-2, axis2=-1)
-    g = 2.0 * vee(R) / np.maximum(den, 1e-6)[..., None]
+    den = 1.0 + (R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2])
+    Rf = R.reshape(R.shape[:-2] + (9,))
+    g = 2.0 * (0.5 * (Rf.take(_VEE_P, -1) - Rf.take(_VEE_M, -1))) / np.maximum(den, 1e-6)[..., None]
+    if not ((g * g).sum(axis=-1) > 1e5).any():  # |g| <= 316 < 1e3: no clipping
+        return g
     n = np.linalg.norm(g, axis=-1, keepdims=True)
     return np.where(n > 1e3, g * 1e3 / np.maximum(n, 1e-300), g)
+
+
+_VEE_P = np.array([7, 2, 3])  # vee(R) = 1/2 (R21 - R12, R02 - R20, R10 - R01) (lie.vee)
+_VEE_M = np.array([5, 6, 1])

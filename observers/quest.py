@@ -47,10 +47,15 @@ GIBBS_MAX = 1e8
 _GIBBS_SWITCH = 10.0
 
 
+_I1 = np.array([1, 2, 0])
+_I2 = np.array([2, 0, 1])
+
+
 def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """a x b over the last axis (cheaper than np.cross for small arrays)."""
-    a, b = np.broadcast_arrays(a, b)
-    out = np.empty(a.shape)
+    """a x b over the last axis, broadcasting (cheaper than np.cross for small arrays)."""
+    if a.size <= 48 and b.size <= 48:  # few elements: 4 gathers beat 9 strided slices
+        return a.take(_I1, -1) * b.take(_I2, -1) - a.take(_I2, -1) * b.take(_I1, -1)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
     out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
     out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
     out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
@@ -63,10 +68,10 @@ def _as_batch_vectors(name: str, v: ArrayLike) -> NDArray[np.float64]:
         a = a[None]
     if a.ndim != 3 or a.shape[-1] != 3:
         raise ValueError(f"{name} must have shape (n, 3) or (N, n, 3), got {np.shape(v)}")
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():
         raise ValueError(f"{name} contains non-finite values")
-    norm = np.linalg.norm(a, axis=-1, keepdims=True)
-    if np.any(norm <= 1e-12):
+    norm = np.sqrt((a * a).sum(axis=-1, keepdims=True))
+    if (norm <= 1e-12).any():
         raise ValueError(f"{name} contains a zero vector; every observation needs a direction")
     return a / norm
 
@@ -89,51 +94,84 @@ def quest(body: ArrayLike, reference: ArrayLike, weights: ArrayLike | None = Non
     if n_obs < 2:
         raise ValueError(f"QUEST needs at least 2 vector pairs, got {n_obs}")
     a = np.ones(b.shape[:2]) if weights is None else np.broadcast_to(np.asarray(weights, dtype=float), b.shape[:2])
-    if not (np.all(np.isfinite(a)) and np.all(a > 0)):
+    if not (np.isfinite(a) & (a > 0)).all():
         raise ValueError(f"weights must be finite and > 0, got {weights!r}")
     for name, v in (("body", b), ("reference", r)):
-        cross = np.linalg.norm(_cross(v[:, :, None, :], v[:, None, :, :]), axis=-1)
-        if np.any(cross.max(axis=(1, 2)) < min_sin):
+        # largest |v_i x v_j|^2 over the pairs (n = 2: the one pair)
+        c = _cross(v[:, 0], v[:, 1]) if n_obs == 2 else _cross(v[:, :, None, :], v[:, None, :, :])
+        s2 = (c * c).sum(axis=-1)
+        if (s2.reshape(s2.shape[0], -1).max(axis=1) < min_sin * min_sin).any():
             raise ValueError(f"{name} directions are collinear (|sin| < {min_sin}); attitude is not observable")
-    a = a / a.sum(axis=1, keepdims=True)  # eq. 63 normalization
+    return quest_unit(b, r, a)
 
-    B = np.einsum("ni,nij,nik->njk", a, b, r)  # eq. 61
+
+def _cofactors(M: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Cofactor rows (the rows of adj M^T; adj M for symmetric M) and det M of a batch (N, 3, 3)."""
+    C = _cross(M[:, (1, 2, 0)], M[:, (2, 0, 1)])
+    return C, (M[:, 0] * C[:, 0]).sum(axis=-1)
+
+
+def _newton_lambda(lam, a1, b1, c1, rho, d1):  # type: ignore[no-untyped-def]
+    """lambda_max by Newton-Raphson on the characteristic equation; arrays (N,), or plain floats (N = 1:
+    the same arithmetic without the per-operation cost of 1-element arrays)."""
+    scalar = isinstance(lam, float)
+    for _ in range(_NEWTON_ITERS):
+        l2 = lam * lam
+        f = (l2 - a1) * (l2 - b1) - c1 * lam + c1 * rho - d1
+        df = 2 * lam * (2 * l2 - a1 - b1) - c1
+        if scalar:
+            step = f / df if abs(df) > 1e-14 else 0.0
+            lam = lam - step
+            if abs(step) < 1e-15:
+                break
+        else:
+            step = np.where(np.abs(df) > 1e-14, f / np.where(df == 0, 1.0, df), 0.0)
+            lam = lam - step
+            if np.abs(step).max() < 1e-15:  # quadratic convergence: usually 2-4 iterations
+                break
+    return lam
+
+
+def quest_unit(b: NDArray[np.float64], r: NDArray[np.float64], a: NDArray[np.float64]) -> QuestResult:
+    """QUEST core (eqs. 57-66) on validated input: unit vectors b, r (N, n, 3), weights a (N, n) > 0
+    (normalized here, eq. 63).  :func:`quest` validates and calls this; callers that already
+    guarantee the preconditions (finite unit vectors, >= 2 non-collinear pairs) may call it directly."""
+    a = a / a.sum(axis=1, keepdims=True)  # eq. 63 normalization
+    ab = a[:, :, None] * b
+    B = np.swapaxes(ab, 1, 2) @ r  # eq. 61: sum_i a_i b_i r_i^T
     S = B + np.swapaxes(B, -1, -2)  # eq. 59
-    rho = np.trace(B, axis1=-2, axis2=-1)  # eq. 60
-    z = np.einsum("ni,nij->nj", a, _cross(b, r))  # eq. 62
+    rho = B[:, 0, 0] + B[:, 1, 1] + B[:, 2, 2]  # eq. 60
+    z = _cross(ab, r).sum(axis=1)  # eq. 62
 
     # Shuster's characteristic equation of K (58):
     # (l^2 - a1)(l^2 - b1) - c1 l + c1 rho - d1 = 0, with
     # a1 = rho^2 - tr adj S, b1 = rho^2 + z.z, c1 = det S + z.S z, d1 = z.S^2 z.
-    detS = np.linalg.det(S)
-    adj_tr = 0.5 * (np.trace(S, axis1=-2, axis2=-1) ** 2 - np.trace(S @ S, axis1=-2, axis2=-1))
-    Sz = np.einsum("nij,nj->ni", S, z)
-    a1 = rho**2 - adj_tr
-    b1 = rho**2 + np.sum(z * z, axis=-1)
-    c1 = detS + np.sum(z * Sz, axis=-1)
-    d1 = np.sum(Sz * Sz, axis=-1)
-    lam = np.ones_like(rho)
-    for _ in range(_NEWTON_ITERS):
-        f = (lam**2 - a1) * (lam**2 - b1) - c1 * lam + c1 * rho - d1
-        df = 2 * lam * (2 * lam**2 - a1 - b1) - c1
-        step = np.where(np.abs(df) > 1e-14, f / np.where(df == 0, 1.0, df), 0.0)
-        lam = lam - step
-        if np.max(np.abs(step)) < 1e-15:  # quadratic convergence: usually 2-4 iterations
-            break
+    CS, detS = _cofactors(S)
+    Sz = (S @ z[:, :, None])[:, :, 0]
+    rho2 = rho * rho
+    a1 = rho2 - (CS[:, 0, 0] + CS[:, 1, 1] + CS[:, 2, 2])
+    b1 = rho2 + (z * z).sum(axis=-1)
+    c1 = detS + (z * Sz).sum(axis=-1)
+    d1 = (Sz * Sz).sum(axis=-1)
+    if rho.shape[0] == 1:
+        lam = np.array([_newton_lambda(1.0, float(a1[0]), float(b1[0]), float(c1[0]), float(rho[0]),
+                                       float(d1[0]))])
+    else:
+        lam = _newton_lambda(np.ones_like(rho), a1, b1, c1, rho, d1)
 
-    # eq. 65: g = [(lambda + rho) I - S]^{-1} z
+    # eq. 65: g = [(lambda + rho) I - S]^{-1} z = adj(M) z / det M (M symmetric)
     M = (lam + rho)[:, None, None] * np.eye(3) - S
-    detM = np.linalg.det(M)
+    CM, detM = _cofactors(M)
     good = np.abs(detM) > 1e-9
-    g = np.zeros_like(z)
-    if np.any(good):
-        g[good] = np.linalg.solve(M[good], z[good][..., None])[..., 0]
+    g = (CM @ z[:, :, None])[:, :, 0] / np.where(good, detM, 1.0)[:, None]
+    gg = (g * g).sum(axis=-1)
     q = np.empty((b.shape[0], 4))  # (w, x, y, z) = (q4, q_vec) (see module docstring)
-    denom = np.sqrt(1.0 + np.sum(g * g, axis=-1))
+    denom = np.sqrt(1.0 + gg)
     q[:, 0] = 1.0 / denom
     q[:, 1:] = g / denom[:, None]
-    bad = ~good | ~np.all(np.isfinite(g), axis=-1) | (np.linalg.norm(g, axis=-1) > _GIBBS_SWITCH)
-    if np.any(bad):
+    bad = ~good | ~(gg <= _GIBBS_SWITCH * _GIBBS_SWITCH)  # also catches non-finite g
+    if bad.any():
+        g[~good] = 0.0
         K = np.zeros((int(bad.sum()), 4, 4))
         K[:, :3, :3] = S[bad] - rho[bad][:, None, None] * np.eye(3)
         K[:, :3, 3] = z[bad]
@@ -147,20 +185,28 @@ def quest(body: ArrayLike, reference: ArrayLike, weights: ArrayLike | None = Non
         lam[bad] = w[:, -1]
         q4 = np.maximum(qs[:, 3], 1.0 / GIBBS_MAX)
         g[bad] = qs[:, :3] / q4[:, None]
-    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    q /= np.sqrt((q * q).sum(axis=-1, keepdims=True))
     R = quat_wxyz_to_rot(q)
     return QuestResult(R=R, quaternion=q, gibbs=g, lambda_max=lam, loss=1.0 - lam)
 
 
+# R (row-major, 9) = e + (q q^T flattened, 16) @ _QQ_TO_R: each entry a signed sum of two products, times 2
+_QQ_TO_R = np.zeros((16, 9))
+for _k, _terms in enumerate([((2, 2, -2), (3, 3, -2)), ((1, 2, 2), (0, 3, -2)), ((1, 3, 2), (0, 2, 2)),
+                             ((1, 2, 2), (0, 3, 2)), ((1, 1, -2), (3, 3, -2)), ((2, 3, 2), (0, 1, -2)),
+                             ((1, 3, 2), (0, 2, -2)), ((2, 3, 2), (0, 1, 2)), ((1, 1, -2), (2, 2, -2))]):
+    for _i, _j, _c in _terms:
+        _QQ_TO_R[4 * _i + _j, _k] = _c
+_EYE_FLAT = np.eye(3).reshape(9)
+
+
 def quat_wxyz_to_rot(q: ArrayLike) -> NDArray[np.float64]:
-    """Rotation matrix (body -> world) of a unit quaternion (..., 4) in (w, x, y, z) order (Hamilton)."""
+    """Rotation matrix (body -> world) of a unit quaternion (..., 4) in (w, x, y, z) order (Hamilton):
+    R = [[1 - 2(y^2 + z^2), 2(xy - wz), 2(xz + wy)], [2(xy + wz), 1 - 2(x^2 + z^2), 2(yz - wx)],
+    [2(xz - wy), 2(yz + wx), 1 - 2(x^2 + y^2)]], evaluated as one product with the outer product q q^T."""
     q = np.asarray(q, dtype=float)
-    w, x, y, zz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.stack([
-        np.stack([1 - 2 * (y * y + zz * zz), 2 * (x * y - w * zz), 2 * (x * zz + w * y)], axis=-1),
-        np.stack([2 * (x * y + w * zz), 1 - 2 * (x * x + zz * zz), 2 * (y * zz - w * x)], axis=-1),
-        np.stack([2 * (x * zz - w * y), 2 * (y * zz + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
-    ], axis=-2)
+    qq = (q[..., :, None] * q[..., None, :]).reshape(q.shape[:-1] + (16,))
+    return (qq @ _QQ_TO_R + _EYE_FLAT).reshape(q.shape[:-1] + (3, 3))
 
 
 def wahba_loss(R: ArrayLike, body: ArrayLike, reference: ArrayLike, weights: ArrayLike | None = None) -> NDArray:
