@@ -79,14 +79,14 @@ def hc_eso_rates(r_hat: NDArray[np.float64], omega_hat: NDArray[np.float64], sig
     """
     a, g = gains.alpha, float(gains.gamma)
     j_inv = np.linalg.inv(inertia) if inertia_inv is None else inertia_inv
-    s = va.s_l(l, r_hat)
-    psi = (omega_m - omega_hat) - gains.kappa * va.z_l(s, a, g)  # eq. 29 with eq. 17
-    psi2 = np.maximum(np.sum(psi * psi, axis=-1), va._S2_FLOOR)[..., None]
-    s2 = np.maximum(np.sum(s * s, axis=-1), va._S2_FLOOR)[..., None]
-    wl = va.w_l(l, r_hat, omega_hat, omega_m)
-    hw = np.einsum("...ij,...j->...i", va.h_matrix(s, a, g), wl)
+    s, wl = va.s_l_w_l(l, r_hat, omega_hat, omega_m)  # eqs. 22, 27
+    s2 = np.maximum((s * s).sum(axis=-1), va._S2_FLOOR)[..., None]
+    psi = (omega_m - omega_hat) - gains.kappa * (s2[..., 0] ** ((a - 1.0) / g))[..., None] * s  # eq. 29 (26), 17
+    psi2 = np.maximum((psi * psi).sum(axis=-1), va._S2_FLOOR)[..., None]
+    hw = (va.h_matrix(s, a, g) @ wl[..., None])[..., 0]
     jw = omega_m @ inertia.T
-    p = ((np.cross(jw, omega_m) + tau) @ j_inv.T + sigma_hat + gains.k_psi * psi2 ** ((a - 1.0) / 2.0) * psi
+    jwxw = jw.take(va._I1, -1) * omega_m.take(va._I2, -1) - jw.take(va._I2, -1) * omega_m.take(va._I1, -1)
+    p = ((jwxw + tau) @ j_inv.T + sigma_hat + gains.k_psi * psi2 ** ((a - 1.0) / 2.0) * psi
          - gains.kappa * s2 ** ((a - 1.0) / g) * hw)
     q = gains.k_sigma * psi2 ** (a - 1.0) * psi
     return p, q, psi, s
@@ -144,6 +144,7 @@ class HcEsoSO3(Observer):
         else:
             self._e = va.imu_inertial_vectors(self.field_ned)
         self._w = va.wahba_weight(self._e, self.morse_gains)
+        self._ew = self._e @ self._w
         self._state: tuple[NDArray[np.float64], ...] | None = None
         self._held: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
 
@@ -153,13 +154,13 @@ class HcEsoSO3(Observer):
             if key not in meas:
                 raise ValueError(f"HC-ESO (vectors={self.vectors!r}) needs measurement[{key!r}]; "
                                  f"got keys {sorted(meas)}")
-            if not np.all(np.isfinite(meas[key])):
+            if not np.isfinite(meas[key]).all():
                 raise ValueError(f"measurement[{key!r}] contains non-finite values")
         if self.vectors == "attitude":
             u_m = np.swapaxes(meas[M.ATTITUDE], -1, -2) @ self._e
         else:
-            u_m = va.imu_vector_set(meas[M.SPECIFIC_FORCE], meas[M.MAGNETOMETER], self.field_ned)[1]
-        return va.gain_matrix(self._e, self._w, u_m), meas[self.rate_key]
+            u_m = va.imu_body_vectors(meas[M.SPECIFIC_FORCE], meas[M.MAGNETOMETER])
+        return self._ew @ np.swapaxes(u_m, -1, -2), meas[self.rate_key]  # L = (E W) (U^m)^T (va.gain_matrix)
 
     def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
               torque: ArrayLike | None = None) -> None:
@@ -183,7 +184,7 @@ class HcEsoSO3(Observer):
         r_hat, omega_hat, sigma_hat = self._state
         n = r_hat.shape[0]
         try:
-            tau = np.broadcast_to(tau, (n, 3))
+            tau = tau if tau.shape == (n, 3) else np.broadcast_to(tau, (n, 3))
         except ValueError:
             raise ValueError(f"torque {tau.shape} does not match the batch size {n} set at reset") from None
         l, omega_m = self._held
@@ -194,7 +195,7 @@ class HcEsoSO3(Observer):
             r_hat, omega_hat, sigma_hat = hc_eso_step(r_hat, omega_hat, sigma_hat, l, omega_m, tau, self.inertia,
                                                       self.gains, h, self.inertia_inv)
             l = l @ rot
-        if not (np.all(np.isfinite(omega_hat)) and np.all(np.isfinite(sigma_hat))):
+        if not (np.isfinite(omega_hat).all() and np.isfinite(sigma_hat).all()):
             raise ValueError(f"HC-ESO state became non-finite (dt={dt}, max_step={self.max_step}); "
                              "reduce max_step or the gains")
         new_l, new_omega = self._measured(meas)

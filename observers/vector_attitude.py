@@ -81,9 +81,37 @@ def s_k(q: ArrayLike, k: ArrayLike) -> NDArray[np.float64]:
     return 2.0 * vee(kd @ q)  # vex(A - A^T) = 2 vee(A) (vee takes the skew part)
 
 
+_VEE_P = np.array([7, 2, 3])  # flat indices of (X21, X02, X10)
+_VEE_M = np.array([5, 6, 1])  # flat indices of (X12, X20, X01)
+# hat(w) flattened row-major = w @ _HAT_FLAT (entries 0, +-1: exact)
+_HAT_FLAT = np.zeros((3, 9))
+_HAT_FLAT[[2, 1, 2, 0, 1, 0], [1, 2, 3, 5, 6, 7]] = [-1.0, 1.0, 1.0, -1.0, -1.0, 1.0]
+
+
+def _skew_diff(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(X21 - X12, X02 - X20, X10 - X01) = 2 vee(X) = vee(X - X^T) for (..., 3, 3)."""
+    xf = x.reshape(x.shape[:-2] + (9,))
+    return xf.take(_VEE_P, -1) - xf.take(_VEE_M, -1)
+
+
+def _hat(w: NDArray[np.float64]) -> NDArray[np.float64]:
+    return (w @ _HAT_FLAT).reshape(w.shape[:-1] + (3, 3))
+
+
 def s_l(l: ArrayLike, r_hat: ArrayLike) -> NDArray[np.float64]:
     """``s_L(R_hat) = vex(L^T R_hat - R_hat^T L)``, eq. 22, (N, 3)."""
     return 2.0 * vee(np.swapaxes(np.asarray(l, float), -1, -2) @ np.asarray(r_hat, float))
+
+
+def s_l_w_l(l: NDArray[np.float64], r_hat: NDArray[np.float64], omega_hat: NDArray[np.float64],
+            omega_m: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(:func:`s_l`, :func:`w_l`) sharing A = L^T R_hat (same numbers, fewer operations).
+
+    With W^T = -W, W A^T = -(A W)^T, so vex(A W + W A^T) = vex(A W - (A W)^T) is the skew difference of A W.
+    """
+    a = np.swapaxes(l, -1, -2) @ r_hat
+    return 2.0 * (0.5 * _skew_diff(a)), _skew_diff(a @ _hat(omega_hat)) - _skew_diff(np.swapaxes(a, -1, -2)
+                                                                                       @ _hat(omega_m))
 
 
 def _pow_s2(s: NDArray[np.float64], expo: float) -> NDArray[np.float64]:
@@ -150,14 +178,28 @@ def imu_vector_set(specific_force: ArrayLike, magnetometer: ArrayLike,
     if not (np.all(np.isfinite(f)) and np.all(np.isfinite(m))):
         raise ValueError("specific_force / magnetometer contain non-finite values")
     e = imu_inertial_vectors(field_ned)
+    return e, imu_body_vectors(f, m)
 
-    def unit(v: NDArray[np.float64], what: str) -> NDArray[np.float64]:
-        n = np.linalg.norm(v, axis=-1, keepdims=True)
-        if np.any(n < 1e-9):
-            raise ValueError(f"{what} has (near) zero length in the batch; cannot use it as a direction")
-        return v / n
 
-    g_b = unit(-f, "specific force (free fall?)")
-    m_b = unit(m, "magnetometer")
-    c_b = unit(np.cross(g_b, m_b), "gravity x field (vectors collinear)")
-    return e, np.stack([g_b, m_b, c_b], axis=-1)
+def _unit(v: NDArray[np.float64], what: str) -> NDArray[np.float64]:
+    n = np.sqrt((v * v).sum(axis=-1, keepdims=True))
+    if (n < 1e-9).any():
+        raise ValueError(f"{what} has (near) zero length in the batch; cannot use it as a direction")
+    return v / n
+
+
+def imu_body_vectors(f: NDArray[np.float64], m: NDArray[np.float64]) -> NDArray[np.float64]:
+    """U^m (N, 3, 3) of :func:`imu_vector_set` for finite (N, 3) arrays (columns -f/|f|, m/|m|, their
+    normalized cross product)."""
+    g_b = _unit(-f, "specific force (free fall?)")
+    m_b = _unit(m, "magnetometer")
+    c = g_b.take(_I1, -1) * m_b.take(_I2, -1) - g_b.take(_I2, -1) * m_b.take(_I1, -1)  # g_b x m_b
+    u = np.empty(g_b.shape + (3,))
+    u[..., 0] = g_b
+    u[..., 1] = m_b
+    u[..., 2] = _unit(c, "gravity x field (vectors collinear)")
+    return u
+
+
+_I1 = np.array([1, 2, 0])
+_I2 = np.array([2, 0, 1])
