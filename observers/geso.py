@@ -46,6 +46,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.envs import measurement as M
 
+from ._obs_common import floats
 from .base import Observer, ObserverEstimate, register_observer
 
 #: orders the module supports (eqs. 18-23 for n = 1..4, as issue 5 asks)
@@ -53,6 +54,8 @@ ORDERS = (1, 2, 3, 4)
 HOLDS = ("zoh", "foh")
 CHANNELS = ("force", "torque")
 _E3 = np.array([0.0, 0.0, 1.0])
+_RATE_NAME = {"force": "velocity", "torque": "angular_velocity"}
+_DER_NAME = {"force": "force_derivatives", "torque": "torque_derivatives"}
 
 
 def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -293,6 +296,13 @@ class GESO(Observer):
         self.filters = {c: GesoFilter(orders[c], bws[c]) for c in chans}
         self._x: dict[str, NDArray[np.float64]] = {}
         self._prev: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+        # N = 1 fast path: block step matrices per dt, and the last N = 1 state as floats
+        self._single_mats: dict[float, NDArray[np.float64]] = {}
+        self._single: tuple | None = None
+        self._jl, self._jil = self.inertia.tolist(), self.inertia_inv.tolist()
+        self._mg = self.mass * self.gravity
+        offs = np.cumsum([0] + [f.order + 1 for f in self.filters.values()]).tolist()
+        self._info = [(c, f.order + 1, offs[k]) for k, (c, f) in enumerate(self.filters.items())]
 
     # ---- channel signals: (y, state-dependent part of u*) from a batched measurement ------------
     def _signals(self, chan: str, meas: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.float64], ...]:
@@ -320,7 +330,7 @@ class GESO(Observer):
               torque: ArrayLike | None = None) -> None:
         """Start at x0_hat = y, d_hat = the given guess (default 0), higher derivatives 0."""
         meas = M.batch_measurement(measurement)
-        self._x, self._prev = {}, {}
+        self._x, self._prev, self._single = {}, {}, None
         for chan, filt in self.filters.items():
             y, aux = self._signals(chan, meas)
             x = np.zeros(y.shape + (filt.order + 1,))
@@ -335,10 +345,154 @@ class GESO(Observer):
             self._x[chan] = x
             self._prev[chan] = (y, aux)
 
+    def _single_matrix(self, dt: float) -> NDArray[np.float64]:
+        """Block-diagonal step matrix of all channels for N = 1: rows [x, u*, y_k (, y_k+1 - y_k)] per channel."""
+        key = float(dt)
+        blk = self._single_mats.get(key)
+        if blk is None:
+            mats = {c: f.discretize(key, self.hold) for c, f in self.filters.items()}
+            width = 3 if self.hold == "foh" else 2
+            rows = sum(f.order + 1 + width for f in self.filters.values())
+            cols = sum(f.order + 1 for f in self.filters.values())
+            blk = np.zeros((rows, cols))
+            ro = co = 0
+            for c, f in self.filters.items():
+                m = f.order + 1
+                blk[ro:ro + m, co:co + m] = mats[c][0].T
+                blk[ro + m:ro + m + 2, co:co + m] = mats[c][1].T
+                if self.hold == "foh":
+                    blk[ro + m + 2, co:co + m] = mats[c][2][:, 1]
+                ro += m + width
+                co += m
+            self._single_mats[key] = blk
+        return blk
+
+    def _update_single(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
+                       dt: float) -> ObserverEstimate | None:
+        """N = 1 fast path: the signals (y, u*) in Python floats and one product with :meth:`_single_matrix`.
+
+        The same discrete filter as :meth:`GesoFilter.step` per channel (equal to ~1e-15 relative, the
+        order of the sums).  Returns None, touching nothing, unless the step is a well-formed, finite
+        N = 1 step; :meth:`update`'s general path then runs and raises its usual errors.
+        """
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            return None
+        try:
+            fl = floats(thrust)
+            tq = floats(torque)
+            sig: dict[str, tuple[list[float], list[float]]] = {}
+            if "force" in self.filters:
+                vm = floats(measurement[M.VELOCITY])
+                rm = floats(measurement[M.ATTITUDE])
+                if len(vm) != 3 or len(rm) != 9 or not math.isfinite(sum(vm) + sum(rm)):
+                    return None
+                mass = self.mass
+                sig["force"] = ([mass * vm[0], mass * vm[1], mass * vm[2]], [rm[2], rm[5], rm[8]])
+            if "torque" in self.filters:
+                w0, w1, w2 = floats(measurement[self.rate_key])
+                if not math.isfinite(w0 + w1 + w2):
+                    return None
+                (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._jl
+                s0, s1, s2 = (w0 * j00 + w1 * j01 + w2 * j02, w0 * j10 + w1 * j11 + w2 * j12,
+                              w0 * j20 + w1 * j21 + w2 * j22)
+                sig["torque"] = ([s0, s1, s2], [s1 * w2 - s2 * w1, s2 * w0 - s0 * w2, s0 * w1 - s1 * w0])
+        except (KeyError, ValueError, TypeError):
+            return None
+        if len(fl) != 1 or len(tq) != 3 or not math.isfinite(fl[0] + sum(tq)):
+            return None
+        blk = self._single_matrix(dt)
+        cache = self._single
+        if cache is None:       # after reset / a general-path step: read the numpy state
+            rows: list[list[float]] = [[], [], []]
+            prev = {}
+            for c in self.filters:
+                xc = self._x[c][0].tolist()
+                for i in range(3):
+                    rows[i] += xc[i]
+                prev[c] = (self._prev[c][0][0].tolist(), self._prev[c][1][0].tolist())
+        else:
+            rows, prev = cache
+        foh = self.hold == "foh"
+        f = fl[0]
+        r0, r1, r2 = rows
+        z0: list[float] = []
+        z1: list[float] = []
+        z2: list[float] = []
+        for c, m, co in self._info:
+            y_old, aux_old = prev[c]
+            y_new, aux_new = sig[c]
+            if foh:
+                a0, a1, a2 = (0.5 * (aux_old[0] + aux_new[0]), 0.5 * (aux_old[1] + aux_new[1]),
+                              0.5 * (aux_old[2] + aux_new[2]))
+            else:
+                a0, a1, a2 = aux_old
+            if c == "force":
+                u0, u1, u2 = 0.0 - f * a0, 0.0 - f * a1, self._mg - f * a2
+            else:
+                u0, u1, u2 = tq[0] + a0, tq[1] + a1, tq[2] + a2
+            z0 += r0[co:co + m]
+            z1 += r1[co:co + m]
+            z2 += r2[co:co + m]
+            if foh:
+                z0 += (u0, y_old[0], y_new[0] - y_old[0])
+                z1 += (u1, y_old[1], y_new[1] - y_old[1])
+                z2 += (u2, y_old[2], y_new[2] - y_old[2])
+            else:
+                z0 += (u0, y_old[0])
+                z1 += (u1, y_old[1])
+                z2 += (u2, y_old[2])
+        res = np.array((z0, z1, z2)) @ blk
+        rows = res.tolist()
+        r0, r1, r2 = rows
+        if not math.isfinite(sum(r0) + sum(r1) + sum(r2)):
+            raise ValueError(f"GESO state became non-finite (check dt={dt} and the inputs)")
+        # the new state is kept as floats (self._single); self._x / self._prev are rebuilt from them only when
+        # the general path runs (_sync_single)
+        self._single = (rows, sig)
+        head = [0.0] * 6
+        extra: list[float] = []
+        for c, m, co in self._info:
+            x0, x1, x2 = r0[co], r1[co], r2[co]
+            if c == "force":
+                head[0:3] = r0[co + 1], r1[co + 1], r2[co + 1]
+                mass = self.mass
+                extra += (x0 / mass, x1 / mass, x2 / mass)
+            else:
+                head[3:6] = r0[co + 1], r1[co + 1], r2[co + 1]
+                (i00, i01, i02), (i10, i11, i12), (i20, i21, i22) = self._jil
+                extra += (x0 * i00 + x1 * i01 + x2 * i02, x0 * i10 + x1 * i11 + x2 * i12,
+                          x0 * i20 + x1 * i21 + x2 * i22)
+            for j in range(co + 2, co + m):
+                extra += (r0[j], r1[j], r2[j])
+        out = np.array(head + extra)
+        states: dict[str, NDArray[np.float64]] = {}
+        o = 6
+        for c, m, _ in self._info:
+            states[_RATE_NAME[c]] = out[None, o:o + 3]
+            states[_DER_NAME[c]] = out[o + 3:o + 3 * (m - 1)].reshape(1, m - 2, 3)
+            o += 3 * (m - 1)
+        return ObserverEstimate(force=out[None, 0:3], torque=out[None, 3:6], states=states)
+
+    def _sync_single(self) -> None:
+        """Write the float state of the N = 1 fast path back into the numpy state (self._x, self._prev)."""
+        if self._single is None:
+            return
+        rows, sig = self._single
+        res = np.array(rows)
+        for c, m, co in self._info:
+            self._x[c] = res[None, :, co:co + m].copy()
+            self._prev[c] = (np.array([sig[c][0]]), np.array([sig[c][1]]))
+        self._single = None
+
     def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
                dt: float) -> ObserverEstimate:
         if not self._x:
             raise ValueError("GESO.update called before reset(measurement)")
+        if next(iter(self._x.values())).shape[0] == 1:
+            est = self._update_single(measurement, thrust, torque, dt)
+            if est is not None:
+                return est
+        self._sync_single()
         meas, f, tau = self._inputs(measurement, thrust, torque, dt)
         n_batch = next(iter(self._x.values())).shape[0]
         try:
