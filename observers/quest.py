@@ -21,11 +21,13 @@ ill-conditioned (|g| > 10: rotation angle above 168.6 deg, g -> infinity at pi) 
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 _NEWTON_ITERS = 8
+_EYE = np.eye(3)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -136,9 +138,13 @@ def quest_unit(b: NDArray[np.float64], r: NDArray[np.float64], a: NDArray[np.flo
     """QUEST core (eqs. 57-66) on validated input: unit vectors b, r (N, n, 3), weights a (N, n) > 0
     (normalized here, eq. 63).  :func:`quest` validates and calls this; callers that already
     guarantee the preconditions (finite unit vectors, >= 2 non-collinear pairs) may call it directly."""
+    if b.shape[0] == 1 and r.shape[0] == 1 and a.shape[0] == 1:
+        res = _quest_unit_single(b[0].tolist(), r[0].tolist(), a[0].tolist())
+        if res is not None:
+            return res
     a = a / a.sum(axis=1, keepdims=True)  # eq. 63 normalization
     ab = a[:, :, None] * b
-    B = np.swapaxes(ab, 1, 2) @ r  # eq. 61: sum_i a_i b_i r_i^T
+    B = (ab[:, :, :, None] * r[:, :, None, :]).sum(axis=1)  # eq. 61: sum_i a_i b_i r_i^T (no BLAS: no FMA)
     S = B + np.swapaxes(B, -1, -2)  # eq. 59
     rho = B[:, 0, 0] + B[:, 1, 1] + B[:, 2, 2]  # eq. 60
     z = _cross(ab, r).sum(axis=1)  # eq. 62
@@ -147,7 +153,7 @@ def quest_unit(b: NDArray[np.float64], r: NDArray[np.float64], a: NDArray[np.flo
     # (l^2 - a1)(l^2 - b1) - c1 l + c1 rho - d1 = 0, with
     # a1 = rho^2 - tr adj S, b1 = rho^2 + z.z, c1 = det S + z.S z, d1 = z.S^2 z.
     CS, detS = _cofactors(S)
-    Sz = (S @ z[:, :, None])[:, :, 0]
+    Sz = (S * z[:, None, :]).sum(axis=-1)
     rho2 = rho * rho
     a1 = rho2 - (CS[:, 0, 0] + CS[:, 1, 1] + CS[:, 2, 2])
     b1 = rho2 + (z * z).sum(axis=-1)
@@ -160,10 +166,10 @@ def quest_unit(b: NDArray[np.float64], r: NDArray[np.float64], a: NDArray[np.flo
         lam = _newton_lambda(np.ones_like(rho), a1, b1, c1, rho, d1)
 
     # eq. 65: g = [(lambda + rho) I - S]^{-1} z = adj(M) z / det M (M symmetric)
-    M = (lam + rho)[:, None, None] * np.eye(3) - S
+    M = (lam + rho)[:, None, None] * _EYE - S
     CM, detM = _cofactors(M)
     good = np.abs(detM) > 1e-9
-    g = (CM @ z[:, :, None])[:, :, 0] / np.where(good, detM, 1.0)[:, None]
+    g = (CM * z[:, None, :]).sum(axis=-1) / np.where(good, detM, 1.0)[:, None]
     gg = (g * g).sum(axis=-1)
     q = np.empty((b.shape[0], 4))  # (w, x, y, z) = (q4, q_vec) (see module docstring)
     denom = np.sqrt(1.0 + gg)
@@ -198,6 +204,52 @@ for _k, _terms in enumerate([((2, 2, -2), (3, 3, -2)), ((1, 2, 2), (0, 3, -2)), 
     for _i, _j, _c in _terms:
         _QQ_TO_R[4 * _i + _j, _k] = _c
 _EYE_FLAT = np.eye(3).reshape(9)
+
+
+def _quest_unit_single(b: list[list[float]], r: list[list[float]], a: list[float]) -> QuestResult | None:
+    """:func:`quest_unit` for N = 1 on plain floats: the same formulas in the same order (1-element numpy
+    arrays cost ~1 us per operation); None where the eigenvector branch (eq. 64) is needed."""
+    sa = sum(a)
+    ab = [[ai / sa * x for x in bi] for ai, bi in zip(a, b, strict=True)]  # a_i b_i, eq. 63 weights
+    B = [[sum(abi[j] * ri[k] for abi, ri in zip(ab, r, strict=True)) for k in range(3)] for j in range(3)]
+    S = [[B[j][k] + B[k][j] for k in range(3)] for j in range(3)]
+    rho = B[0][0] + B[1][1] + B[2][2]
+    z = [sum(c) for c in zip(*(_cross3(abi, ri) for abi, ri in zip(ab, r, strict=True)), strict=True)]
+    CS, detS = _cofactors3(S)
+    Sz = [S[i][0] * z[0] + S[i][1] * z[1] + S[i][2] * z[2] for i in range(3)]
+    rho2 = rho * rho
+    a1 = rho2 - (CS[0][0] + CS[1][1] + CS[2][2])
+    b1 = rho2 + (z[0] * z[0] + z[1] * z[1] + z[2] * z[2])
+    c1 = detS + (z[0] * Sz[0] + z[1] * Sz[1] + z[2] * Sz[2])
+    d1 = Sz[0] * Sz[0] + Sz[1] * Sz[1] + Sz[2] * Sz[2]
+    lam = _newton_lambda(1.0, a1, b1, c1, rho, d1)
+    lr = lam + rho
+    CM, detM = _cofactors3([[(lr if i == j else 0.0) - S[i][j] for j in range(3)] for i in range(3)])
+    if not abs(detM) > 1e-9:
+        return None
+    g = [(CM[i][0] * z[0] + CM[i][1] * z[1] + CM[i][2] * z[2]) / detM for i in range(3)]
+    gg = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
+    if not gg <= _GIBBS_SWITCH * _GIBBS_SWITCH:
+        return None
+    denom = math.sqrt(1.0 + gg)
+    q = [1.0 / denom, g[0] / denom, g[1] / denom, g[2] / denom]
+    qn = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    w, x, y, zz = (qi / qn for qi in q)
+    R = [[1 - 2 * (y * y + zz * zz), 2 * (x * y - w * zz), 2 * (x * zz + w * y)],
+         [2 * (x * y + w * zz), 1 - 2 * (x * x + zz * zz), 2 * (y * zz - w * x)],
+         [2 * (x * zz - w * y), 2 * (y * zz + w * x), 1 - 2 * (x * x + y * y)]]
+    return QuestResult(R=np.array([R]), quaternion=np.array([[w, x, y, zz]]), gibbs=np.array([g]),
+                       lambda_max=np.array([lam]), loss=np.array([1.0 - lam]))
+
+
+def _cross3(a: list[float], b: list[float]) -> list[float]:
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def _cofactors3(M: list[list[float]]) -> tuple[list[list[float]], float]:
+    """:func:`_cofactors` of one 3x3 matrix (nested lists)."""
+    C = [_cross3(M[1], M[2]), _cross3(M[2], M[0]), _cross3(M[0], M[1])]
+    return C, M[0][0] * C[0][0] + M[0][1] * C[0][1] + M[0][2] * C[0][2]
 
 
 def quat_wxyz_to_rot(q: ArrayLike) -> NDArray[np.float64]:
