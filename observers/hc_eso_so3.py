@@ -36,6 +36,7 @@ from fawtgym.envs import measurement as M
 
 from . import vector_attitude as va
 from .base import Observer, ObserverEstimate, register_observer
+from .lie import _SMALL as _LIE_SMALL
 from .lie import exp_so3
 
 #: the Morse-function gains K (Lemma 1) used when none are given; the paper's simulation does not state
@@ -98,7 +99,28 @@ def hc_eso_step(r_hat: NDArray[np.float64], omega_hat: NDArray[np.float64], sigm
                 inertia_inv: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64], ...]:
     """One geometric (Lie-Euler) step of eq. 30 of size h; returns (R_hat, Omega_hat, sigma_hat)."""
     p, q, _, _ = hc_eso_rates(r_hat, omega_hat, sigma_hat, l, omega_m, tau, inertia, gains, inertia_inv)
-    return r_hat @ exp_so3(h * omega_hat), omega_hat + h * p, sigma_hat + h * q
+    return r_hat @ _exp_so3(h * omega_hat), omega_hat + h * p, sigma_hat + h * q
+
+
+_EYE = np.eye(3)
+
+
+def _exp_so3(w: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`fawtgym.observers.lie.exp_so3` (same formulas and threshold, same numbers) evaluating only
+    the branch (Taylor series or Rodrigues) that the whole batch needs; a mixed batch goes to lie."""
+    th2 = (w * w).sum(axis=-1)[..., None, None]
+    small = th2 < _LIE_SMALL
+    if small.all():
+        a = 1.0 - th2 / 6.0 + th2 * th2 / 120.0
+        b = 0.5 - th2 / 24.0 + th2 * th2 / 720.0
+    elif not small.any():
+        th = np.sqrt(th2)
+        a = np.sin(th) / th
+        b = (1.0 - np.cos(th)) / (th * th)
+    else:
+        return exp_so3(w)
+    k = va._hat(w)
+    return _EYE + a * k + b * (k @ k)
 
 
 VECTOR_SOURCES = ("imu", "attitude")
@@ -190,7 +212,7 @@ class HcEsoSO3(Observer):
         l, omega_m = self._held
         steps = max(1, math.ceil(dt / self.max_step - 1e-9))
         h = dt / steps
-        rot = exp_so3(h * omega_m)
+        rot = _exp_so3(h * omega_m)
         for _ in range(steps):  # loop over time substeps, not over the batch
             r_hat, omega_hat, sigma_hat = hc_eso_step(r_hat, omega_hat, sigma_hat, l, omega_m, tau, self.inertia,
                                                       self.gains, h, self.inertia_inv)
