@@ -26,6 +26,7 @@ such bound by nature.  Explicit Euler at the update rate dt.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -35,6 +36,7 @@ from fawtgym.observers._obs_common import (
     batch_vec,
     check_finite,
     cross,
+    floats,
     positive,
     require,
     sig,
@@ -44,6 +46,11 @@ from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 
 _E3 = np.array([0.0, 0.0, 1.0])
 _KEYS = ("velocity", "attitude", "angular_velocity")
+
+
+def _sig_half(x: float) -> float:
+    """sig^(1/2)(x) = |x|^(1/2) sign(x) for one float (0 at 0), as :func:`~fawtgym.observers._obs_common.sig`."""
+    return abs(x) ** 0.5 if x > 0 else (-(abs(x) ** 0.5) if x < 0 else 0.0)
 
 
 def levant_gains(bound: float) -> tuple[float, float]:
@@ -62,6 +69,8 @@ class SuperTwistingObserver(Observer):
         self.lam_t, self.alpha_t = levant_gains(float(bound_t))
         self.lam_a, self.alpha_a = levant_gains(float(bound_a))
         self._s: dict[str, NDArray[np.float64]] | None = None
+        self._single: tuple | None = None       # (state dict, its 12 floats) after an N = 1 fast step
+        self._jl, self._jil = self.inertia.tolist(), self.inertia_inv.tolist()
 
     def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
               torque: ArrayLike | None = None) -> None:
@@ -76,6 +85,10 @@ class SuperTwistingObserver(Observer):
         if self._s is None:
             raise RuntimeError("sto: call reset(measurement) before update()")
         s = self._s
+        if s["v"].shape[0] == 1:
+            est = self._update_single(measurement, thrust, torque, dt)
+            if est is not None:
+                return est
         m, f, tau = step_inputs(self, measurement, thrust, torque, dt, _KEYS, s["v"].shape[0], "sto")
         wm = m["angular_velocity"]
         j = self.inertia
@@ -90,6 +103,68 @@ class SuperTwistingObserver(Observer):
         check_finite("sto", **new)
         self._s = new
         return self.estimate()
+
+    def _update_single(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
+                       dt: float) -> ObserverEstimate | None:
+        """N = 1 fast path: :meth:`update`'s equations in Python floats (numpy's per-call cost dominates 3-vectors).
+
+        Returns None, touching nothing, unless the step is a well-formed, finite N = 1 step; the general
+        path then runs and raises its usual errors.
+        """
+        try:
+            vm = floats(measurement["velocity"])
+            rm = floats(measurement["attitude"])
+            wm = floats(measurement["angular_velocity"])
+            fl = floats(thrust)
+            tq = floats(torque)
+        except (KeyError, ValueError, TypeError):
+            return None
+        if (len(vm) != 3 or len(rm) != 9 or len(wm) != 3 or len(fl) != 1 or len(tq) != 3
+                or not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0)
+                or not math.isfinite(sum(vm) + sum(rm) + sum(wm) + fl[0] + sum(tq))):
+            return None
+        cache = self._single
+        if cache is not None and cache[0] is self._s:
+            flat = cache[1]
+        else:
+            s = self._s
+            flat = s["v"][0].tolist() + s["w"][0].tolist() + s["dt_"][0].tolist() + s["da"][0].tolist()
+        v0, v1, v2, w0, w1, w2, d0, d1, d2, q0, q1, q2 = flat
+        st0, st1, st2 = vm[0] - v0, vm[1] - v1, vm[2] - v2
+        m0, m1, m2 = wm
+        sa0, sa1, sa2 = m0 - w0, m1 - w1, m2 - w2
+        fm = fl[0] / self.mass
+        (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._jl
+        (i00, i01, i02), (i10, i11, i12), (i20, i21, i22) = self._jil
+        h0, h1, h2 = m0 * j00 + m1 * j01 + m2 * j02, m0 * j10 + m1 * j11 + m2 * j12, m0 * j20 + m1 * j21 + m2 * j22
+        c0 = h1 * m2 - h2 * m1 + tq[0]
+        c1 = h2 * m0 - h0 * m2 + tq[1]
+        c2 = h0 * m1 - h1 * m0 + tq[2]
+        lt, la = float(self.lam_t), float(self.lam_a)
+        gt, ga = dt * float(self.alpha_t), dt * float(self.alpha_a)
+        flat = [v0 + dt * (0.0 - fm * rm[2] + lt * _sig_half(st0) + d0),
+                v1 + dt * (0.0 - fm * rm[5] + lt * _sig_half(st1) + d1),
+                v2 + dt * (self.gravity - fm * rm[8] + lt * _sig_half(st2) + d2),
+                w0 + dt * (c0 * i00 + c1 * i01 + c2 * i02 + la * _sig_half(sa0) + q0),
+                w1 + dt * (c0 * i10 + c1 * i11 + c2 * i12 + la * _sig_half(sa1) + q1),
+                w2 + dt * (c0 * i20 + c1 * i21 + c2 * i22 + la * _sig_half(sa2) + q2),
+                d0 + gt * ((st0 > 0) - (st0 < 0)), d1 + gt * ((st1 > 0) - (st1 < 0)),
+                d2 + gt * ((st2 > 0) - (st2 < 0)),
+                q0 + ga * ((sa0 > 0) - (sa0 < 0)), q1 + ga * ((sa1 > 0) - (sa1 < 0)),
+                q2 + ga * ((sa2 > 0) - (sa2 < 0))]
+        if not math.isfinite(sum(flat)):
+            a = np.array(flat)
+            check_finite("sto", v=a[0:3], w=a[3:6], dt_=a[6:9], da=a[9:12])
+        buf = np.array(flat)
+        self._s = s = {"v": buf[None, 0:3], "w": buf[None, 3:6], "dt_": buf[None, 6:9], "da": buf[None, 9:12]}
+        self._single = (s, flat)
+        mass = self.mass
+        d0, d1, d2, q0, q1, q2 = flat[6:]
+        out = np.array([mass * d0, mass * d1, mass * d2,
+                        q0 * j00 + q1 * j01 + q2 * j02, q0 * j10 + q1 * j11 + q2 * j12, q0 * j20 + q1 * j21 + q2 * j22]
+                       + flat[0:6])
+        return ObserverEstimate(force=out[None, 0:3], torque=out[None, 3:6], states={
+            "velocity": out[None, 6:9], "angular_velocity": out[None, 9:12]})
 
     def estimate(self) -> ObserverEstimate:
         if self._s is None:
