@@ -27,13 +27,14 @@ measurement held over dt, the z1' = z2 chain integrated exactly for the held z2'
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.envs.frames import rot_to_euler
-from fawtgym.observers._obs_common import batch_vec, check_finite, positive, require, step_inputs
+from fawtgym.observers._obs_common import batch_vec, check_finite, floats, positive, require, step_inputs
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 
 _E3 = np.array([0.0, 0.0, 1.0])
@@ -56,7 +57,9 @@ class LESO(Observer):
         self.beta_t = bandwidth_gains(float(omega_t))
         self.beta_a = bandwidth_gains(float(omega_a))
         self.jd = np.diag(self.inertia).copy()
+        self._jd = tuple(self.jd.tolist())
         self._s: dict[str, NDArray[np.float64]] | None = None
+        self._single: tuple | None = None       # (state dict, its 18 floats) after an N = 1 fast step
 
     def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
               torque: ArrayLike | None = None) -> None:
@@ -73,6 +76,10 @@ class LESO(Observer):
         if self._s is None:
             raise RuntimeError("leso: call reset(measurement) before update()")
         s = self._s
+        if s["p1"].shape[0] == 1:
+            est = self._update_single(measurement, thrust, torque, dt)
+            if est is not None:
+                return est
         m, f, tau = step_inputs(self, measurement, thrust, torque, dt, _KEYS, s["p1"].shape[0], "leso")
         b1, b2, b3 = self.beta_t
         e = m["position"] - s["p1"]
@@ -95,6 +102,73 @@ class LESO(Observer):
         check_finite("leso", **new)
         self._s = new
         return self.estimate()
+
+    def _update_single(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
+                       dt: float) -> ObserverEstimate | None:
+        """N = 1 fast path: :meth:`update`'s equations (and rot_to_euler) in Python floats.
+
+        Returns None, touching nothing, unless the step is a well-formed, finite N = 1 step; the general
+        path then runs and raises its usual errors.
+        """
+        try:
+            pm = floats(measurement["position"])
+            vm = floats(measurement["velocity"])
+            rm = floats(measurement["attitude"])
+            wm = floats(measurement["angular_velocity"])
+            fl = floats(thrust)
+            tq = floats(torque)
+        except (KeyError, ValueError, TypeError):
+            return None
+        if (len(pm) != 3 or len(vm) != 3 or len(rm) != 9 or len(wm) != 3 or len(fl) != 1 or len(tq) != 3
+                or not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0)
+                or not math.isfinite(sum(pm) + sum(vm) + sum(rm) + sum(wm) + fl[0] + sum(tq))):
+            return None
+        cache = self._single
+        if cache is not None and cache[0] is self._s:
+            flat = cache[1]
+        else:
+            s = self._s
+            flat = []
+            for k in ("p1", "p2", "p3", "a1", "a2", "a3"):
+                flat += s[k][0].tolist()
+        p10, p11, p12, p20, p21, p22, p30, p31, p32, a10, a11, a12, a20, a21, a22, a30, a31, a32 = flat
+        b1, b2, b3 = self.beta_t
+        hh = 0.5 * dt * dt
+        e0, e1, e2 = pm[0] - p10, pm[1] - p11, pm[2] - p12
+        fm = fl[0] / self.mass
+        pd0 = p30 + (0.0 - fm * rm[2]) + b2 * e0
+        pd1 = p31 + (0.0 - fm * rm[5]) + b2 * e1
+        pd2 = p32 + (self.gravity - fm * rm[8]) + b2 * e2
+        g1, g2, g3 = self.beta_a
+        # rot_to_euler (envs/frames.py): Z-Y-X (roll, pitch, yaw)
+        ea0 = math.atan2(rm[7], rm[8]) - a10
+        ea1 = math.asin(min(max(-rm[6], -1.0), 1.0)) - a11
+        ea2 = math.atan2(rm[3], rm[0]) - a12
+        jx, jy, jz = self._jd
+        ad0 = a30 + (jy - jz) / jx * a21 * a22 + tq[0] / jx + g2 * ea0
+        ad1 = a31 + (jz - jx) / jy * a20 * a22 + tq[1] / jy + g2 * ea1
+        ad2 = a32 + (jx - jy) / jz * a20 * a21 + tq[2] / jz + g2 * ea2
+        flat = [p10 + dt * (p20 + b1 * e0) + hh * pd0, p11 + dt * (p21 + b1 * e1) + hh * pd1,
+                p12 + dt * (p22 + b1 * e2) + hh * pd2,
+                p20 + dt * pd0, p21 + dt * pd1, p22 + dt * pd2,
+                p30 + dt * (b3 * e0), p31 + dt * (b3 * e1), p32 + dt * (b3 * e2),
+                a10 + dt * (a20 + g1 * ea0) + hh * ad0, a11 + dt * (a21 + g1 * ea1) + hh * ad1,
+                a12 + dt * (a22 + g1 * ea2) + hh * ad2,
+                a20 + dt * ad0, a21 + dt * ad1, a22 + dt * ad2,
+                a30 + dt * (g3 * ea0), a31 + dt * (g3 * ea1), a32 + dt * (g3 * ea2)]
+        if not math.isfinite(sum(flat)):
+            a = np.array(flat)
+            check_finite("leso", p1=a[0:3], p2=a[3:6], p3=a[6:9], a1=a[9:12], a2=a[12:15], a3=a[15:18])
+        buf = np.array(flat)
+        self._s = s = {"p1": buf[None, 0:3], "p2": buf[None, 3:6], "p3": buf[None, 6:9], "a1": buf[None, 9:12],
+                       "a2": buf[None, 12:15], "a3": buf[None, 15:18]}
+        self._single = (s, flat)
+        mass = self.mass
+        out = np.array([mass * flat[6], mass * flat[7], mass * flat[8], jx * flat[15], jy * flat[16], jz * flat[17]]
+                       + flat[0:6] + flat[9:15])
+        return ObserverEstimate(force=out[None, 0:3], torque=out[None, 3:6], states={
+            "position": out[None, 6:9], "velocity": out[None, 9:12], "euler": out[None, 12:15],
+            "euler_rate": out[None, 15:18]})
 
     def estimate(self) -> ObserverEstimate:
         if self._s is None:
