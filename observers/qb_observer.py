@@ -193,6 +193,7 @@ class QBObserver(Observer):
         self._y: NDArray[np.float64] | None = None
         self._R: NDArray[np.float64] | None = None
         self._single: tuple | None = None    # (x, x as floats, y as floats, R as floats) of the last N = 1 step
+        self._synced = True                  # self._y, self._R up to date with self._single
         self._jl = self.inertia.tolist()
         self._jil = self.inertia_inv.tolist()
 
@@ -227,6 +228,7 @@ class QBObserver(Observer):
         if not np.all(np.isfinite(x)):
             raise ValueError("QB observer reset: non-finite initial force/torque")
         self._x, self._y, self._R = x, y, R.copy()
+        self._single, self._synced = None, True
 
     def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
                dt: float) -> ObserverEstimate:
@@ -234,6 +236,7 @@ class QBObserver(Observer):
             est = self._update_single(measurement, thrust, torque, dt)
             if est is not None:
                 return est
+        self._sync_single()
         meas, f, tau = self._inputs(measurement, thrust, torque, dt)
         if self._x is None or self._y is None or self._R is None:
             raise RuntimeError("QB observer: call reset(measurement) before update()")
@@ -265,6 +268,13 @@ class QBObserver(Observer):
             self._disc[key] = stacked
         return stacked
 
+    def _sync_single(self) -> None:
+        """Write y and R of the last N = 1 fast step into the numpy state (self._y, self._R)."""
+        if not self._synced and self._single is not None:
+            _, _, y, rm = self._single
+            self._y, self._R = np.array([y]), np.array(rm).reshape(1, 3, 3)
+        self._synced = True
+
     def _update_single(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
                        dt: float) -> ObserverEstimate | None:
         """N = 1 fast path: :meth:`update`'s u, y (eqs. 52, 54) and estimate in Python floats, one matrix product.
@@ -290,6 +300,7 @@ class QBObserver(Observer):
         if cache is not None and cache[0] is self._x:
             xl, yp, rp = cache[1:]
         else:
+            self._sync_single()
             xl, yp, rp = self._x[0].tolist(), self._y[0].tolist(), self._R[0].ravel().tolist()
         mass, f = self.mass, fl[0]
         t0, t1, t2 = tq
@@ -310,9 +321,9 @@ class QBObserver(Observer):
         xl = x[0].tolist()
         if not math.isfinite(sum(xl)):
             raise FloatingPointError("QB observer state became non-finite")
-        buf = np.array(y + rm)
-        self._x, self._y, self._R = x, buf[None, :9], buf[9:].reshape(1, 3, 3)
-        self._single = (x, xl, y, rm)
+        self._x = x
+        self._single = (x, xl, y, rm)     # self._y, self._R are written from it when needed (_sync_single)
+        self._synced = False
         # estimate: torque = R^T d_tau, Omega = J^-1 R^T p_ang, velocity = p_lin / m
         d0, d1, d2 = xl[9:12]
         p0, p1, p2 = xl[3:6]
@@ -328,6 +339,7 @@ class QBObserver(Observer):
 
     def estimate(self) -> ObserverEstimate:
         """The current estimate (after reset/update)."""
+        self._sync_single()
         if self._x is None or self._R is None:
             raise RuntimeError("QB observer: call reset(measurement) first")
         x, R = self._x, self._R
