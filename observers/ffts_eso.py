@@ -52,6 +52,7 @@ from fawtgym.observers._obs_common import (
     batch_vec,
     check_finite,
     cross,
+    floats,
     require,
     step_inputs,
 )
@@ -65,13 +66,6 @@ _ONES = np.ones((3, 1))   # row sums as a BLAS product (cheaper than np.sum on s
 _VA = np.array([2, 0, 1])
 _VB = np.array([1, 2, 0])
 _KEYS = ("position", "velocity", "attitude", "angular_velocity")
-
-
-def _floats(x: ArrayLike) -> list[float]:
-    """All entries of ``x`` as a flat list of Python floats (one call for a float64 ndarray)."""
-    if type(x) is np.ndarray and x.dtype.char == "d":
-        return x.ravel().tolist()
-    return np.asarray(x, dtype=float).ravel().tolist()
 
 
 def s_k(r: ArrayLike, k: ArrayLike) -> NDArray[np.float64]:
@@ -184,9 +178,9 @@ class FFTSESO(Observer):
             raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
         try:
             pm0, pm1, pm2, vm0, vm1, vm2, om0, om1, om2 = (
-                _floats(measurement["position"]) + _floats(measurement["velocity"])
-                + _floats(measurement["angular_velocity"]))
-            rm = _floats(measurement["attitude"])
+                floats(measurement["position"]) + floats(measurement["velocity"])
+                + floats(measurement["angular_velocity"]))
+            rm = floats(measurement["attitude"])
         except KeyError as exc:
             raise ValueError(f"ffts_eso needs measurement keys {list(_KEYS)}; missing {exc} "
                              f"(got {sorted(measurement)})") from None
@@ -196,8 +190,8 @@ class FFTSESO(Observer):
             sizes = [np.size(measurement[k]) for k in _KEYS]
             raise ValueError("ffts_eso: measurement batch size does not match the reset batch size 1 "
                              f"(got sizes {dict(zip(_KEYS, sizes, strict=True))}, expected 3, 3, 9, 3)")
-        fl = _floats(thrust)
-        tq = _floats(torque)
+        fl = floats(thrust)
+        tq = floats(torque)
         if len(fl) != 1 or len(tq) != 3:
             raise ValueError(f"ffts_eso: thrust must have shape (1,) and torque (3,) or (1, 3) for N = 1, "
                              f"got {np.shape(thrust)} and {np.shape(torque)}")
