@@ -33,6 +33,7 @@ so the step stays stable up to t_s for any dt; everything else is forward Euler 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -132,12 +133,12 @@ def rigid_body_rhs(omega: ArrayLike, inertia: ArrayLike, torque: ArrayLike) -> N
 # --------------------------------------------------------------------------------------------------
 def _units(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(x / ||x||, x / ||x||^(1/2)) row-wise, 0 at x = 0 (the set-valued sign's zero selection)."""
-    n = np.sqrt(np.einsum("ni,ni->n", x, x))[:, None]
+    n = np.sqrt(_sum3(x * x))[:, None]
     pos = n > 0
     if pos.all():
-        return x / n**1.0, x / n**0.5
+        return x / n, x / np.sqrt(n)
     safe = np.where(pos, n, 1.0)
-    return np.where(pos, x / safe**1.0, 0.0), np.where(pos, x / safe**0.5, 0.0)
+    return np.where(pos, x / safe, 0.0), np.where(pos, x / np.sqrt(safe), 0.0)
 
 
 def _unit(x: NDArray[np.float64], power: float) -> NDArray[np.float64]:
@@ -149,8 +150,13 @@ def _unit(x: NDArray[np.float64], power: float) -> NDArray[np.float64]:
 _cross = _cross_any  # row-wise a x b for (N, 3) arrays
 
 
+def _sum3(p: NDArray[np.float64]) -> NDArray[np.float64]:
+    """p[..., 0] + p[..., 1] + p[..., 2] (the order of a length-3 sum; faster than .sum(-1) for large N)."""
+    return p[..., 0] + p[..., 1] + p[..., 2]
+
+
 def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.einsum("ni,ni->n", a, b)[:, None]
+    return _sum3(a * b)[:, None]
 
 
 def _omega_fast(g: NDArray[np.float64], g_dot: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -186,6 +192,7 @@ class GibbsSTSMO:
             raise ValueError(f"inertia must be positive definite 3x3 or 3 diagonal entries, got {inertia!r}")
         self.J = J
         self.J_inv = np.linalg.inv(J)
+        self._J_rows, self._J_inv_rows = J.tolist(), self.J_inv.tolist()
         self.t_c, self.eta, self.kappa1, self.kappa2 = float(t_c), float(eta), float(kappa1), float(kappa2)
         self.mode, self.integrator = mode, integrator
         t_s, t_d = switch_and_gain_times(float(t_c), t_switch, early_form)
@@ -218,12 +225,16 @@ class GibbsSTSMO:
         if u.shape != self.x1.shape:
             u = np.broadcast_to(u, self.x1.shape)
         x1, x2, t = self.x1, self.x2, self.t
+        if (x1.shape[0] == 1 and omega is None and self.mode == "predefined" and self.integrator == "exact"
+                and y.shape == x1.shape and u.shape == x1.shape):
+            self._step_single(y[0].tolist(), u[0].tolist(), float(dt))
+            return
         e1 = y - x1  # eq. 79
         w = self.omega if omega is None else np.broadcast_to(np.asarray(omega, dtype=float), x1.shape)
         unit1, sta = _units(e1)
         # eq. 76 / 82 with Gamma'(g) w = g (g'.w) + g' (g.w) + g' x w and Gamma(g) v = g (g.v) + g x v + v
         gamma_dot_w = x1 * _dot(x2, w) + x2 * _dot(x1, w) + _cross(x2, w)
-        v = (_cross(w @ self.J.T, w) + u + self.kappa2 * unit1) @ self.J_inv.T
+        v = _matvec(self.J_inv, _cross(_matvec(self.J, w), w) + u + self.kappa2 * unit1)
         x2_dot = 0.5 * (gamma_dot_w + x1 * _dot(x1, v) + _cross(x1, v) + v)
         # eq. 75 / 77 / 81
         sta = self.kappa1 * sta
@@ -250,6 +261,52 @@ class GibbsSTSMO:
         self.t = t + dt
         if not (np.isfinite(self.x1).all() and np.isfinite(self.x2).all()):
             raise ValueError("observer state became non-finite (step too large for the gains?)")
+
+    def _step_single(self, y: list[float], u: list[float], dt: float) -> None:
+        """:meth:`step` for N = 1 (predefined mode, exact integrator, omega_hat) on plain floats: the same
+        formulas in the same order as the batched path (1-element arrays cost ~1 us per operation)."""
+        x1, x2, t = self.x1[0].tolist(), self.x2[0].tolist(), float(self.t[0])
+        e1 = [a - b for a, b in zip(y, x1, strict=True)]
+        d11 = _dot3(x1, x1)
+        c = _cross3(x1, x2)
+        w = [2.0 * (x2[i] - c[i]) / (1.0 + d11) for i in range(3)]  # eq. 80
+        n = math.sqrt(_dot3(e1, e1))
+        unit1 = [e / n for e in e1] if n > 0 else [0.0, 0.0, 0.0]
+        sta = [self.kappa1 * (e / math.sqrt(n)) for e in e1] if n > 0 else [0.0, 0.0, 0.0]
+        d2w, d1w, c2w = _dot3(x2, w), _dot3(x1, w), _cross3(x2, w)
+        gdw = [x1[i] * d2w + x2[i] * d1w + c2w[i] for i in range(3)]
+        jw = [_dot3(row, w) for row in self._J_rows]
+        c = _cross3(jw, w)
+        rhs = [c[i] + u[i] + self.kappa2 * unit1[i] for i in range(3)]
+        v = [_dot3(row, rhs) for row in self._J_inv_rows]
+        d1v, c1v = _dot3(x1, v), _cross3(x1, v)
+        x2_dot = [0.5 * (gdw[i] + x1[i] * d1v + c1v[i] + v[i]) for i in range(3)]
+        h1 = min(max(self.t_s - t, 0.0), dt)
+        h2 = dt - h1
+        if h1 > 0:
+            tau0 = max(self.t_d - t, 1e-300)
+            r = (tau0 - h1) / tau0
+            phi = float(np.power(r, self.eta))  # numpy's pow, as the batched path
+            psi = (tau0 - h1) * (1.0 - float(np.power(r, self.eta - 1.0))) / (self.eta - 1.0)
+            x1 = [y[i] - phi * e1[i] + psi * x2[i] for i in range(3)]
+        x1_new = [x1[i] + h2 * (x2[i] + sta[i]) for i in range(3)]
+        x2_new = [x2[i] + dt * x2_dot[i] for i in range(3)]
+        if not all(math.isfinite(a) for a in x1_new + x2_new):
+            raise ValueError("observer state became non-finite (step too large for the gains?)")
+        self.x1, self.x2, self.t = np.array([x1_new]), np.array([x2_new]), np.array([t + dt])
+
+
+def _dot3(a: list[float], b: list[float]) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross3(a: list[float], b: list[float]) -> list[float]:
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def _matvec(A: NDArray[np.float64], x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rows A x for (N, 3) x, as explicit products and sums (no BLAS: the same rounding as :func:`_dot3`)."""
+    return _sum3(x[:, None, :] * A)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -107,10 +107,15 @@ def quest(body: ArrayLike, reference: ArrayLike, weights: ArrayLike | None = Non
     return quest_unit(b, r, a)
 
 
+def _sum3(p: NDArray[np.float64]) -> NDArray[np.float64]:
+    """p[..., 0] + p[..., 1] + p[..., 2] (the order of a length-3 sum; faster than .sum(-1) for large N)."""
+    return p[..., 0] + p[..., 1] + p[..., 2]
+
+
 def _cofactors(M: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Cofactor rows (the rows of adj M^T; adj M for symmetric M) and det M of a batch (N, 3, 3)."""
     C = _cross(M[:, (1, 2, 0)], M[:, (2, 0, 1)])
-    return C, (M[:, 0] * C[:, 0]).sum(axis=-1)
+    return C, _sum3(M[:, 0] * C[:, 0])
 
 
 def _newton_lambda(lam, a1, b1, c1, rho, d1):  # type: ignore[no-untyped-def]
@@ -153,12 +158,12 @@ def quest_unit(b: NDArray[np.float64], r: NDArray[np.float64], a: NDArray[np.flo
     # (l^2 - a1)(l^2 - b1) - c1 l + c1 rho - d1 = 0, with
     # a1 = rho^2 - tr adj S, b1 = rho^2 + z.z, c1 = det S + z.S z, d1 = z.S^2 z.
     CS, detS = _cofactors(S)
-    Sz = (S * z[:, None, :]).sum(axis=-1)
+    Sz = _sum3(S * z[:, None, :])
     rho2 = rho * rho
     a1 = rho2 - (CS[:, 0, 0] + CS[:, 1, 1] + CS[:, 2, 2])
-    b1 = rho2 + (z * z).sum(axis=-1)
-    c1 = detS + (z * Sz).sum(axis=-1)
-    d1 = (Sz * Sz).sum(axis=-1)
+    b1 = rho2 + _sum3(z * z)
+    c1 = detS + _sum3(z * Sz)
+    d1 = _sum3(Sz * Sz)
     if rho.shape[0] == 1:
         lam = np.array([_newton_lambda(1.0, float(a1[0]), float(b1[0]), float(c1[0]), float(rho[0]),
                                        float(d1[0]))])
@@ -169,8 +174,8 @@ def quest_unit(b: NDArray[np.float64], r: NDArray[np.float64], a: NDArray[np.flo
     M = (lam + rho)[:, None, None] * _EYE - S
     CM, detM = _cofactors(M)
     good = np.abs(detM) > 1e-9
-    g = (CM * z[:, None, :]).sum(axis=-1) / np.where(good, detM, 1.0)[:, None]
-    gg = (g * g).sum(axis=-1)
+    g = _sum3(CM * z[:, None, :]) / np.where(good, detM, 1.0)[:, None]
+    gg = _sum3(g * g)
     q = np.empty((b.shape[0], 4))  # (w, x, y, z) = (q4, q_vec) (see module docstring)
     denom = np.sqrt(1.0 + gg)
     q[:, 0] = 1.0 / denom

@@ -1,9 +1,11 @@
-"""QUEST's plain-float N = 1 path (observers/quest.py ``_quest_unit_single``) equals the batched path."""
+"""The plain-float N = 1 paths equal the batched paths: QUEST (observers/quest.py ``_quest_unit_single``) and
+the STSMO step (observers/gyroless_attitude.py ``GibbsSTSMO._step_single``)."""
 
 import numpy as np
 import pytest
 
 from fawtgym.observers import quest as Q
+from fawtgym.observers.gyroless_attitude import GibbsSTSMO
 from fawtgym.observers.lie import exp_so3
 
 FIELDS = ("R", "quaternion", "gibbs", "lambda_max", "loss")
@@ -40,3 +42,23 @@ def test_single_path_falls_back_near_half_turn() -> None:
     res = Q.quest_unit(body, ref, a)
     assert np.linalg.norm(res.gibbs) > 10
     np.testing.assert_allclose(res.lambda_max, 1.0, atol=1e-12)
+
+
+def test_stsmo_single_step_equals_batch_step() -> None:
+    """Through the exact (t < t_c) and STA phases, with e1 = 0 steps and varying dt."""
+    rng = np.random.default_rng(3)
+    J = np.diag([0.082, 0.0845, 0.1377])
+    for _ in range(5):
+        one, two = (GibbsSTSMO(J, t_c=0.3, eta=5.0, kappa1=2.5, kappa2=0.5) for _ in range(2))
+        x0 = 0.3 * rng.standard_normal((1, 3))
+        one.reset(x0, 0.1 * x0)
+        two.reset(np.repeat(x0, 2, 0), np.repeat(0.1 * x0, 2, 0))
+        for k in range(200):
+            y = 0.3 * rng.standard_normal((1, 3)) if k % 7 else one.x1.copy()
+            u = 0.05 * rng.standard_normal((1, 3))
+            dt = float(rng.choice([1e-3, 2e-3, 7e-3]))
+            one.step(y, u, dt)  # N = 1: the float path
+            two.step(np.repeat(y, 2, 0), np.repeat(u, 2, 0), dt)  # batched
+            for a, b in ((one.x1, two.x1), (one.x2, two.x2), (one.t, two.t)):
+                np.testing.assert_allclose(a, b[:1], rtol=0, atol=1e-15)
+        assert one.t[0] > one.t_s  # both phases were covered
