@@ -127,7 +127,8 @@ class FFTSESO(Observer):
         self.morse_k = np.asarray(morse_k, dtype=float)
         self.eps = float(eps)
         self._state: dict[str, NDArray[np.float64]] | None = None
-        self._single_cache: tuple | None = None
+        self._single_flat: list[float] | None = None     # N = 1 fast path: the state as 24 floats
+        self._dirty = False                                # self._state older than self._single_flat
         # constants of eq. (9) and of the fractional power (1-p)/p, (p-1)/p
         self._a = (1.0 - p) / (3.0 * p - 2.0)
         self._c1t = 2.0 * kt3 * (2.0 * p - 1.0) / (3.0 * p - 2.0)
@@ -146,6 +147,7 @@ class FFTSESO(Observer):
         """b_hat, v_hat, R_hat, Omega_hat := measured values; phi_hat, tau_hat := given guesses (default 0)."""
         m = require(measurement, _KEYS, "ffts_eso")
         n = m["position"].shape[0]
+        self._single_flat, self._dirty = None, False
         self._state = {
             "b": m["position"].copy(), "v": m["velocity"].copy(), "phi": batch_vec(force, n, "force", "ffts_eso"),
             "R": project_so3(m["attitude"]), "w": m["angular_velocity"].copy(),
@@ -200,11 +202,9 @@ class FFTSESO(Observer):
         tq0, tq1, tq2 = tq
         if not math.isfinite(fl[0] + tq0 + tq1 + tq2):
             raise ValueError(f"ffts_eso: thrust/torque contain non-finite values: {fl}, {tq}")
-        st = self._state
-        cache = self._single_cache
-        if cache is not None and cache[0] is st:     # state written by the previous N = 1 step: reuse its floats
-            flat = cache[1]
-        else:
+        flat = self._single_flat    # the floats of the previous N = 1 step (None after reset)
+        if flat is None:
+            st = self._state
             flat = np.concatenate([st[k].ravel() for k in ("b", "v", "phi", "w", "tau", "R")]).tolist()
         (b0, b1, b2, v0, v1, v2, ph0, ph1, ph2, w0, w1, w2, th0, th1, th2,
          h00, h01, h02, h10, h11, h12, h20, h21, h22) = flat
@@ -306,18 +306,25 @@ class FFTSESO(Observer):
         if not math.isfinite(sum(flat)):
             check_finite("ffts_eso", b=np.array(flat[0:3]), v=np.array(flat[3:6]), phi=np.array(flat[6:9]),
                          w=np.array(flat[9:12]), tau=np.array(flat[12:15]), R=np.array(flat[15:]))
-        buf = np.array(flat)
-        self._state = st = {"b": buf[None, 0:3], "v": buf[None, 3:6], "phi": buf[None, 6:9], "w": buf[None, 9:12],
-                            "tau": buf[None, 12:15], "R": buf[15:].reshape(1, 3, 3)}
-        self._single_cache = (st, flat)
+        self._single_flat = flat    # the numpy state is written from it only when needed (_sync_single)
+        self._dirty = True
         out = np.array(flat)     # the returned arrays are fresh (the caller may modify them), not views of the state
         return ObserverEstimate(force=out[None, 6:9], torque=out[None, 12:15], states={
             "position": out[None, 0:3], "velocity": out[None, 3:6], "attitude": out[15:].reshape(1, 3, 3),
             "angular_velocity": out[None, 9:12]})
 
+    def _sync_single(self) -> None:
+        """Write the float state of the last N = 1 fast step into the numpy state dict."""
+        if self._dirty:
+            buf = np.array(self._single_flat)
+            self._state = {"b": buf[None, 0:3], "v": buf[None, 3:6], "phi": buf[None, 6:9], "w": buf[None, 9:12],
+                           "tau": buf[None, 12:15], "R": buf[15:].reshape(1, 3, 3)}
+            self._dirty = False
+
     def estimate(self) -> ObserverEstimate:
         if self._state is None:
             raise RuntimeError("ffts_eso: call reset(measurement) first")
+        self._sync_single()
         s = self._state
         return ObserverEstimate(force=s["phi"].copy(), torque=s["tau"].copy(), states={
             "position": s["b"].copy(), "velocity": s["v"].copy(), "attitude": s["R"].copy(),
