@@ -212,11 +212,12 @@ class HcEsoSO3(Observer):
         l, omega_m = self._held
         steps = max(1, math.ceil(dt / self.max_step - 1e-9))
         h = dt / steps
-        rot = _exp_so3(h * omega_m)
-        for _ in range(steps):  # loop over time substeps, not over the batch
+        rot = _exp_so3(h * omega_m) if steps > 1 else None
+        for k in range(steps):  # loop over time substeps, not over the batch
             r_hat, omega_hat, sigma_hat = hc_eso_step(r_hat, omega_hat, sigma_hat, l, omega_m, tau, self.inertia,
                                                       self.gains, h, self.inertia_inv)
-            l = l @ rot
+            if k + 1 < steps:  # the held vectors for the next substep (after the last one, new ones come)
+                l = l @ rot
         if not (np.isfinite(omega_hat).all() and np.isfinite(sigma_hat).all()):
             raise ValueError(f"HC-ESO state became non-finite (dt={dt}, max_step={self.max_step}); "
                              "reduce max_step or the gains")

@@ -81,6 +81,7 @@ def s_k(q: ArrayLike, k: ArrayLike) -> NDArray[np.float64]:
     return 2.0 * vee(kd @ q)  # vex(A - A^T) = 2 vee(A) (vee takes the skew part)
 
 
+_EYE = np.eye(3)
 _VEE_P = np.array([7, 2, 3])  # flat indices of (X21, X02, X10)
 _VEE_M = np.array([5, 6, 1])  # flat indices of (X12, X20, X01)
 # hat(w) flattened row-major = w @ _HAT_FLAT (entries 0, +-1: exact)
@@ -142,7 +143,7 @@ def h_matrix(x: ArrayLike, alpha: float, gamma: float) -> NDArray[np.float64]:
     """``H(x) = I - 2 (1 - alpha)/gamma x x^T / (x^T x)``, eq. 28, (N, 3, 3); H(0) := I."""
     x = np.asarray(x, float)
     x2 = np.maximum(np.sum(x * x, axis=-1), _S2_FLOOR)[..., None, None]
-    return np.eye(3) - 2.0 * (1.0 - alpha) / gamma * (x[..., :, None] * x[..., None, :]) / x2
+    return _EYE - 2.0 * (1.0 - alpha) / gamma * (x[..., :, None] * x[..., None, :]) / x2
 
 
 def solve_wahba(l: ArrayLike) -> NDArray[np.float64]:
