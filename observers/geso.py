@@ -400,7 +400,9 @@ class GESO(Observer):
             return None
         if len(fl) != 1 or len(tq) != 3 or not math.isfinite(fl[0] + sum(tq)):
             return None
-        blk = self._single_matrix(dt)
+        blk = self._single_mats.get(dt)
+        if blk is None:
+            blk = self._single_matrix(dt)
         cache = self._single
         if cache is None:       # after reset / a general-path step: read the numpy state
             rows: list[list[float]] = [[], [], []]
@@ -441,7 +443,7 @@ class GESO(Observer):
                 z0 += (u0, y_old[0])
                 z1 += (u1, y_old[1])
                 z2 += (u2, y_old[2])
-        res = np.array((z0, z1, z2)) @ blk
+        res = np.fromiter(z0 + z1 + z2, float, 3 * len(z0)).reshape(3, -1) @ blk
         rows = res.tolist()
         r0, r1, r2 = rows
         if not math.isfinite(sum(r0) + sum(r1) + sum(r2)):
@@ -464,7 +466,7 @@ class GESO(Observer):
                           x0 * i20 + x1 * i21 + x2 * i22)
             for j in range(co + 2, co + m):
                 extra += (r0[j], r1[j], r2[j])
-        out = np.array(head + extra)
+        out = np.fromiter(head + extra, float, 6 + len(extra))
         states: dict[str, NDArray[np.float64]] = {}
         o = 6
         for c, m, _ in self._info:
