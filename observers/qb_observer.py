@@ -317,7 +317,8 @@ class QBObserver(Observer):
         y = [mass * vm[0], mass * vm[1], mass * vm[2],
              r00 * s0 + r01 * s1 + r02 * s2, r10 * s0 + r11 * s1 + r12 * s2, r20 * s0 + r21 * s1 + r22 * s2,
              r00 * a0 + r01 * a1 + r02 * a2, r10 * a0 + r11 * a1 + r12 * a2, r20 * a0 + r21 * a1 + r22 * a2]
-        x = np.array([xl + u + yp + y]) @ stacked
+        z = xl + u + yp + y
+        x = np.fromiter(z, float, len(z)).reshape(1, -1) @ stacked
         xl = x[0].tolist()
         if not math.isfinite(sum(xl)):
             raise FloatingPointError("QB observer state became non-finite")
