@@ -308,7 +308,7 @@ class FFTSESO(Observer):
                          w=np.array(flat[9:12]), tau=np.array(flat[12:15]), R=np.array(flat[15:]))
         self._single_flat = flat    # the numpy state is written from it only when needed (_sync_single)
         self._dirty = True
-        out = np.array(flat)     # the returned arrays are fresh (the caller may modify them), not views of the state
+        out = np.fromiter(flat, float, 24)  # fresh returned arrays, not views of the state
         return ObserverEstimate(force=out[None, 6:9], torque=out[None, 12:15], states={
             "position": out[None, 0:3], "velocity": out[None, 3:6], "attitude": out[15:].reshape(1, 3, 3),
             "angular_velocity": out[None, 9:12]})
