@@ -5,6 +5,7 @@ Not an observer itself (the leading underscore keeps it out of the auto-import/r
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
@@ -119,3 +120,27 @@ def floats(x: object) -> list[float]:
     if type(x) is np.ndarray and x.dtype.char == "d":
         return x.ravel().tolist()
     return np.asarray(x, dtype=float).ravel().tolist()
+
+
+_SIZES = {"position": 3, "velocity": 3, "attitude": 9, "angular_velocity": 3}
+
+
+def single_inputs(measurement: Mapping[str, object], keys: tuple[str, ...], thrust: object, torque: object,
+                  dt: object) -> tuple[list[list[float]], float, list[float]] | None:
+    """The N = 1 fast paths' inputs as Python floats: ``([floats per key], thrust, torque)``.
+
+    Returns None unless the step is a well-formed, finite single-vehicle step (keys present with sizes
+    3 / 9, one thrust, three torques, a finite positive ``dt``); the caller then takes its general path,
+    which raises the usual errors.
+    """
+    try:
+        values = [floats(measurement[k]) for k in keys]
+        fl = floats(thrust)
+        tq = floats(torque)
+    except (KeyError, ValueError, TypeError):
+        return None
+    if (len(fl) != 1 or len(tq) != 3 or any(len(v) != _SIZES[k] for k, v in zip(keys, values, strict=True))
+            or not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0)
+            or not math.isfinite(sum(sum(v) for v in values) + fl[0] + sum(tq))):
+        return None
+    return values, fl[0], tq

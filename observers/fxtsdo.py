@@ -30,10 +30,10 @@ from fawtgym.observers._obs_common import (
     batch_vec,
     check_finite,
     cross,
-    floats,
     positive,
     require,
     sig,
+    single_inputs,
     step_inputs,
 )
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
@@ -105,18 +105,10 @@ class FxTSDO(Observer):
         Returns None, touching nothing, unless the step is a well-formed, finite N = 1 step; the general
         path then runs and raises its usual errors.
         """
-        try:
-            vm = floats(measurement["velocity"])
-            rm = floats(measurement["attitude"])
-            wm = floats(measurement["angular_velocity"])
-            fl = floats(thrust)
-            tq = floats(torque)
-        except (KeyError, ValueError, TypeError):
+        inputs = single_inputs(measurement, _KEYS, thrust, torque, dt)
+        if inputs is None:
             return None
-        if (len(vm) != 3 or len(rm) != 9 or len(wm) != 3 or len(fl) != 1 or len(tq) != 3
-                or not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0)
-                or not math.isfinite(sum(vm) + sum(rm) + sum(wm) + fl[0] + sum(tq))):
-            return None
+        (vm, rm, wm), f0, tq = inputs
         cache = self._single
         if cache is not None and cache[0] is self._s:
             flat = cache[1]
@@ -125,7 +117,7 @@ class FxTSDO(Observer):
             flat = (s["v_prev"][0].tolist() + s["w_prev"][0].tolist() + s["dt_"][0].tolist()
                     + s["da"][0].tolist())
         d0, d1, d2, q0, q1, q2 = flat[6:]
-        fm = fl[0] / self.mass
+        fm = f0 / self.mass
         m0, m1, m2 = wm
         (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._jl
         (i00, i01, i02), (i10, i11, i12), (i20, i21, i22) = self._jil

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.envs.frames import rot_to_euler
-from fawtgym.observers._obs_common import batch_vec, check_finite, floats, positive, require, step_inputs
+from fawtgym.observers._obs_common import batch_vec, check_finite, positive, require, single_inputs, step_inputs
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 
 _E3 = np.array([0.0, 0.0, 1.0])
@@ -110,19 +110,10 @@ class LESO(Observer):
         Returns None, touching nothing, unless the step is a well-formed, finite N = 1 step; the general
         path then runs and raises its usual errors.
         """
-        try:
-            pm = floats(measurement["position"])
-            vm = floats(measurement["velocity"])
-            rm = floats(measurement["attitude"])
-            wm = floats(measurement["angular_velocity"])
-            fl = floats(thrust)
-            tq = floats(torque)
-        except (KeyError, ValueError, TypeError):
+        inputs = single_inputs(measurement, _KEYS, thrust, torque, dt)
+        if inputs is None:
             return None
-        if (len(pm) != 3 or len(vm) != 3 or len(rm) != 9 or len(wm) != 3 or len(fl) != 1 or len(tq) != 3
-                or not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0)
-                or not math.isfinite(sum(pm) + sum(vm) + sum(rm) + sum(wm) + fl[0] + sum(tq))):
-            return None
+        (pm, vm, rm, wm), f0, tq = inputs
         cache = self._single
         if cache is not None and cache[0] is self._s:
             flat = cache[1]
@@ -135,7 +126,7 @@ class LESO(Observer):
         b1, b2, b3 = self.beta_t
         hh = 0.5 * dt * dt
         e0, e1, e2 = pm[0] - p10, pm[1] - p11, pm[2] - p12
-        fm = fl[0] / self.mass
+        fm = f0 / self.mass
         pd0 = p30 + (0.0 - fm * rm[2]) + b2 * e0
         pd1 = p31 + (0.0 - fm * rm[5]) + b2 * e1
         pd2 = p32 + (self.gravity - fm * rm[8]) + b2 * e2

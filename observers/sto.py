@@ -36,10 +36,10 @@ from fawtgym.observers._obs_common import (
     batch_vec,
     check_finite,
     cross,
-    floats,
     positive,
     require,
     sig,
+    single_inputs,
     step_inputs,
 )
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
@@ -111,18 +111,10 @@ class SuperTwistingObserver(Observer):
         Returns None, touching nothing, unless the step is a well-formed, finite N = 1 step; the general
         path then runs and raises its usual errors.
         """
-        try:
-            vm = floats(measurement["velocity"])
-            rm = floats(measurement["attitude"])
-            wm = floats(measurement["angular_velocity"])
-            fl = floats(thrust)
-            tq = floats(torque)
-        except (KeyError, ValueError, TypeError):
+        inputs = single_inputs(measurement, _KEYS, thrust, torque, dt)
+        if inputs is None:
             return None
-        if (len(vm) != 3 or len(rm) != 9 or len(wm) != 3 or len(fl) != 1 or len(tq) != 3
-                or not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0)
-                or not math.isfinite(sum(vm) + sum(rm) + sum(wm) + fl[0] + sum(tq))):
-            return None
+        (vm, rm, wm), f0, tq = inputs
         cache = self._single
         if cache is not None and cache[0] is self._s:
             flat = cache[1]
@@ -133,7 +125,7 @@ class SuperTwistingObserver(Observer):
         st0, st1, st2 = vm[0] - v0, vm[1] - v1, vm[2] - v2
         m0, m1, m2 = wm
         sa0, sa1, sa2 = m0 - w0, m1 - w1, m2 - w2
-        fm = fl[0] / self.mass
+        fm = f0 / self.mass
         (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._jl
         (i00, i01, i02), (i10, i11, i12), (i20, i21, i22) = self._jil
         h0, h1, h2 = m0 * j00 + m1 * j01 + m2 * j02, m0 * j10 + m1 * j11 + m2 * j12, m0 * j20 + m1 * j21 + m2 * j22
