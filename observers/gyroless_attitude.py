@@ -420,6 +420,11 @@ class PdtStaAttitudeObserver(Observer):
         R_q, valid = self._quest(meas, predict=lambda: self.anchor @ gibbs_to_rot(self.core.x1))
         rel = np.swapaxes(self.anchor, -1, -2) @ R_q
         y = _safe_gibbs(rel)
+        if not valid.all():
+            # no attitude from the vectors: feed the prediction back exactly, so e1 = 0 and no correction is
+            # applied (the rounding noise of a predicted measurement would otherwise be amplified by the
+            # discontinuous kappa2 e1/|e1| term into a full-size kick)
+            y[~valid] = self.core.x1[~valid]
         self.core.step(y, tau if tau.shape == (n, 3) else np.broadcast_to(tau, (n, 3)), dt)
         self._maybe_reanchor()
         R_hat = self.anchor @ gibbs_to_rot(self.core.x1)
