@@ -7,7 +7,7 @@ from gymnasium.utils.env_checker import check_env
 
 import fawtgym  # noqa: F401  (registers the ids)
 from fawtgym.envs.hover_env import HoverEnv
-from fawtgym.envs.motors import hover_command
+from fawtgym.envs.motors import hover_command, lag_speeds
 
 
 def make(**kw):
@@ -62,8 +62,10 @@ def test_motor_step_response_time_constant(up):
         *_, info = env.step(np.full(4, u1, dtype=np.float32))
         speeds.append(info["applied"]["motor_speeds"][0])
     speeds = np.array([w0, *speeds])
-    frac = (speeds - w0) / (w1 - w0)
     t = np.arange(speeds.size) * env.dt
+    # the env's inlined fast path equals the reference closed form of envs/motors.py
+    assert np.allclose(speeds, lag_speeds(p, np.full(4, w0), np.full(4, w1), t)[:, 0], rtol=1e-12)
+    frac = (speeds - w0) / (w1 - w0)
     t63 = np.interp(1 - np.exp(-1), frac, t)
     tau = p.tau_up if up else p.tau_down
     assert abs(t63 - tau) / tau < 0.05
