@@ -54,7 +54,7 @@ def test_motor_step_response_time_constant(up):
     env.reset(seed=0)
     p = env.preset
     u0 = hover_command(p)
-    u1 = u0 + (0.2 if up else -0.2)
+    u1 = float(np.float32(u0 + (0.2 if up else -0.2)))  # the command the float32 action carries
     w0 = env.rotor_speeds[0]
     w1 = p.omega_min + u1 * (p.omega_max - p.omega_min)
     speeds = []
