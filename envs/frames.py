@@ -20,7 +20,11 @@ from numpy.typing import ArrayLike, NDArray
 
 #: The half turn about x that maps MuJoCo's z-up world / FLU body onto NED / FRD.
 T_MJ_NED: NDArray[np.float64] = np.diag([1.0, -1.0, -1.0])
-_SIGN = np.array([1.0, -1.0, -1.0])
+#: The diagonal of T (vectors: ``v_ned = SIGN_MJ_NED * v_mj``) and its outer product
+#: (matrices: ``R_ned = SIGN2_MJ_NED * R_mj``).
+SIGN_MJ_NED: NDArray[np.float64] = np.array([1.0, -1.0, -1.0])
+SIGN2_MJ_NED: NDArray[np.float64] = np.outer(SIGN_MJ_NED, SIGN_MJ_NED)
+_SIGN = SIGN_MJ_NED
 
 
 def vec_mj_to_ned(v: ArrayLike) -> NDArray[np.float64]:
@@ -36,7 +40,7 @@ def vec_ned_to_mj(v: ArrayLike) -> NDArray[np.float64]:
 def rot_mj_to_ned(r_mj: ArrayLike) -> NDArray[np.float64]:
     """Attitude R (body FLU -> world z-up) to R (body FRD -> world NED), shape (..., 3, 3)."""
     r = np.asarray(r_mj, dtype=float)
-    return r * _SIGN[:, None] * _SIGN[None, :]
+    return r * SIGN2_MJ_NED
 
 
 rot_ned_to_mj = rot_mj_to_ned  # T R T is an involution

@@ -56,7 +56,7 @@ from fawtgym.observers.lie import exp_so3
 from . import measurement as M
 from .aero import AeroModel
 from .ctbr import MAX_RATES, RateLoop
-from .frames import FAWT_HOVER_POINT_NED, rot_ned_to_quat_mj, vec_ned_to_mj
+from .frames import FAWT_HOVER_POINT_NED, SIGN2_MJ_NED, SIGN_MJ_NED, rot_ned_to_quat_mj, vec_ned_to_mj
 from .mjcf import INTEGRATORS, hull_points, vehicle_mjcf
 from .motors import allocation_matrix, hover_command
 from .sensors import SensorModel, make_sensor_spec
@@ -70,11 +70,9 @@ DEFAULT_REWARD_WEIGHTS: dict[str, float] = {
 }
 #: initial-state perturbation at init_noise = 1: uniform in +- these (position m, velocity m/s, tilt rad, rate rad/s)
 INIT_SPREAD = {"position": 0.1, "velocity": 0.1, "attitude": math.radians(3.0), "angular_velocity": 0.1}
-OBS_DIM = 19
 _BADQPOS, _BADQVEL, _BADQACC = (int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
                                                  mujoco.mjtWarning.mjWARN_BADQACC))
-_SIGN = np.array([1.0, -1.0, -1.0])  # MuJoCo z-up/FLU <-> NED/FRD (see frames.py)
-_SIGN2 = np.outer(_SIGN, _SIGN)
+_SIGN, _SIGN2 = SIGN_MJ_NED, SIGN2_MJ_NED  # MuJoCo z-up/FLU <-> NED/FRD, inlined in the hot path
 
 
 def _positive(name: str, value: Any) -> float:
@@ -169,8 +167,6 @@ class HoverEnv(gym.Env):
         self._alloc = allocation_matrix(self.preset)
         self._rotor_pos = self.preset.rotor_positions
         self._rate_loop = RateLoop(self.preset, self.physics_dt) if action_type == "ctbr" else None
-        # substep sample times for the exact motor lag: mid-substep (thrust) and end of step (speed)
-        self._mid_times = (np.arange(self.n_substeps) + 0.5) * self.physics_dt
 
         if action_type == "motors":
             self.action_space = spaces.Box(0.0, 1.0, shape=(4,), dtype=np.float32)
@@ -192,7 +188,7 @@ class HoverEnv(gym.Env):
         self._act_high = self.action_space.high.astype(float)
         self._act_low_list, self._act_high_list = self._act_low.tolist(), self._act_high.tolist()
         # exact motor lag sample times: mid-substep (thrust) and end of step (speed), negated for exp()
-        step_times = np.append(self._mid_times, self.dt)[:, None]
+        step_times = np.append((np.arange(self.n_substeps) + 0.5) * self.physics_dt, self.dt)[:, None]
         sub_times = np.array([[0.5 * self.physics_dt], [self.physics_dt]])
         tau_up, tau_down = self.preset.tau_up, self.preset.tau_down
         self._step_decay = (np.exp(-step_times / tau_up), np.exp(-step_times / tau_down))
@@ -201,7 +197,7 @@ class HoverEnv(gym.Env):
         self._inv_substeps = 1.0 / self.n_substeps
         self._omega_span = self.preset.omega_max - self.preset.omega_min
         # views into MuJoCo's buffers (stable for the life of self.data)
-        self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
+        self._ctrl = self.data.ctrl
         self._ctrl4 = self.data.ctrl[0:4]
         self._xfrc = self.data.xfrc_applied[self._body]
         self.time = 0.0
