@@ -122,7 +122,8 @@ def floats(x: object) -> list[float]:
     return np.asarray(x, dtype=float).ravel().tolist()
 
 
-_SIZES = {"position": 3, "velocity": 3, "attitude": 9, "angular_velocity": 3}
+_SIZES = {"position": 3, "velocity": 3, "attitude": 9, "angular_velocity": 3, "specific_force": 3, "gyro": 3,
+          "magnetometer": 3}
 
 
 def single_inputs(measurement: Mapping[str, object], keys: tuple[str, ...], thrust: object, torque: object,
