@@ -6,6 +6,8 @@ import gymnasium as gym
 
 ENV_NAMESPACE = "fawtgym"
 HOVER_ENTRY_POINT = "fawtgym.envs.hover_env:HoverEnv"
+#: batch-first vector env (``gym.make_vec(..., vectorization_mode="vector_entry_point")``, the default mode)
+HOVER_VECTOR_ENTRY_POINT = "fawtgym.envs.hover_batch_env:HoverBatchEnv"
 #: FAWT duty presets of seed-000 Table 3, registered as shortcut ids fawtgym/HoverFAWT<duty>-v0
 FAWT_DUTIES = (30, 40, 50, 60, 70)
 
@@ -17,5 +19,5 @@ def register_envs() -> None:
         specs[f"{ENV_NAMESPACE}/HoverFAWT{duty}-v0"] = {"wind": f"fawt-{duty}"}
     for env_id, kwargs in specs.items():
         if env_id not in gym.registry:
-            gym.register(id=env_id, entry_point=HOVER_ENTRY_POINT, kwargs=kwargs,
-                         disable_env_checker=False)
+            gym.register(id=env_id, entry_point=HOVER_ENTRY_POINT, vector_entry_point=HOVER_VECTOR_ENTRY_POINT,
+                         kwargs=kwargs, disable_env_checker=False)

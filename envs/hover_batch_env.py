@@ -1,0 +1,487 @@
+"""``HoverBatchEnv``: N independent ``fawtgym/Hover-v0`` vehicles in one batch-first vector env.
+
+Per vehicle (row) the semantics are exactly :class:`fawtgym.envs.hover_env.HoverEnv`'s (read its
+module docstring): the same options and their validation (a template ``HoverEnv`` is built from the
+same keyword arguments and its spaces, timing and reward weights are used), action checking and
+clipping, wind at [CoM, rotor hubs 1-4] held with the aero wrench (plus a per-row external wrench)
+over the control step, exact first-order motor lag (mid-substep thrust, end-of-step speed), 19-D
+observation from measurements, the same dense reward, termination (ground contact, box,
+divergence) and truncation.  What is batched:
+
+* physics: one ``mujoco.rollout`` call per control step on the env's own one-vehicle model with
+  one ``MjData`` on the calling thread (one core): state spec ``mjSTATE_FULLPHYSICS`` (time, qpos,
+  qvel; 14 numbers, round-trips this model's state exactly: no actuator activations, contacts
+  disabled so no warm start matters), control spec ``mjSTATE_CTRL | mjSTATE_XFRC_APPLIED`` with the
+  whole (N, n_substeps, 19) array (rotor thrusts per substep, held body torque, held world force);
+* wind, aero, sensors (:mod:`fawtgym.envs.sensors_batch`), observation, reward, termination: numpy
+  over the leading axis N (no Python loop over vehicles per step).
+
+Divergence: MuJoCo resets a row whose state becomes NaN/inf/huge (its warnings).  The rollout starts
+every row at MuJoCo time ``_MJ_T0`` = 1 s, so a reset row ends at a time below 1 s instead of
+``1 + n_substeps dt``; that row (or any row with a non-finite state) terminates with
+``failure = "diverged"`` and keeps its last finite state, the other rows are unaffected.
+
+Autoreset: ``AutoresetMode.NEXT_STEP`` (gymnasium's default): after a row terminates or truncates,
+the next ``step`` ignores its action, resets it and returns its reset observation and info with
+reward 0 and both flags False.
+
+Seeding: ``reset(seed=s)`` gives row ``i`` the generator ``HoverEnv.reset(seed=s + i)`` would use
+(same initial-state draws, same wind/sensor seeds; a list of per-row seeds is also accepted), so with
+calm wind and ``sensors="none"`` row ``i`` reproduces that single env; the per-step sensor noise of
+N > 1 rows comes from one generator seeded by ``s`` (fixed-size draws, rows stay independent), and
+with N = 1 it is the row's own generator, so N = 1 reproduces ``HoverEnv`` with any sensors.
+
+Wind: a wind model whose output does not depend on time (``calm``, steady ``fawt-*``, ``dryden-*``)
+is stepped once for all N rows; a row that resets gets a fresh draw of its gust-filter state from
+the stationary distribution.  Any other model (a fan schedule, ``gust-1cos``, a user class) is run
+in cohorts: rows that reset at the same step share one copy of the model with its own episode time,
+exactly as each single env would; cost grows with the number of distinct reset times alive.
+
+``info`` holds batched arrays with HoverEnv's keys: ``measurement``/``applied``/``truth`` dicts of
+(N, ...) arrays, ``setpoint`` (N, 3), ``action_clipped`` (N,), ``failure`` (N,) str, ``time`` (N,).
+
+Not implemented: ``action_type="ctbr"`` (its inner rate loop runs at the physics rate, which needs one
+rollout per substep; raises NotImplementedError) and rendering.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import mujoco
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+from mujoco import rollout
+from numpy.typing import ArrayLike, NDArray
+
+from fawtgym.observers.lie import exp_so3
+
+from . import measurement as M
+from .frames import SIGN2_MJ_NED, SIGN_MJ_NED, rot_ned_to_quat_mj
+from .hover_env import INIT_SPREAD, HoverEnv
+from .mjcf import hull_points
+from .motors import allocation_matrix, hover_command
+from .sensors_batch import BatchSensorModel
+from .wind import WindModel
+from .wind.base import CalmWind
+from .wind.fawt import FawtWind
+from .wind.outdoor import DrydenWind
+
+_MJ_T0 = 1.0  #: MuJoCo time at the start of every rollout (a MuJoCo reset sets it to 0: divergence test)
+_STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+_CONTROL_SPEC = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_XFRC_APPLIED)
+_SIGN, _SIGN2 = SIGN_MJ_NED, SIGN2_MJ_NED
+
+
+def quat_mj_to_rot_ned_batch(q: NDArray[np.float64]) -> NDArray[np.float64]:
+    """MuJoCo quaternions (N, 4) to R (N, 3, 3) FRD -> NED, with ``mju_quat2Mat``'s arithmetic."""
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    q00, q01, q02, q03 = w * w, w * x, w * y, w * z
+    q11, q12, q13, q22, q23, q33 = x * x, x * y, x * z, y * y, y * z, z * z
+    r = np.empty((q.shape[0], 3, 3))
+    r[:, 0, 0] = q00 + q11 - q22 - q33
+    r[:, 1, 1] = q00 - q11 + q22 - q33
+    r[:, 2, 2] = q00 - q11 - q22 + q33
+    r[:, 0, 1] = 2 * (q12 - q03)
+    r[:, 0, 2] = 2 * (q13 + q02)
+    r[:, 1, 0] = 2 * (q12 + q03)
+    r[:, 1, 2] = 2 * (q23 - q01)
+    r[:, 2, 0] = 2 * (q13 - q02)
+    r[:, 2, 1] = 2 * (q23 + q01)
+    return r * _SIGN2
+
+
+def _time_invariant(wind: WindModel) -> bool:
+    """Whether ``wind``'s output depends on the time argument (models known to ignore it)."""
+    if type(wind) is CalmWind or type(wind) is DrydenWind:
+        return True
+    return type(wind) is FawtWind and wind.schedule.steady
+
+
+class BatchWind:
+    """Runs one :class:`WindModel` for N rows whose episodes start at different times (module docstring)."""
+
+    def __init__(self, template: WindModel, n: int) -> None:
+        self.template = copy.deepcopy(template)  # pristine copy: cohorts are copied from it
+        self.n = n
+        self.shared = _time_invariant(template)
+        self.model: WindModel | None = None
+        self.cohorts: list[list[Any]] = []  # [model, rows (k,), alive (k,) bool]
+
+    @staticmethod
+    def _seed(ints: Sequence[int], seeds: Sequence[np.random.SeedSequence]) -> np.random.SeedSequence:
+        # one row: exactly the single env's wind seed; several: all rows' seed integers pooled
+        return seeds[0] if len(seeds) == 1 else np.random.SeedSequence([int(i) for i in ints])
+
+    def reset_rows(self, rows: NDArray[np.intp], ints: Sequence[int], seeds: Sequence[np.random.SeedSequence]) -> None:
+        """New episodes (time 0) for ``rows``; ``ints``/``seeds`` are the rows' wind seeds."""
+        if self.shared:
+            if self.model is None or rows.size == self.n:
+                self.model = copy.deepcopy(self.template)
+                self.model.reset(self.n, seed=self._seed(ints, seeds))
+                return
+            process = getattr(self.model, "process", None)
+            if process is not None:  # fresh stationary gust-filter state for the reset rows
+                p = process.p_stat
+                w, v = np.linalg.eigh(p)
+                root = v * np.sqrt(np.clip(w, 0.0, None))
+                x = process.x.copy()
+                for k, row in enumerate(rows.tolist()):  # reset path only
+                    x[row] = root @ np.random.default_rng(seeds[k]).standard_normal(process.n_states)
+                process.x = x
+            return
+        for c in self.cohorts:
+            c[2] &= ~np.isin(c[1], rows)
+        self.cohorts = [c for c in self.cohorts if c[2].any()]
+        model = copy.deepcopy(self.template)
+        model.reset(rows.size, seed=self._seed(ints, seeds))
+        self.cohorts.append([model, rows.copy(), np.ones(rows.size, dtype=bool)])
+
+    def step(self, times: NDArray[np.float64], dt: float, points: NDArray[np.float64],
+             velocity: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Wind (N, K, 3) at ``points`` (N, K, 3); ``times`` (N,) are the rows' episode times."""
+        if self.shared:
+            return self.model.step(float(times[0]), dt, points, velocity)
+        out = np.empty(points.shape)
+        for model, rows, alive in self.cohorts:  # one call per cohort (rows that reset together)
+            live = rows[alive]
+            got = model.step(float(times[live[0]]), dt, points[rows], velocity[rows])
+            out[live] = got[alive]
+        return out
+
+
+class HoverBatchEnv(VectorEnv):
+    """N hover vehicles stepped together; per-row semantics of :class:`HoverEnv` (module docstring).
+
+    Args:
+        num_envs: number of vehicles N.
+        **options: the options of :class:`HoverEnv` (vehicle, wind, action_type, sensors, control_rate,
+            physics_rate, episode_seconds, setpoint, init_noise, reward_weights, max_position_error,
+            integrator); ``render_mode`` must be None.
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+
+    def __init__(self, num_envs: int = 1, vehicle: Any = "s500", wind: Any = "calm", action_type: str = "motors",
+                 sensors: Any = "none", control_rate: float = 100.0, physics_rate: float = 1000.0,
+                 episode_seconds: float = 10.0, setpoint: ArrayLike | None = None, init_noise: float = 1.0,
+                 reward_weights: Mapping[str, float] | None = None, max_position_error: float = 2.0,
+                 integrator: str = "Euler", render_mode: str | None = None, render_width: int = 480,
+                 render_height: int = 480) -> None:
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
+        if render_mode is not None:
+            raise ValueError(f"HoverBatchEnv does not render; render_mode must be None, got {render_mode!r} "
+                             "(render a single fawtgym/Hover-v0 instead)")
+        single = HoverEnv(vehicle=vehicle, wind=wind, action_type=action_type, sensors=sensors,
+                          control_rate=control_rate, physics_rate=physics_rate, episode_seconds=episode_seconds,
+                          setpoint=setpoint, init_noise=init_noise, reward_weights=reward_weights,
+                          max_position_error=max_position_error, integrator=integrator,
+                          render_width=render_width, render_height=render_height)
+        if action_type != "motors":
+            raise NotImplementedError(f"HoverBatchEnv supports action_type='motors' only (got {action_type!r}): "
+                                      "the 'ctbr' inner rate loop runs at the physics rate; use the single "
+                                      "fawtgym/Hover-v0 with vectorization_mode='sync' for it")
+        n = self.num_envs = int(num_envs)
+        self.preset = single.preset
+        self.action_type = action_type
+        self.n_substeps, self.physics_dt, self.dt = single.n_substeps, single.physics_dt, single.dt
+        self.episode_seconds, self.max_steps = single.episode_seconds, single.max_steps
+        self.max_position_error = single.max_position_error
+        self.init_noise = single.init_noise
+        self.reward_weights = dict(single.reward_weights)
+        w = self.reward_weights
+        self._reward_w = np.repeat([w["pos"], w["vel"], 0.0, w["rate"], w["action"]], [3, 3, 6, 3, 4])
+        self.single_action_space = single.action_space
+        self.single_observation_space = single.observation_space
+        self.action_space = batch_space(self.single_action_space, n)
+        self.observation_space = batch_space(self.single_observation_space, n)
+        self.render_mode = None
+        self.setpoint = np.tile(single.setpoint, (n, 1))
+        self.model = single.model
+        self._data = mujoco.MjData(self.model)
+        self._rollout = rollout.Rollout(nthread=0)  # rollouts on the calling thread: one core
+        self._models = [self.model] * n
+        self._body = self.model.body("vehicle").id
+        self._xfrc_col = self.model.nu + 6 * self._body
+        self.wind = BatchWind(single.wind, n)
+        self.aero = single.aero
+        self.sensor = BatchSensorModel(single.sensor.spec, self.dt, n)
+        single.close()
+
+        p = self.preset
+        self._hull_t = hull_points(p).T
+        self._alloc_t = allocation_matrix(p).T
+        self._rotor_pos_t = np.ascontiguousarray(p.rotor_positions.T)
+        self._hover = np.full(4, hover_command(p), dtype=np.float32)
+        self._act_low = self.single_action_space.low.astype(float)
+        self._act_high = self.single_action_space.high.astype(float)
+        self._obs_low = self.single_observation_space.low.astype(float)
+        self._obs_high = self.single_observation_space.high.astype(float)
+        k = self.n_substeps
+        step_times = np.append((np.arange(k) + 0.5) * self.physics_dt, self.dt)[:, None]
+        self._decay_up = np.exp(-step_times / p.tau_up)  # (K + 1, 1), as HoverEnv
+        self._decay_down = np.exp(-step_times / p.tau_down)
+        self._omega_min, self._omega_span = p.omega_min, p.omega_max - p.omega_min
+        self._inv_substeps = 1.0 / k
+        self._ctrl = np.zeros((n, k, mujoco.mj_stateSize(self.model, _CONTROL_SPEC)))
+        self._mj_state = np.zeros((n, mujoco.mj_stateSize(self.model, _STATE_SPEC)))
+        self._out = np.zeros((n, k, self._mj_state.shape[1]))
+        self._t_end = None  # MuJoCo's end time of a clean rollout (measured once)
+        self.external_force = np.zeros((n, 3))
+        self.external_torque = np.zeros((n, 3))
+        self._row_rngs: list[np.random.Generator] | None = None
+        self._autoreset = np.zeros(n, dtype=bool)
+        self.time = np.zeros(n)
+
+    # ---- public helpers -------------------------------------------------------------------
+    def hover_action(self) -> NDArray[np.float32]:
+        """(N, 4) actions holding the weight at rest."""
+        return np.tile(self._hover, (self.num_envs, 1))
+
+    def set_external_wrench(self, force_ned: ArrayLike = (0.0, 0.0, 0.0),
+                            torque_frd: ArrayLike = (0.0, 0.0, 0.0)) -> None:
+        """Constant extra disturbance per row: force NED (3,) or (N, 3) [N], torque FRD (3,) or (N, 3) [N m]."""
+        n = self.num_envs
+        try:
+            f = np.broadcast_to(np.asarray(force_ned, dtype=float), (n, 3)).copy()
+            t = np.broadcast_to(np.asarray(torque_frd, dtype=float), (n, 3)).copy()
+        except ValueError as exc:
+            raise ValueError(f"external wrench must be (3,) or ({n}, 3) arrays, got shapes "
+                             f"{np.shape(force_ned)}, {np.shape(torque_frd)}") from exc
+        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(t))):
+            raise ValueError(f"external wrench must be finite, got {force_ned!r}, {torque_frd!r}")
+        self.external_force, self.external_torque = f, t
+
+    # ---- state ------------------------------------------------------------------------------
+    def _readout(self, s: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+        """NED/FRD (position, velocity, R, Omega) from FULLPHYSICS states (k, 14) = [time, qpos 7, qvel 6]."""
+        return s[:, 1:4] * _SIGN, s[:, 8:11] * _SIGN, quat_mj_to_rot_ned_batch(s[:, 4:8]), s[:, 11:14] * _SIGN
+
+    def _reset_rows(self, rows: NDArray[np.intp]) -> None:
+        """HoverEnv.reset for ``rows`` (each row draws from its own generator, in HoverEnv's order)."""
+        k = rows.size
+        du = np.empty((k, 4, 3))
+        ints, wind_seeds, sensor_rngs = [], [], []
+        spread = np.array([INIT_SPREAD[key] for key in ("position", "velocity", "attitude", "angular_velocity")])
+        for j, row in enumerate(rows.tolist()):  # reset path only: per-row generators
+            rng = self._row_rngs[row]
+            for i in range(4):
+                du[j, i] = rng.uniform(-1.0, 1.0, 3) * spread[i] * self.init_noise
+            seed_int = int(rng.integers(2**63))
+            wind_seed, sensor_seed = np.random.SeedSequence(seed_int).spawn(2)
+            ints.append(seed_int)
+            wind_seeds.append(wind_seed)
+            sensor_rngs.append(np.random.default_rng(sensor_seed))
+        s = np.zeros((k, self._mj_state.shape[1]))
+        s[:, 1:4] = (self.setpoint[rows] + du[:, 0]) * _SIGN
+        s[:, 4:8] = rot_ned_to_quat_mj(exp_so3(du[:, 2]))
+        s[:, 8:11] = du[:, 1] * _SIGN
+        s[:, 11:14] = du[:, 3] * _SIGN
+        self._mj_state[rows] = s
+        b, v, r, w = self._readout(s)
+        self._pos[rows], self._vel[rows], self._rot[rows], self._omega[rows] = b, v, r, w
+        self.rotor_speeds[rows] = self.preset.hover_omega
+        self._applied[rows] = self.preset.k_thrust * self.preset.hover_omega**2
+        self._last_action[rows] = self._hover
+        self._accel[rows] = 0.0
+        self._steps[rows] = 0
+        self.time[rows] = 0.0
+        self._failure[rows] = ""
+        self.wind.reset_rows(rows, ints, wind_seeds)
+        self.sensor.reset_rows(rows, sensor_rngs)
+        if self.num_envs == 1:  # N = 1: the row's own sensor stream, as HoverEnv
+            self.sensor.set_noise_rng(sensor_rngs[0])
+
+    # ---- gym API -------------------------------------------------------------------------
+    def reset(self, *, seed: int | Sequence[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        n = self.num_envs
+        if seed is None:
+            seeds: list[int | None] = [None] * n
+        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            seeds = [int(seed) + i for i in range(n)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != n:
+                raise ValueError(f"seed must be an int, None or a list of {n} ints/None, got {len(seeds)} entries")
+        if self._row_rngs is None or seed is not None:
+            old = self._row_rngs
+            self._row_rngs = [seeding.np_random(s)[0] if (s is not None or old is None) else old[i]
+                              for i, s in enumerate(seeds)]
+        if seed is not None or not hasattr(self, "_noise_seeded"):
+            base = seeds[0] if isinstance(seed, (int, np.integer)) else None
+            self.sensor.set_noise_rng(np.random.default_rng(None if base is None else [base, n, 0x5E45]))
+            self._noise_seeded = True
+        if options:
+            unknown = set(options) - {"setpoint", "init_noise"}
+            if unknown:
+                raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid: ['init_noise', 'setpoint']")
+            if "setpoint" in options:
+                sp = np.asarray(options["setpoint"], dtype=float)
+                if sp.shape not in ((3,), (n, 3)) or not np.all(np.isfinite(sp)):
+                    raise ValueError(f"setpoint must be 3 finite NED coordinates or ({n}, 3), "
+                                     f"got {options['setpoint']!r}")
+                self.setpoint = np.broadcast_to(sp, (n, 3)).copy()
+            if "init_noise" in options:
+                s = float(options["init_noise"])
+                if not (math.isfinite(s) and s >= 0):
+                    raise ValueError(f"init_noise must be a finite number >= 0, got {options['init_noise']!r}")
+                self.init_noise = s
+        self._pos, self._vel = np.zeros((n, 3)), np.zeros((n, 3))
+        self._rot, self._omega = np.zeros((n, 3, 3)), np.zeros((n, 3))
+        self.rotor_speeds, self._applied = np.zeros((n, 4)), np.zeros((n, 4))
+        self._last_action, self._accel = np.zeros((n, 4)), np.zeros((n, 3))
+        self._steps = np.zeros(n, dtype=np.int64)
+        self._failure = np.full(n, "", dtype="<U14")
+        self._force, self._torque, self._wind_com = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+        self._autoreset = np.zeros(n, dtype=bool)
+        self._reset_rows(np.arange(n))
+        self._update_disturbance(np.ones(n, dtype=bool))
+        info = self._info(np.zeros(n, dtype=bool))
+        obs, _ = self._observation_and_reward(info["measurement"], self._last_action)
+        return obs, info
+
+    def _check_actions(self, actions: ArrayLike, stepping: NDArray[np.bool_]) -> NDArray[np.float64]:
+        n = self.num_envs
+        a = np.asarray(actions, dtype=float)
+        if a.shape != (n, 4):
+            raise ValueError(f"actions must have shape ({n}, 4), got {np.shape(actions)}")
+        bad = ~np.isfinite(a)
+        bad &= stepping[:, None]
+        if bad.any():
+            row, i = (int(x) for x in np.argwhere(bad)[0])
+            raise ValueError(f"actions[{row}, {i}] is {a[row, i]}; every action entry must be finite "
+                             f"(bounds {self._act_low.tolist()} .. {self._act_high.tolist()})")
+        return a
+
+    def step(self, actions: ArrayLike) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_],
+                                                 NDArray[np.bool_], dict[str, Any]]:
+        if self._row_rngs is None:
+            raise RuntimeError("call reset() before step()")
+        resetting = self._autoreset
+        stepping = ~resetting
+        a = self._check_actions(actions, stepping)
+        clipped = np.minimum(np.maximum(a, self._act_low), self._act_high)
+        any_reset = bool(resetting.any())
+        if any_reset:
+            clipped[resetting] = self._hover
+        action_clipped = (clipped != a).any(axis=1) & stepping
+
+        # motors: exact lag from the current speeds (HoverEnv._run_motors for every row at once)
+        ref = (clipped * self._omega_span + self._omega_min)[:, None, :]
+        w0 = self.rotor_speeds[:, None, :]
+        speeds = ref + (w0 - ref) * np.where(ref > w0, self._decay_up, self._decay_down)  # (N, K + 1, 4)
+        thrusts = speeds[:, :-1] ** 2 * self.preset.k_thrust
+        ctrl = self._ctrl
+        ctrl[:, :, 0:4] = thrusts
+        ctrl[:, :, 4:7] = (self._torque * _SIGN)[:, None, :]
+        c = self._xfrc_col
+        ctrl[:, :, c:c + 3] = (self._force * _SIGN)[:, None, :]
+        state = self._mj_state
+        state[:, 0] = _MJ_T0
+        self._rollout.rollout(self._models, [self._data], state, ctrl, control_spec=_CONTROL_SPEC, skip_checks=True,
+                              nstep=self.n_substeps, state=self._out)
+        final = self._out[:, -1]
+        if self._t_end is None:
+            self._t_end = _MJ_T0 + self.n_substeps * self.physics_dt
+        diverged = (np.abs(final[:, 0] - self._t_end) > 0.5 * self.physics_dt) | ~np.isfinite(final).all(axis=1)
+        diverged &= stepping
+        ok = stepping & ~diverged
+        self.rotor_speeds = speeds[:, -1].copy()
+        self._applied = thrusts.sum(axis=1) * self._inv_substeps
+        self.time = self.time + np.where(stepping, self.dt, 0.0)
+        self._steps = self._steps + stepping
+
+        v_before = self._vel
+        b, v, r, w = self._readout(final)
+        if ok.all():
+            self._mj_state = final.copy()
+            self._pos, self._vel, self._rot, self._omega = b, v, r, w
+            self._accel = (v - v_before) / self.dt
+        else:
+            self._mj_state = np.where(ok[:, None], final, state)
+            self._pos = np.where(ok[:, None], b, self._pos)
+            self._vel = np.where(ok[:, None], v, self._vel)
+            self._rot = np.where(ok[:, None, None], r, self._rot)
+            self._omega = np.where(ok[:, None], w, self._omega)
+            self._accel = np.where(ok[:, None], (self._vel - v_before) / self.dt, self._accel)
+        self._failure = np.where(diverged, "diverged", "").astype("<U14")
+        self._last_action_prev = self._last_action
+        if any_reset:
+            self._reset_rows(np.flatnonzero(resetting))
+        self._update_disturbance(~diverged)
+        pos, rot = self._pos, self._rot
+        ground = pos[:, 2] + (rot[:, 2, :] @ self._hull_t).max(axis=1) >= 0.0
+        out = np.abs(pos - self.setpoint).max(axis=1) > self.max_position_error
+        self._failure[ok & ground] = "ground_contact"
+        self._failure[ok & ~ground & out] = "out_of_bounds"
+        info = self._info(action_clipped)
+        obs, reward = self._observation_and_reward(info["measurement"], clipped, self._last_action_prev)
+        self._last_action = clipped
+        terminated = self._failure != ""
+        truncated = ~terminated & (self._steps >= self.max_steps)
+        if any_reset:
+            reward[resetting] = 0.0
+        self._autoreset = terminated | truncated
+        return obs, reward, terminated, truncated, info
+
+    def _update_disturbance(self, rows: NDArray[np.bool_]) -> None:
+        """Wind at [CoM, hubs] and the aero + external wrench for the next step (rows not diverged)."""
+        b, r = self._pos, self._rot
+        points = np.empty((self.num_envs, 5, 3))
+        points[:, 0] = b
+        points[:, 1:] = b[:, None, :] + np.matmul(self._rotor_pos_t.T, r.transpose(0, 2, 1))
+        wind = self.wind.step(self.time, self.dt, points, self._vel)
+        force, torque = self.aero.wrench(r, self._vel, self._omega, self.rotor_speeds, wind)
+        force += self.external_force
+        torque += self.external_torque
+        if rows.all():
+            self._force, self._torque, self._wind_com = force, torque, wind[:, 0].copy()
+        else:
+            self._force = np.where(rows[:, None], force, self._force)
+            self._torque = np.where(rows[:, None], torque, self._torque)
+            self._wind_com = np.where(rows[:, None], wind[:, 0], self._wind_com)
+
+    def _info(self, action_clipped: NDArray[np.bool_]) -> dict[str, Any]:
+        meas = self.sensor.measure(self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
+        f_torque = self._applied @ self._alloc_t
+        return {
+            "measurement": meas,
+            "applied": {"thrust": f_torque[:, 0].copy(), "torque": f_torque[:, 1:].copy(),
+                        "rotor_thrusts": self._applied.copy(), "motor_speeds": self.rotor_speeds.copy()},
+            "truth": {M.POSITION: self._pos.copy(), M.VELOCITY: self._vel.copy(), M.ATTITUDE: self._rot.copy(),
+                      M.ANGULAR_VELOCITY: self._omega.copy(), "wind": self._wind_com.copy(),
+                      "force": self._force.copy(), "torque": self._torque.copy()},
+            "setpoint": self.setpoint.copy(),
+            "action_clipped": action_clipped,
+            "failure": self._failure.copy(),
+            "time": self.time.copy(),
+        }
+
+    def _observation_and_reward(self, meas: Mapping[str, NDArray[np.float64]], action: NDArray[np.float64],
+                                prev_action: NDArray[np.float64] | None = None
+                                ) -> tuple[NDArray[np.float32], NDArray[np.float64]]:
+        """Observations (N, 19) and rewards (N,) (HoverEnv's layout and formula, row by row)."""
+        r = meas[M.ATTITUDE]
+        x = np.concatenate([meas[M.POSITION] - self.setpoint, meas[M.VELOCITY], r[:, :, 0], r[:, :, 1],
+                            meas[M.ANGULAR_VELOCITY], action], axis=1)
+        obs = np.minimum(np.maximum(x, self._obs_low), self._obs_high).astype(np.float32)
+        cos = np.clip(0.5 * (r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2] - 1.0), -1.0, 1.0)
+        phi = np.arccos(cos)
+        x[:, 15:] -= self._last_action if prev_action is None else prev_action
+        reward = np.exp(-((x * x) @ self._reward_w + self.reward_weights["att"] * phi * phi))
+        failed = self._failure != ""
+        if failed.any():
+            reward[failed] = -self.reward_weights["failure"]
+        return obs, reward
+
+    def close_extras(self, **kwargs: Any) -> None:
+        if getattr(self, "_rollout", None) is not None:
+            self._rollout.close()
+            self._rollout = None
