@@ -113,16 +113,25 @@ class AeroModel:
     def _wrench_single(self, rotation: NDArray[np.float64], velocity: NDArray[np.float64],
                        angular_velocity: NDArray[np.float64], rotor_speeds: NDArray[np.float64],
                        wind: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """N = 1 path in plain float arithmetic (same model; small numpy ops cost more than the math here)."""
-        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rotation[0].tolist()
-        vx, vy, vz = velocity[0].tolist()
-        wp, wq, wr = angular_velocity[0].tolist()
-        om = rotor_speeds[0].tolist()
-        w = wind[0].tolist()
+        """N = 1 :meth:`wrench` through :meth:`wrench_floats`."""
+        force, torque = self.wrench_floats(rotation.ravel().tolist(), velocity[0].tolist(),
+                                           angular_velocity[0].tolist(), rotor_speeds[0].tolist(),
+                                           wind.ravel().tolist())
+        return np.array([force]), np.array([torque])
+
+    def wrench_floats(self, r: list[float], v: list[float], w: list[float], om: list[float], wind: list[float]
+                      ) -> tuple[list[float], list[float]]:
+        """One vehicle in plain float arithmetic (same model as :meth:`wrench`; small numpy ops cost more than the
+        math here): ``r`` = R row-major (9), ``v`` (3), ``w`` = Omega (3), ``om`` = rotor speeds (4), ``wind`` flat
+        (15: CoM then hubs).  Returns (force NED, torque FRD) as lists; ValueError if not finite."""
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = r
+        vx, vy, vz = v
+        wp, wq, wr = w
         k_d, k_r = self._kd, self._kr
         fx = fy = tx = ty = tz = 0.0
         for i, (px, py, pz) in enumerate(self._rp):
-            dx, dy, dz = w[i + 1][0] - vx, w[i + 1][1] - vy, w[i + 1][2] - vz
+            j = 3 * i + 3
+            dx, dy, dz = wind[j] - vx, wind[j + 1] - vy, wind[j + 2] - vz
             ax = r00 * dx + r10 * dy + r20 * dz - (wq * pz - wr * py)
             ay = r01 * dx + r11 * dy + r21 * dz - (wr * px - wp * pz)
             kw, mw = k_d * om[i], k_r * om[i]
@@ -133,7 +142,7 @@ class AeroModel:
             ty += pz * gx - mw * ax
             tz += px * gy - py * gx
         cx, cy, cz = self._c
-        dx, dy, dz = w[0][0] - vx, w[0][1] - vy, w[0][2] - vz
+        dx, dy, dz = wind[0] - vx, wind[1] - vy, wind[2] - vz
         ax = r00 * dx + r10 * dy + r20 * dz - (wq * cz - wr * cy)
         ay = r01 * dx + r11 * dy + r21 * dz - (wr * cx - wp * cz)
         az = r02 * dx + r12 * dy + r22 * dz - (wp * cy - wq * cx)
@@ -145,11 +154,11 @@ class AeroModel:
         fx += bx
         fy += by
         fz = bz
-        force = [[r00 * fx + r01 * fy + r02 * fz, r10 * fx + r11 * fy + r12 * fz, r20 * fx + r21 * fy + r22 * fz]]
-        if not math.isfinite(force[0][0] + force[0][1] + force[0][2] + tx + ty + tz):
+        force = [r00 * fx + r01 * fy + r02 * fz, r10 * fx + r11 * fy + r12 * fz, r20 * fx + r21 * fy + r22 * fz]
+        if not math.isfinite(force[0] + force[1] + force[2] + tx + ty + tz):
             raise ValueError("aerodynamic wrench is not finite: check rotation, velocity, angular_velocity, "
                              "rotor_speeds and wind for NaN/inf")
-        return np.array(force), np.array([[tx, ty, tz]])
+        return force, [tx, ty, tz]
 
 
 def hover_drag(preset: VehiclePreset, airspeed: float | NDArray[np.float64]) -> NDArray[np.float64]:

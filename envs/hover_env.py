@@ -163,7 +163,6 @@ class HoverEnv(gym.Env):
                                                                  render_width, render_height))
         self.data = mujoco.MjData(self.model)
         self._body = self.model.body("vehicle").id
-        self._hull_points_t = hull_points(self.preset).T  # (3, 12) body FRD
         self._alloc = allocation_matrix(self.preset)
         self._rotor_pos = self.preset.rotor_positions
         self._rate_loop = RateLoop(self.preset, self.physics_dt) if action_type == "ctbr" else None
@@ -179,27 +178,43 @@ class HoverEnv(gym.Env):
         low[-4:] = self.action_space.low
         high[-4:] = self.action_space.high
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
-        self._external_force = np.zeros(3)
-        self._external_torque = np.zeros(3)
-        self._mat9 = np.zeros(9)
+        self._external_force = [0.0, 0.0, 0.0]
+        self._external_torque = [0.0, 0.0, 0.0]
         self._obs_low = self.observation_space.low.astype(float)
         self._obs_high = self.observation_space.high.astype(float)
         self._act_low = self.action_space.low.astype(float)
         self._act_high = self.action_space.high.astype(float)
         self._act_low_list, self._act_high_list = self._act_low.tolist(), self._act_high.tolist()
-        # exact motor lag sample times: mid-substep (thrust) and end of step (speed), negated for exp()
-        step_times = np.append((np.arange(self.n_substeps) + 0.5) * self.physics_dt, self.dt)[:, None]
-        sub_times = np.array([[0.5 * self.physics_dt], [self.physics_dt]])
+        # exact motor lag (see _run_motors): decay factors exp(-t / tau) at the mid-substep times (thrust) and at
+        # the end of the step (speed), one table per combination of rotors speeding up (bit i set) or slowing down
+        n = self.n_substeps
+        step_times = np.append((np.arange(n) + 0.5) * self.physics_dt, self.dt)
+        sub_times = np.array([0.5 * self.physics_dt, self.physics_dt])
         tau_up, tau_down = self.preset.tau_up, self.preset.tau_down
-        self._step_decay = (np.exp(-step_times / tau_up), np.exp(-step_times / tau_down))
-        self._substep_decay = (np.exp(-sub_times / tau_up), np.exp(-sub_times / tau_down))
+        up, down = np.exp(-step_times / tau_up), np.exp(-step_times / tau_down)
+        self._decay_tables = [[tuple(row) for row in np.stack([up if (combo >> i) & 1 else down for i in range(4)],
+                                                              axis=1)[:-1].tolist()]
+                              for combo in range(16)]  # n substeps x 4 rotors each
+        self._decay_end = (float(up[-1]), float(down[-1]))
+        self._decay_mean = (float(up[:-1].mean()), float(down[:-1].mean()))  # mean decay over the substeps
+        self._decay_mean2 = (float((up[:-1] ** 2).mean()), float((down[:-1] ** 2).mean()))  # ... squared
+        self._substep_decay = (np.exp(-sub_times / tau_up)[:, None], np.exp(-sub_times / tau_down)[:, None])
         self._omega_min = self.preset.omega_min
-        self._inv_substeps = 1.0 / self.n_substeps
         self._omega_span = self.preset.omega_max - self.preset.omega_min
+        self._k_thrust = float(self.preset.k_thrust)
+        self._alloc_rows = self._alloc.tolist()
+        self._hull = [tuple(p) for p in hull_points(self.preset).tolist()]
+        self._hull_radius = float(np.linalg.norm(hull_points(self.preset), axis=1).max())
+        self._obs_low_list, self._obs_high_list = self._obs_low.tolist(), self._obs_high.tolist()
+        self._reward_w_list = self._reward_w.tolist()
+        self._rotor_offsets = self._rotor_pos.tolist()
         # views into MuJoCo's buffers (stable for the life of self.data)
-        self._ctrl = self.data.ctrl
+        # (item assignment through a memoryview costs a quarter of a numpy slice assignment)
         self._ctrl4 = self.data.ctrl[0:4]
-        self._xfrc = self.data.xfrc_applied[self._body]
+        self._ctrl_mv = memoryview(self.data.ctrl)
+        self._xfrc_mv = memoryview(self.data.xfrc_applied[self._body])
+        self._warnings = self.data.warning.number
+        self._qpos, self._qvel = self.data.qpos, self.data.qvel
         self.time = 0.0
 
     # ---- public helpers -------------------------------------------------------------------
@@ -209,7 +224,7 @@ class HoverEnv(gym.Env):
         f, t = np.asarray(force_ned, dtype=float), np.asarray(torque_frd, dtype=float)
         if f.shape != (3,) or t.shape != (3,) or not (np.all(np.isfinite(f)) and np.all(np.isfinite(t))):
             raise ValueError(f"external wrench must be two finite 3-vectors, got {force_ned!r}, {torque_frd!r}")
-        self._external_force, self._external_torque = f.copy(), t.copy()
+        self._external_force, self._external_torque = f.tolist(), t.tolist()
 
     def hover_action(self) -> NDArray[np.float32]:
         """The action that holds the weight at rest (equal rotors / level, zero rates)."""
@@ -218,12 +233,26 @@ class HoverEnv(gym.Env):
         return np.array([self.preset.mass * GRAVITY / (4 * self.preset.max_thrust_per_rotor), 0, 0, 0],
                         dtype=np.float32)
 
+    @property
+    def rotor_speeds(self) -> NDArray[np.float64]:
+        """Rotor speeds [rad/s] at the end of the last step (4,)."""
+        return np.array(self._speeds)
+
     # ---- state access ---------------------------------------------------------------------
     def _read_state(self) -> None:
-        """Cache the true state (NED/FRD) from MuJoCo once per step (the one hot conversion)."""
-        q, v = self.data.qpos, self.data.qvel
-        mujoco.mju_quat2Mat(self._mat9, q[3:7])
-        self._state = (q[0:3] * _SIGN, v[0:3] * _SIGN, self._mat9.reshape(3, 3) * _SIGN2, v[3:6] * _SIGN)
+        """The true state (NED/FRD) from MuJoCo as floats: position, velocity, R (row-major 9), Omega.
+
+        MuJoCo is z-up with an FLU body: NED = diag(1, -1, -1) MuJoCo for vectors, and R_NED = S R_MuJoCo S
+        with S = diag(1, -1, -1); R_MuJoCo from the unit quaternion as in ``mju_quat2Mat``.
+        """
+        x, y, z, qw, qx, qy, qz = self._qpos.tolist()
+        vx, vy, vz, wx, wy, wz = self._qvel.tolist()
+        q00, q11, q22, q33 = qw * qw, qx * qx, qy * qy, qz * qz
+        q01, q02, q03, q12, q13, q23 = qw * qx, qw * qy, qw * qz, qx * qy, qx * qz, qy * qz
+        self._b, self._v, self._w = [x, -y, -z], [vx, -vy, -vz], [wx, -wy, -wz]
+        self._r = [q00 + q11 - q22 - q33, -2.0 * (q12 - q03), -2.0 * (q13 + q02),
+                   -2.0 * (q12 + q03), q00 - q11 + q22 - q33, 2.0 * (q23 - q01),
+                   -2.0 * (q13 - q02), 2.0 * (q23 + q01), q00 - q11 - q22 + q33]
 
     def _set_state(self, position: NDArray, velocity: NDArray, rotation: NDArray, omega: NDArray) -> None:
         self.data.qpos[0:3] = vec_ned_to_mj(position)
@@ -253,8 +282,8 @@ class HoverEnv(gym.Env):
         self._set_state(self.setpoint + u("position"), u("velocity"), exp_so3(u("attitude")), u("angular_velocity"))
         mujoco.mj_forward(self.model, self.data)
         self._read_state()
-        self.rotor_speeds = np.full(4, self.preset.hover_omega)
-        self._last_action = self.hover_action()
+        self._speeds = [float(self.preset.hover_omega)] * 4
+        self._last_action = self.hover_action().tolist()
         self._step_count = 0
         self.time = 0.0
         self._wind_seed, self._sensor_seed = np.random.SeedSequence(int(rng.integers(2**63))).spawn(2)
@@ -262,138 +291,173 @@ class HoverEnv(gym.Env):
         self.sensor.reset(np.random.default_rng(self._sensor_seed))
         if self._rate_loop is not None:
             self._rate_loop.reset()
-        self._applied_thrusts = self.preset.k_thrust * self.rotor_speeds**2
-        self._accel = np.zeros(3)
+        self._applied_thrusts = [self._k_thrust * w * w for w in self._speeds]
+        self._accel = [0.0, 0.0, 0.0]
         self._disturbance = self._compute_disturbance()
         self._failure = ""
-        info = self._info(action_clipped=False)
-        return self._observation_and_reward(info["measurement"], self._last_action)[0], info
+        return self._outputs(self._last_action, False)
 
-    def _compute_disturbance(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        b, v, r, w = self._state
-        points = np.empty((1, 5, 3))
-        points[0, 0] = b
-        points[0, 1:] = b + self._rotor_pos @ r.T
-        wind = self.wind.step(self.time, self.dt, points, v[None])
-        force, torque = self.aero.wrench(r[None], v[None], w[None], self.rotor_speeds[None], wind)
-        return force[0] + self._external_force, torque[0] + self._external_torque, wind[0, 0]
+    def _compute_disturbance(self) -> tuple[list[float], list[float], list[float]]:
+        """Wind at [CoM, rotor hubs] and the aero wrench (+ the user's external wrench), held over the next step."""
+        b, r = self._b, self._r
+        bx, by, bz = b
+        points = [bx, by, bz]
+        for px, py, pz in self._rotor_offsets:  # hub positions b + R r_i
+            points += (bx + r[0] * px + r[1] * py + r[2] * pz, by + r[3] * px + r[4] * py + r[5] * pz,
+                       bz + r[6] * px + r[7] * py + r[8] * pz)
+        wind = self.wind.step_floats(self.time, self.dt, points, self._v)
+        force, torque = self.aero.wrench_floats(r, self._v, self._w, self._speeds, wind)
+        fe, te = self._external_force, self._external_torque
+        return ([force[0] + fe[0], force[1] + fe[1], force[2] + fe[2]],
+                [torque[0] + te[0], torque[1] + te[1], torque[2] + te[2]], wind[0:3])
 
     def step(self, action: ArrayLike) -> tuple[NDArray[np.float32], float, bool, bool, dict]:
-        a = np.asarray(action, dtype=float).reshape(-1)
-        if a.shape != (4,):
-            raise ValueError(f"action must have 4 entries, got shape {np.shape(action)}")
-        values = a.tolist()
-        clipped_list = []
+        if type(action) is np.ndarray and action.shape == (4,) and action.dtype.kind == "f":
+            values = action.tolist()
+        else:
+            a = np.asarray(action, dtype=float).reshape(-1)
+            if a.shape != (4,):
+                raise ValueError(f"action must have 4 entries, got shape {np.shape(action)}")
+            values = a.tolist()
+        clipped = []
         for i, (x, lo, hi) in enumerate(zip(values, self._act_low_list, self._act_high_list, strict=True)):
             if not math.isfinite(x):
                 raise ValueError(f"action[{i}] is {x}; every action entry must be finite "
                                  f"(bounds {self._act_low_list} .. {self._act_high_list})")
-            clipped_list.append(lo if x < lo else hi if x > hi else x)
-        action_clipped = clipped_list != values
-        clipped = np.array(clipped_list)
+            clipped.append(lo if x < lo else hi if x > hi else x)
+        action_clipped = clipped != values
 
-        force, torque, _ = self._disturbance
-        self._xfrc[0:3] = force * _SIGN
-        self._ctrl[4:7] = torque * _SIGN
+        (fx, fy, fz), (tx, ty, tz), _ = self._disturbance  # NED/FRD -> MuJoCo world z-up / body FLU
+        xfrc, ctrl = self._xfrc_mv, self._ctrl_mv
+        xfrc[0], xfrc[1], xfrc[2] = fx, -fy, -fz
+        ctrl[4], ctrl[5], ctrl[6] = tx, -ty, -tz
         if self.action_type == "motors":
             self._applied_thrusts = self._run_motors(clipped)
         else:
-            self._applied_thrusts = self._run_ctbr(clipped)
+            self._applied_thrusts = self._run_ctbr(np.array(clipped))
         self.time += self.dt
         self._step_count += 1
 
-        d = self.data
-        warnings = d.warning.number
+        warnings = self._warnings
         if warnings[_BADQPOS] or warnings[_BADQVEL] or warnings[_BADQACC]:
             # MuJoCo found NaN/inf/huge values in qpos/qvel/qacc and reset its data (mj_checkPos/Vel/Acc):
-            # keep the last finite state (self._state) for the observation; the episode ends here
+            # keep the last finite state for the observation; the episode ends here
             self._failure = "diverged"
         else:
-            v_before = self._state[1]
+            v0 = self._v
             self._read_state()
-            self._accel = (self._state[1] - v_before) / self.dt
+            v1, inv_dt = self._v, 1.0 / self.dt
+            self._accel = [(v1[0] - v0[0]) * inv_dt, (v1[1] - v0[1]) * inv_dt, (v1[2] - v0[2]) * inv_dt]
             self._disturbance = self._compute_disturbance()
-            b, _, r, _ = self._state
-            if b[2] + (r[2] @ self._hull_points_t).max() >= 0.0:  # a hull/rotor point at or below the floor (z = 0)
+            b, sp = self._b, self.setpoint.tolist()  # (a public attribute users may change)
+            if b[2] + self._hull_radius >= 0.0 and self._touches_ground():
                 self._failure = "ground_contact"
-            elif np.abs(self._state[0] - self.setpoint).max() > self.max_position_error:
+            elif max(abs(b[0] - sp[0]), abs(b[1] - sp[1]), abs(b[2] - sp[2])) > self.max_position_error:
                 self._failure = "out_of_bounds"
-        info = self._info(action_clipped)
-        obs, reward = self._observation_and_reward(info["measurement"], clipped)
+        obs, info = self._outputs(clipped, action_clipped)
+        reward = self._reward
         self._last_action = clipped
         terminated = bool(self._failure)
         truncated = (not terminated) and self._step_count >= self.max_steps
         return obs, reward, terminated, truncated, info
 
-    def _motor_lag(self, omega_ref: NDArray[np.float64], decay_up: NDArray[np.float64],
-                   decay_down: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Exact speeds (K, 4) at K fixed times from the current speeds (see :mod:`.motors`).
+    def _touches_ground(self) -> bool:
+        """A hull corner or rotor hub at or below the floor (z_NED >= 0)."""
+        bz, (r20, r21, r22) = self._b[2], self._r[6:9]
+        return any(bz + r20 * px + r21 * py + r22 * pz >= 0.0 for px, py, pz in self._hull)
 
-        ``decay_up/down`` (K, 1) hold ``exp(-t_k / tau_up/down)``, precomputed: the time constant of each
-        rotor is fixed over the interval because the speed approaches its held reference monotonically.
+    def _run_motors(self, u: list[float]) -> list[float]:
+        """Exact first-order motor lag over the control step (see :mod:`.motors`); returns the mean rotor thrusts.
+
+        With the reference ``c`` held, a rotor's speed ``w(t) = c + (w0 - c) exp(-t / tau)`` approaches ``c``
+        monotonically, so its time constant (up or down) is fixed over the step.  The thrust of physics substep k
+        is ``k_T w(t_k)^2`` at the mid-substep time ``t_k``; its mean over the step is, in closed form,
+        ``k_T (c^2 + 2 c (w0 - c) <e> + (w0 - c)^2 <e^2>)`` with ``<e>``, ``<e^2>`` the mean decay factors.
         """
-        w0 = self.rotor_speeds
-        decay = np.where(omega_ref > w0, decay_up, decay_down)
-        return omega_ref + (w0 - omega_ref) * decay
+        span, w_min, w0 = self._omega_span, self._omega_min, self._speeds
+        c = [x * span + w_min for x in u]
+        combo = (c[0] > w0[0]) + 2 * (c[1] > w0[1]) + 4 * (c[2] > w0[2]) + 8 * (c[3] > w0[3])
+        d = [w0[0] - c[0], w0[1] - c[1], w0[2] - c[2], w0[3] - c[3]]
+        k = self._k_thrust
+        c0, c1, c2, c3 = c
+        d0, d1, d2, d3 = d
+        ctrl, m, data, step = self._ctrl_mv, self.model, self.data, mujoco.mj_step
+        for e0, e1, e2, e3 in self._decay_tables[combo]:  # speeds at the substep midpoints -> rotor thrusts
+            w0_, w1_, w2_, w3_ = c0 + d0 * e0, c1 + d1 * e1, c2 + d2 * e2, c3 + d3 * e3
+            ctrl[0], ctrl[1], ctrl[2], ctrl[3] = k * w0_ * w0_, k * w1_ * w1_, k * w2_ * w2_, k * w3_ * w3_
+            step(m, data)
+        end, mean, mean2 = self._decay_end, self._decay_mean, self._decay_mean2
+        speeds, thrusts = [], []
+        for i in range(4):
+            j = 0 if (combo >> i) & 1 else 1  # the tables hold (speeding up, slowing down)
+            ci, di = c[i], d[i]
+            speeds.append(ci + di * end[j])
+            thrusts.append(k * (ci * ci + 2.0 * ci * di * mean[j] + di * di * mean2[j]))
+        self._speeds = speeds
+        return thrusts
 
-    def _run_motors(self, u: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Exact motor lag over the control step; rotor thrust per substep from the mid-substep speed."""
-        speeds = self._motor_lag(u * self._omega_span + self._omega_min, *self._step_decay)
-        thrusts = speeds[:-1] ** 2 * self.preset.k_thrust
-        ctrl4, m, d, step = self._ctrl4, self.model, self.data, mujoco.mj_step
-        for row in thrusts:
-            ctrl4[:] = row
-            step(m, d)
-        self.rotor_speeds = speeds[-1]
-        return thrusts.sum(axis=0) * self._inv_substeps  # (np.mean costs ~10 us here)
-
-    def _run_ctbr(self, a: NDArray[np.float64]) -> NDArray[np.float64]:
+    def _run_ctbr(self, a: NDArray[np.float64]) -> list[float]:
         p = self.preset
         collective = a[0] * 4.0 * p.max_thrust_per_rotor
         rate_sp = a[1:] * MAX_RATES
         total = np.zeros(4)
         for _ in range(self.n_substeps):
-            omega = self.data.qvel[3:6] * _SIGN
+            omega = self._qvel[3:6] * _SIGN
             t_cmd = self._rate_loop.rotor_thrusts(collective, rate_sp, omega)
             omega_ref = np.sqrt(t_cmd / p.k_thrust)
-            mid, end = self._motor_lag(omega_ref, *self._substep_decay)
+            w0 = np.array(self._speeds)
+            decay = np.where(omega_ref > w0, *self._substep_decay)
+            mid, end = omega_ref + (w0 - omega_ref) * decay
             thrust = p.k_thrust * mid**2
-            self.data.ctrl[0:4] = thrust
+            self._ctrl4[:] = thrust
             mujoco.mj_step(self.model, self.data)
-            self.rotor_speeds = end
+            self._speeds = end.tolist()
             total += thrust
-        return total / self.n_substeps
+        return (total / self.n_substeps).tolist()
 
-    def _info(self, action_clipped: bool) -> dict[str, Any]:
-        b, v, r, w = self._state
-        meas = self.sensor.measure(self.time, b, v, r, w, self._accel)
-        f_torque = self._alloc @ self._applied_thrusts
-        force, torque, wind = self._disturbance
-        return {
-            "measurement": meas,
-            "applied": {"thrust": f_torque[0], "torque": f_torque[1:],
-                        "rotor_thrusts": self._applied_thrusts, "motor_speeds": self.rotor_speeds},
-            # the state arrays and the wrench are fresh every step (see _read_state/_compute_disturbance)
-            "truth": {M.POSITION: b, M.VELOCITY: v, M.ATTITUDE: r, M.ANGULAR_VELOCITY: w,
-                      "wind": wind.copy(), "force": force, "torque": torque},
-            "setpoint": self.setpoint.copy(),
+    def _outputs(self, action: list[float], action_clipped: bool) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        """Measurement -> observation (with ``action``, the action just applied), reward (kept in ``self._reward``)
+        and info, in float arithmetic (numpy only for the arrays handed out)."""
+        b, v, r, w = self._b, self._v, self._r, self._w
+        lists = self.sensor.measure_floats(b, v, r, w, self._accel)
+        pos, vel, att, rate = lists[0], lists[1], lists[2], lists[3]
+        sp = self.setpoint.tolist()
+        x = [pos[0] - sp[0], pos[1] - sp[1], pos[2] - sp[2], *vel, att[0], att[3], att[6], att[1], att[4], att[7],
+             *rate, *action]
+        obs = np.array([lo if xi < lo else hi if xi > hi else xi
+                        for xi, lo, hi in zip(x, self._obs_low_list, self._obs_high_list, strict=True)],
+                       dtype=np.float32)
+        if self._failure:
+            self._reward = -self.reward_weights["failure"]
+        else:
+            cos_phi = 0.5 * (att[0] + att[4] + att[8] - 1.0)
+            phi = math.acos(1.0 if cos_phi > 1.0 else -1.0 if cos_phi < -1.0 else cos_phi)
+            last = self._last_action
+            x[15], x[16], x[17], x[18] = x[15] - last[0], x[16] - last[1], x[17] - last[2], x[18] - last[3]
+            cost = 0.0
+            for wi, xi in zip(self._reward_w_list, x, strict=True):
+                cost += wi * xi * xi
+            self._reward = math.exp(-(cost + self._w_att * phi * phi))
+        t_rot = self._applied_thrusts
+        (a0, a1, a2, a3), force, torque, wind = self._alloc_rows, *self._disturbance
+        wrench = [row[0] * t_rot[0] + row[1] * t_rot[1] + row[2] * t_rot[2] + row[3] * t_rot[3]
+                  for row in (a0, a1, a2, a3)]
+        # every array handed out is a disjoint view of one fresh buffer (one conversion instead of twenty)
+        f = np.array([*pos, *vel, *att, *rate, *lists[4], *lists[5], *lists[6], *wrench[1:], *t_rot, *self._speeds,
+                      *b, *v, *r, *w, *wind, *force, *torque, *sp, self.time])
+        info = {
+            "measurement": {M.POSITION: f[0:3], M.VELOCITY: f[3:6], M.ATTITUDE: f[6:15].reshape(3, 3),
+                            M.ANGULAR_VELOCITY: f[15:18], M.SPECIFIC_FORCE: f[18:21], M.GYRO: f[21:24],
+                            M.MAGNETOMETER: f[24:27], M.TIME: f[68, ...]},
+            "applied": {"thrust": wrench[0], "torque": f[27:30], "rotor_thrusts": f[30:34], "motor_speeds": f[34:38]},
+            "truth": {M.POSITION: f[38:41], M.VELOCITY: f[41:44], M.ATTITUDE: f[44:53].reshape(3, 3),
+                      M.ANGULAR_VELOCITY: f[53:56], "wind": f[56:59], "force": f[59:62], "torque": f[62:65]},
+            "setpoint": f[65:68],
             "action_clipped": action_clipped,
             "failure": self._failure,
             "time": self.time,
         }
-
-    def _observation_and_reward(self, meas: Mapping[str, NDArray[np.float64]],
-                                action: NDArray[np.float64]) -> tuple[NDArray[np.float32], float]:
-        """The observation (with ``action``, the action just applied) and the reward, from one vector."""
-        r = meas[M.ATTITUDE]
-        x = np.concatenate([meas[M.POSITION] - self.setpoint, meas[M.VELOCITY], r[:, 0], r[:, 1],
-                            meas[M.ANGULAR_VELOCITY], action])
-        obs = np.minimum(np.maximum(x, self._obs_low), self._obs_high).astype(np.float32)  # (faster than clip)
-        if self._failure:
-            return obs, -self.reward_weights["failure"]
-        phi = math.acos(min(1.0, max(-1.0, 0.5 * (r[0, 0] + r[1, 1] + r[2, 2] - 1.0))))
-        x[15:] -= self._last_action  # the action-rate term
-        return obs, math.exp(-(float(self._reward_w @ (x * x)) + self._w_att * phi * phi))
+        return obs, info
 
     # ---- rendering ----------------------------------------------------------------------
     def render(self) -> NDArray[np.uint8] | None:

@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fawtgym.observers.lie import exp_so3
+from fawtgym.observers.lie import _SMALL
 
 from . import measurement as M
 from .vehicles import GRAVITY
@@ -73,7 +73,6 @@ class SensorSpec:
             raise ValueError(f"sensor field 'pose_rate' must be > 0 Hz, got {self.pose_rate!r}")
 
 
-_GRAVITY_NED = np.array([0.0, 0.0, GRAVITY])
 _IMU_250 = dict(gyro_density=0.015 / math.sqrt(250.0), accel_density=0.35 / math.sqrt(250.0), mag_sigma=0.005)
 
 SENSOR_PRESETS: dict[str, SensorSpec] = {
@@ -126,33 +125,85 @@ class SensorModel:
 
     def reset(self, rng: np.random.Generator) -> None:
         self.rng = rng
-        self._vecs = np.array([np.zeros(3), M.EARTH_FIELD_NED])
         self.gyro_bias = rng.normal(0.0, self.spec.gyro_bias_sigma, 3) if self.spec.gyro_bias_sigma else np.zeros(3)
         self.accel_bias = rng.normal(0.0, self.spec.accel_bias_sigma, 3) if self.spec.accel_bias_sigma else np.zeros(3)
-        self._pose: dict[str, NDArray[np.float64]] | None = None
+        self._gyro_bias, self._accel_bias = self.gyro_bias.tolist(), self.accel_bias.tolist()
+        self._pose: tuple[list[float], list[float], list[float]] | None = None
         self._count = 0
 
     def measure(self, t: float, position: NDArray[np.float64], velocity: NDArray[np.float64],
                 rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],
                 acceleration: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
-        """Measurement at time ``t`` from the true state and NED acceleration."""
-        # one product for both body-frame vectors: rows [a - g e3, m_E] @ R = (R^T [a - g e3, m_E])^T
-        vecs = self._vecs
-        np.subtract(acceleration, _GRAVITY_NED, out=vecs[0])
-        f_sp, mag = vecs @ rotation
+        """Measurement at time ``t`` from the true state (arrays) and NED acceleration."""
+        lists = self.measure_floats(np.ravel(position).tolist(), np.ravel(velocity).tolist(),
+                                    np.ravel(rotation).tolist(), np.ravel(angular_velocity).tolist(),
+                                    np.ravel(acceleration).tolist())
+        return as_measurement(lists, t)
+
+    def measure_floats(self, b: list[float], v: list[float], r: list[float], w: list[float],
+                       acc: list[float]) -> tuple[list[float], ...]:
+        """:meth:`measure` in float arithmetic (the env's hot path): state as lists (``r``: R row-major, 9),
+        returns ``(position, velocity, attitude (9, row-major), angular_velocity, specific_force, gyro,
+        magnetometer)`` as fresh lists; :func:`as_measurement` turns them into the measurement mapping."""
+        r0, r1, r2, r3, r4, r5, r6, r7, r8 = r
+        # body-frame vectors R^T (a - g e3) and R^T m_E
+        ax, ay, az = acc[0], acc[1], acc[2] - GRAVITY
+        f_sp = [r0 * ax + r3 * ay + r6 * az, r1 * ax + r4 * ay + r7 * az, r2 * ax + r5 * ay + r8 * az]
+        mx, my, mz = _FIELD
+        mag = [r0 * mx + r3 * my + r6 * mz, r1 * mx + r4 * my + r7 * mz, r2 * mx + r5 * my + r8 * mz]
         if not self.noisy:
-            pose = {M.POSITION: position.copy(), M.VELOCITY: velocity.copy(), M.ATTITUDE: rotation.copy()}
-            return {**pose, M.ANGULAR_VELOCITY: angular_velocity.copy(), M.SPECIFIC_FORCE: f_sp,
-                    M.GYRO: angular_velocity.copy(), M.MAGNETOMETER: mag, M.TIME: np.asarray(t)}
-        n = self.rng.normal(size=18)
+            return list(b), list(v), list(r), list(w), f_sp, list(w), mag
+        n = self.rng.normal(size=18).tolist()
         if self._pose is None or self._count % self.pose_every == 0:
-            self._pose = {M.POSITION: position + self.sig_pos * n[0:3],
-                          M.VELOCITY: velocity + self.sig_vel * n[3:6],
-                          M.ATTITUDE: rotation @ exp_so3(self.sig_att * n[6:9])}
+            sp, sv = self.sig_pos, self.sig_vel
+            self._pose = ([b[0] + sp * n[0], b[1] + sp * n[1], b[2] + sp * n[2]],
+                          [v[0] + sv * n[3], v[1] + sv * n[4], v[2] + sv * n[5]],
+                          _mul33(r, _exp_so3(self.sig_att * n[6], self.sig_att * n[7], self.sig_att * n[8])))
         self._count += 1
-        return {**{k: v.copy() for k, v in self._pose.items()},
-                M.ANGULAR_VELOCITY: angular_velocity + self.sig_rate * n[9:12],
-                M.SPECIFIC_FORCE: f_sp + self.accel_bias + self.sig_acc * n[12:15],
-                M.GYRO: angular_velocity + self.gyro_bias + self.sig_gyro * n[15:18],
-                M.MAGNETOMETER: mag + self.spec.mag_sigma * self.rng.normal(size=3),
-                M.TIME: np.asarray(t)}
+        sr, sa, sg = self.sig_rate, self.sig_acc, self.sig_gyro
+        ba, bg = self._accel_bias, self._gyro_bias
+        m = self.rng.normal(size=3).tolist()
+        sm = self.spec.mag_sigma
+        pos, vel, att = self._pose
+        return (list(pos), list(vel), list(att),
+                [w[0] + sr * n[9], w[1] + sr * n[10], w[2] + sr * n[11]],
+                [f_sp[0] + ba[0] + sa * n[12], f_sp[1] + ba[1] + sa * n[13], f_sp[2] + ba[2] + sa * n[14]],
+                [w[0] + bg[0] + sg * n[15], w[1] + bg[1] + sg * n[16], w[2] + bg[2] + sg * n[17]],
+                [mag[0] + sm * m[0], mag[1] + sm * m[1], mag[2] + sm * m[2]])
+
+
+_FIELD = tuple(M.EARTH_FIELD_NED.tolist())
+
+
+def as_measurement(lists: tuple[list[float], ...], t: float) -> dict[str, NDArray[np.float64]]:
+    """The measurement mapping (fresh arrays) from :meth:`SensorModel.measure_floats`' lists."""
+    pos, vel, att, rate, f_sp, gyro, mag = lists
+    return {M.POSITION: np.array(pos), M.VELOCITY: np.array(vel), M.ATTITUDE: np.array(att).reshape(3, 3),
+            M.ANGULAR_VELOCITY: np.array(rate), M.SPECIFIC_FORCE: np.array(f_sp), M.GYRO: np.array(gyro),
+            M.MAGNETOMETER: np.array(mag), M.TIME: np.asarray(float(t))}
+
+
+def _exp_so3(x: float, y: float, z: float) -> list[float]:
+    """Rodrigues' formula (row-major 3x3) in floats, with the small-angle series of :func:`.lie.exp_so3`."""
+    th2 = x * x + y * y + z * z
+    if th2 < _SMALL:
+        a = 1.0 - th2 / 6.0 + th2 * th2 / 120.0
+        b = 0.5 - th2 / 24.0 + th2 * th2 / 720.0
+    else:
+        th = math.sqrt(th2)
+        a = math.sin(th) / th
+        b = (1.0 - math.cos(th)) / th2
+    bxy, bxz, byz = b * x * y, b * x * z, b * y * z
+    return [1.0 - b * (y * y + z * z), bxy - a * z, bxz + a * y,
+            bxy + a * z, 1.0 - b * (x * x + z * z), byz - a * x,
+            bxz - a * y, byz + a * x, 1.0 - b * (x * x + y * y)]
+
+
+def _mul33(p: list[float], q: list[float]) -> list[float]:
+    """Row-major 3x3 product p q in floats."""
+    return [p[0] * q[0] + p[1] * q[3] + p[2] * q[6], p[0] * q[1] + p[1] * q[4] + p[2] * q[7],
+            p[0] * q[2] + p[1] * q[5] + p[2] * q[8],
+            p[3] * q[0] + p[4] * q[3] + p[5] * q[6], p[3] * q[1] + p[4] * q[4] + p[5] * q[7],
+            p[3] * q[2] + p[4] * q[5] + p[5] * q[8],
+            p[6] * q[0] + p[7] * q[3] + p[8] * q[6], p[6] * q[1] + p[7] * q[4] + p[8] * q[7],
+            p[6] * q[2] + p[7] * q[5] + p[8] * q[8]]

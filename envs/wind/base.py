@@ -30,6 +30,15 @@ class WindModel(abc.ABC):
         ``vehicle_velocity_ned`` (N, 3) sets the frozen-turbulence airspeed of the gust filters.
         """
 
+    def step_floats(self, t: float, dt: float, points_ned: list[float], vehicle_velocity_ned: list[float]
+                    ) -> list[float]:
+        """:meth:`step` for one vehicle (``reset(1)``) on plain floats: K points flat (3 K) in, the wind flat out.
+
+        The single env's hot path; models with a float fast path override it (tested equal to :meth:`step`).
+        """
+        pts = np.array(points_ned, dtype=float).reshape(1, -1, 3)
+        return self.step(t, dt, pts, np.array([vehicle_velocity_ned], dtype=float)).ravel().tolist()
+
 
 class CalmWind(WindModel):
     """Still air."""
@@ -40,6 +49,10 @@ class CalmWind(WindModel):
     def step(self, t: float, dt: float, points_ned: NDArray[np.float64],
              vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.zeros(np.shape(points_ned))
+
+    def step_floats(self, t: float, dt: float, points_ned: list[float], vehicle_velocity_ned: list[float]
+                    ) -> list[float]:
+        return [0.0] * len(points_ned)
 
 
 _WIND_REGISTRY: dict[str, Callable[..., WindModel]] = {"calm": CalmWind}

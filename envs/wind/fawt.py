@@ -261,14 +261,25 @@ class FawtWind(WindModel):
 
     def _step_single(self, t: float, dt: float, points_ned: NDArray[np.float64],
                      vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
-        """N = 1 path in plain float arithmetic: the same model as the vectorized path (tested equal)."""
+        """N = 1 :meth:`step` through the float path :meth:`step_floats` (tested equal to the vectorized path)."""
         if points_ned.ndim != 3 or points_ned.shape[0] != 1 or points_ned.shape[2] != 3 \
                 or vehicle_velocity_ned.shape != (1, 3):
             check_points(points_ned, vehicle_velocity_ned, 1)
-        flat = points_ned.ravel().tolist()
-        vx, vy, vz = vehicle_velocity_ned[0].tolist()
-        if not math.isfinite(sum(flat) + vx + vy + vz):
+        flat, vel = points_ned.ravel().tolist(), vehicle_velocity_ned[0].tolist()
+        if not math.isfinite(sum(flat) + sum(vel)):
             check_points(points_ned, vehicle_velocity_ned, 1)
+        return np.array(self.step_floats(t, dt, flat, vel)).reshape(1, -1, 3)
+
+    def step_floats(self, t: float, dt: float, points_ned: list[float], vehicle_velocity_ned: list[float]
+                    ) -> list[float]:
+        """One vehicle, plain float arithmetic: the same model as the vectorized :meth:`step`."""
+        flat = points_ned
+        vx, vy, vz = vehicle_velocity_ned
+        if self.n != 1 or self.rates or not (dt > 0 and math.isfinite(dt)):
+            return super().step_floats(t, dt, flat, vehicle_velocity_ned)  # step(): vectorized path or dt error
+        if len(flat) % 3 or not math.isfinite(sum(flat) + vx + vy + vz):
+            raise ValueError(f"points_ned must be 3 K finite coordinates and vehicle_velocity_ned 3 finite values, "
+                             f"got {flat} and {vehicle_velocity_ned}")
         self.level = level = self.schedule.advance(t - dt, t, self.level)
         self._t = t
         scale = self.mean_speed * level
@@ -276,6 +287,7 @@ class FawtWind(WindModel):
         sig_g, half_y, half_z, kappa, core_ref, f_ref = (GOERTLER_SIGMA, HALF_SPAN, HALF_HEIGHT, DECAY_KAPPA,
                                                          _CORE_REF, _F_REF)
         erf, exp = math.erf, math.exp
+        turbulent = self.turbulence and level > 0.0
         means, weights = [], []
         for k in range(0, len(flat), 3):  # inlined _profile_point
             x = flat[k] - ox
@@ -290,21 +302,21 @@ class FawtWind(WindModel):
             fz = 0.5 + 0.5 * erf(ez)
             core = core_ref / (1.0 + kappa * (x if x > 1e-3 else 1e-3))
             means.append(scale * fy * fz * core / f_ref)
-            gy, gz = exp(-ey * ey) * fz, exp(-ez * ez) * fy
-            weights.append((gy if gy > gz else gz) * core * core)
-        if self.turbulence and level > 0.0:
+            if turbulent:
+                gy, gz = exp(-ey * ey) * fz, exp(-ez * ez) * fy
+                weights.append((gy if gy > gz else gz) * core * core)
+        out: list[float] = []
+        if turbulent:
             rx = means[0] - vx
             gu, gv, gw = self.process.step1(dt, math.sqrt(rx * rx + vy * vy + vz * vz))[:3]
             ti, sh = self.ti, (SHEAR_TI * scale) ** 2
-            out = []
             for u, g in zip(means, weights, strict=True):
                 s = math.sqrt((ti * u) ** 2 + sh * g) if g > 0.0 else ti * u
                 out += (u + s * gu, -s * gv, -s * gw)
-            return np.array(out).reshape(1, -1, 3)
-        out = []
+            return out
         for u in means:
             out += (u, 0.0, 0.0)
-        return np.array(out).reshape(1, -1, 3)
+        return out
 
     def mean_wind_at(self, points_ned: Sequence[float] | NDArray[np.float64]) -> NDArray[np.float64]:
         """Mean wind (..., 3) NED at points (..., 3) for the current fan level (no turbulence)."""
