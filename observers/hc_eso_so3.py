@@ -27,14 +27,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.envs import measurement as M
+from fawtgym.envs.measurement import _TRAILING as _MEAS_TRAILING
 
 from . import vector_attitude as va
+from ._obs_common import single_inputs
 from .base import Observer, ObserverEstimate, register_observer
 from .lie import _SMALL as _LIE_SMALL
 from .lie import exp_so3
@@ -123,6 +125,125 @@ def _exp_so3(w: NDArray[np.float64]) -> NDArray[np.float64]:
     return _EYE + a * k + b * (k @ k)
 
 
+def _exp_so3_single(x0: float, x1: float, x2: float) -> tuple[float, ...]:
+    """exp(x^) row-major as 9 Python floats: the formulas and threshold of :func:`_exp_so3` / lie.exp_so3,
+    ``I + a x^ + b x^ x^`` with ``x^ x^ = x x^T - |x|^2 I`` (NaN where those give NaN)."""
+    t2 = x0 * x0 + x1 * x1 + x2 * x2
+    if t2 < _LIE_SMALL:
+        a, b = 1.0 - t2 / 6.0 + t2 * t2 / 120.0, 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+    elif t2 == math.inf:  # numpy's sin(inf) is NaN (math.sin raises): NaN, as the batched exponential
+        return (math.nan,) * 9
+    else:
+        t = math.sqrt(t2)
+        a, b = math.sin(t) / t, (1.0 - math.cos(t)) / (t * t)
+    b01, b02, b12 = b * (x0 * x1), b * (x0 * x2), b * (x1 * x2)
+    return (1.0 + b * (-(x2 * x2) - x1 * x1), -a * x2 + b01, a * x1 + b02,
+            a * x2 + b01, 1.0 + b * (-(x2 * x2) - x0 * x0), -a * x0 + b12,
+            -a * x1 + b02, a * x0 + b12, 1.0 + b * (-(x1 * x1) - x0 * x0))
+
+
+def _matmul_single(a: Sequence[float], b: Sequence[float]) -> tuple[float, ...]:
+    """Product of two 3 x 3 matrices given row-major as 9 floats."""
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = a
+    b00, b01, b02, b10, b11, b12, b20, b21, b22 = b
+    return (a00 * b00 + a01 * b10 + a02 * b20, a00 * b01 + a01 * b11 + a02 * b21, a00 * b02 + a01 * b12 + a02 * b22,
+            a10 * b00 + a11 * b10 + a12 * b20, a10 * b01 + a11 * b11 + a12 * b21, a10 * b02 + a11 * b12 + a12 * b22,
+            a20 * b00 + a21 * b10 + a22 * b20, a20 * b01 + a21 * b11 + a22 * b21, a20 * b02 + a21 * b12 + a22 * b22)
+
+
+def hc_eso_step_single(r_hat: Sequence[float], omega_hat: Sequence[float], sigma_hat: Sequence[float],
+                       l: Sequence[float], omega_m: Sequence[float], tau: Sequence[float],
+                       inertia: Sequence[float], inertia_inv: Sequence[float], gains: HcEsoGains,
+                       h: float) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+    """:func:`hc_eso_step` for one vehicle in Python floats (the observer's N = 1 fast path).
+
+    Matrices (R_hat, L, J, J^-1) row-major as 9 floats, vectors as 3 floats.  The same equations as
+    :func:`hc_eso_rates` and :func:`hc_eso_step`, written out per component with ``A = L^T R_hat``:
+
+    * ``s_L = vex(A - A^T)`` (eq. 22), i.e. (A21 - A12, A02 - A20, A10 - A01);
+    * ``w_L = (tr(A) I - A^T) Omega_hat - (tr(A) I - A) Omega^m`` (eq. 27: vex(A W + W A^T) = (tr(A) I - A^T) w
+      for W = w^x, the closed form of :func:`vector_attitude.s_l_w_l`);
+    * ``z_L = (s_L^T s_L)^((alpha-1)/gamma) s_L`` (eq. 26), ``Psi = Omega^m - Omega_hat - kappa z_L`` (eqs. 17, 29);
+    * ``H(s_L) w_L = w_L - 2 (1-alpha)/gamma (s_L^T w_L) / (s_L^T s_L) s_L`` (eq. 28);
+    * P, Q of eq. 30 and one Lie-Euler step ``R_hat exp(h Omega_hat^x)``, ``Omega_hat + h P``, ``sigma_hat + h Q``.
+
+    The floor on s^T s and Psi^T Psi is :data:`vector_attitude._S2_FLOOR`, as in the batched functions.
+    Returns (R_hat, Omega_hat, sigma_hat) as tuples of floats.
+    """
+    a_, g_ = gains.alpha, float(gains.gamma)
+    kap = gains.kappa
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = r_hat
+    l00, l01, l02, l10, l11, l12, l20, l21, l22 = l
+    w0, w1, w2 = omega_hat
+    o0, o1, o2 = omega_m
+    # A = L^T R_hat
+    a00 = l00 * r00 + l10 * r10 + l20 * r20
+    a01 = l00 * r01 + l10 * r11 + l20 * r21
+    a02 = l00 * r02 + l10 * r12 + l20 * r22
+    a10 = l01 * r00 + l11 * r10 + l21 * r20
+    a11 = l01 * r01 + l11 * r11 + l21 * r21
+    a12 = l01 * r02 + l11 * r12 + l21 * r22
+    a20 = l02 * r00 + l12 * r10 + l22 * r20
+    a21 = l02 * r01 + l12 * r11 + l22 * r21
+    a22 = l02 * r02 + l12 * r12 + l22 * r22
+    s0, s1, s2 = a21 - a12, a02 - a20, a10 - a01  # s_L, eq. 22
+    t12, t02, t01 = a11 + a22, a00 + a22, a00 + a11
+    wl0 = (t12 * w0 - a10 * w1 - a20 * w2) - (t12 * o0 - a01 * o1 - a02 * o2)  # w_L, eq. 27
+    wl1 = (t02 * w1 - a01 * w0 - a21 * w2) - (t02 * o1 - a10 * o0 - a12 * o2)
+    wl2 = (t01 * w2 - a02 * w0 - a12 * w1) - (t01 * o2 - a20 * o0 - a21 * o1)
+    ss = s0 * s0 + s1 * s1 + s2 * s2
+    ss = ss if ss > va._S2_FLOOR else va._S2_FLOOR
+    zf = ss ** ((a_ - 1.0) / g_)  # (s^T s)^((alpha-1)/gamma), eqs. 26, 30
+    kz = kap * zf
+    p0, p1, p2 = (o0 - w0) - kz * s0, (o1 - w1) - kz * s1, (o2 - w2) - kz * s2  # Psi, eq. 29
+    pp = p0 * p0 + p1 * p1 + p2 * p2
+    pp = pp if pp > va._S2_FLOOR else va._S2_FLOOR
+    hc = 2.0 * (1.0 - a_) / g_ * (s0 * wl0 + s1 * wl1 + s2 * wl2) / ss  # H(s_L) w_L, eq. 28
+    hw0, hw1, hw2 = wl0 - hc * s0, wl1 - hc * s1, wl2 - hc * s2
+    j00, j01, j02, j10, j11, j12, j20, j21, j22 = inertia
+    i00, i01, i02, i10, i11, i12, i20, i21, i22 = inertia_inv
+    jw0, jw1, jw2 = j00 * o0 + j01 * o1 + j02 * o2, j10 * o0 + j11 * o1 + j12 * o2, j20 * o0 + j21 * o1 + j22 * o2
+    u0 = jw1 * o2 - jw2 * o1 + tau[0]  # J Omega^m x Omega^m + tau
+    u1 = jw2 * o0 - jw0 * o2 + tau[1]
+    u2 = jw0 * o1 - jw1 * o0 + tau[2]
+    kp = gains.k_psi * pp ** ((a_ - 1.0) / 2.0)
+    sg0, sg1, sg2 = sigma_hat
+    pd0 = i00 * u0 + i01 * u1 + i02 * u2 + sg0 + kp * p0 - kz * hw0  # P of eq. 30
+    pd1 = i10 * u0 + i11 * u1 + i12 * u2 + sg1 + kp * p1 - kz * hw1
+    pd2 = i20 * u0 + i21 * u1 + i22 * u2 + sg2 + kp * p2 - kz * hw2
+    ks = gains.k_sigma * pp ** (a_ - 1.0)  # Q of eq. 30 is ks Psi
+    rot = _matmul_single(r_hat, _exp_so3_single(h * w0, h * w1, h * w2))
+    return (rot, (w0 + h * pd0, w1 + h * pd1, w2 + h * pd2),
+            (sg0 + h * (ks * p0), sg1 + h * (ks * p1), sg2 + h * (ks * p2)))
+
+
+#: allowed shapes of every known measurement key in an N = 1 step: (trailing) or (1, *trailing)
+_SINGLE_SHAPES = {k: (t, (1,) + t) for k, t in _MEAS_TRAILING.items()}
+
+
+def _single_shapes_ok(measurement: Mapping[str, object], torque: object) -> bool:
+    """True iff :func:`fawtgym.envs.measurement.batch_measurement` accepts ``measurement`` as an N = 1 batch
+    (every value a numeric ndarray or a number, every known key shaped (trailing) or (1, *trailing)) and
+    ``torque`` is (3,) or (1, 3).
+
+    Anything else goes to the batched path, which raises (or, for a shape it does accept, computes) as before.
+    """
+    ts = torque.shape if type(torque) is np.ndarray else np.shape(torque)
+    if ts != (3,) and ts != (1, 3):
+        return False
+    shapes = _SINGLE_SHAPES
+    for key, value in measurement.items():
+        if type(value) is np.ndarray:
+            if value.dtype.kind not in "fiub":
+                return False
+            allowed = shapes.get(key)
+            if allowed is not None and value.shape not in allowed:
+                return False
+        elif not isinstance(value, (int, float)) or key in shapes and key != M.TIME:
+            return False
+    return True
+
+
 VECTOR_SOURCES = ("imu", "attitude")
 
 
@@ -141,9 +262,16 @@ class HcEsoSO3(Observer):
 
     ``states``: ``"attitude"`` R_hat (N, 3, 3), ``"angular_velocity"`` Omega_hat (N, 3),
     ``"sigma"`` sigma_hat = J^-1 tau_hat (N, 3).
+
+    A single vehicle (N = 1 at reset) takes a fast path (:meth:`_update_single`: the same equations in
+    Python floats, :func:`hc_eso_step_single`) whenever the step is well formed and finite (numpy
+    arrays or numbers as measurement values); anything else takes the batched path, the reference,
+    which raises the usual errors.
     """
 
     channels = frozenset({"torque"})
+    #: False sends every update through the batched path (tests compare the two paths)
+    _fast_path: bool = True
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, alpha: float = 0.85,
                  gamma: int = 2, kappa: float = 0.15, k_sigma: float = 5.0, k_psi: float = 5.0,
@@ -169,6 +297,15 @@ class HcEsoSO3(Observer):
         self._ew = self._e @ self._w
         self._state: tuple[NDArray[np.float64], ...] | None = None
         self._held: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+        # N = 1 fast path: (R_hat, Omega_hat, sigma_hat, L, Omega^m) as tuples/lists of floats, newer than
+        # self._state / self._held when not None (written back by _sync_single)
+        self._single: tuple[Sequence[float], ...] | None = None
+        self._jl = tuple(self.inertia.ravel().tolist())
+        self._jil = tuple(self.inertia_inv.ravel().tolist())
+        self._ewl = tuple(self._ew.ravel().tolist())
+        self._el = tuple(self._e.ravel().tolist())
+        self._keys = (((M.ATTITUDE,) if vectors == "attitude" else (M.SPECIFIC_FORCE, M.MAGNETOMETER))
+                      + (rate_key,))
 
     def _measured(self, meas: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.float64], ...]:
         keys = (M.ATTITUDE,) if self.vectors == "attitude" else (M.SPECIFIC_FORCE, M.MAGNETOMETER)
@@ -197,11 +334,85 @@ class HcEsoSO3(Observer):
             sigma = np.broadcast_to(t @ self.inertia_inv.T, omega_m.shape).copy()
         self._state = (va.solve_wahba(l), omega_m.copy(), sigma)
         self._held = (l, omega_m)
+        self._single = None
+
+    def _gain_matrix_single(self, values: list[list[float]]) -> list[float] | None:
+        """L = (E W) (U^m)^T for one vehicle (as :meth:`_measured`), row-major 9 floats; None where
+        :meth:`_measured` raises (degenerate IMU vectors)."""
+        if self.vectors == "attitude":
+            rm = values[0]
+            u = _matmul_single(rm[0::3] + rm[1::3] + rm[2::3], self._el)  # U^m = (R^m)^T E
+        else:
+            u = va.imu_body_vectors_single(values[0], values[1])
+            if u is None:
+                return None
+        e00, e01, e02, e10, e11, e12, e20, e21, e22 = self._ewl
+        u00, u01, u02, u10, u11, u12, u20, u21, u22 = u
+        return [e00 * u00 + e01 * u01 + e02 * u02, e00 * u10 + e01 * u11 + e02 * u12, e00 * u20 + e01 * u21 + e02 * u22,
+                e10 * u00 + e11 * u01 + e12 * u02, e10 * u10 + e11 * u11 + e12 * u12, e10 * u20 + e11 * u21 + e12 * u22,
+                e20 * u00 + e21 * u01 + e22 * u02, e20 * u10 + e21 * u11 + e22 * u12, e20 * u20 + e21 * u21 + e22 * u22]
+
+    def _update_single(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
+                       dt: float) -> ObserverEstimate | None:
+        """N = 1 fast path: :meth:`update`'s batched step in Python floats (:func:`hc_eso_step_single`).
+
+        Same scheme as the batched path: ``ceil(dt / max_step)`` Lie-Euler substeps of eq. 30 with the
+        held L (propagated by ``exp(h (Omega^m)^x)`` between substeps) and Omega^m, then the new
+        measurement becomes the held one.  Returns None, touching nothing, unless the step is a
+        well-formed, finite N = 1 step (:func:`_obs_common.single_inputs`, :func:`_single_shapes_ok`)
+        with usable vectors; :meth:`update`'s batched path then runs and raises its usual errors.
+        """
+        got = single_inputs(measurement, self._keys, thrust, torque, dt)
+        if got is None or not _single_shapes_ok(measurement, torque):
+            return None
+        values, _, tau = got
+        new_l = self._gain_matrix_single(values)
+        if new_l is None:
+            return None
+        cache = self._single
+        if cache is None:  # after reset / a batched step: read the numpy state
+            st, held = self._state, self._held
+            r_hat, omega_hat, sigma_hat = (x[0].ravel().tolist() for x in st)
+            l, omega_m = held[0][0].ravel().tolist(), held[1][0].tolist()
+        else:
+            r_hat, omega_hat, sigma_hat, l, omega_m = cache
+        steps = max(1, math.ceil(dt / self.max_step - 1e-9))
+        h = dt / steps
+        rot = _exp_so3_single(h * omega_m[0], h * omega_m[1], h * omega_m[2]) if steps > 1 else None
+        jl, jil, gains = self._jl, self._jil, self.gains
+        for k in range(steps):  # time substeps, as update()
+            r_hat, omega_hat, sigma_hat = hc_eso_step_single(r_hat, omega_hat, sigma_hat, l, omega_m, tau, jl, jil,
+                                                             gains, h)
+            if k + 1 < steps:
+                l = _matmul_single(l, rot)
+        if not math.isfinite(sum(omega_hat) + sum(sigma_hat)) and not all(map(math.isfinite, omega_hat + sigma_hat)):
+            raise ValueError(f"HC-ESO state became non-finite (dt={dt}, max_step={self.max_step}); "
+                             "reduce max_step or the gains")
+        self._single = (r_hat, omega_hat, sigma_hat, new_l, values[-1])
+        s0, s1, s2 = sigma_hat
+        j00, j01, j02, j10, j11, j12, j20, j21, j22 = jl
+        out = np.fromiter((0.0, 0.0, 0.0, j00 * s0 + j01 * s1 + j02 * s2, j10 * s0 + j11 * s1 + j12 * s2,
+                           j20 * s0 + j21 * s1 + j22 * s2, *r_hat, *omega_hat, *sigma_hat), float, 21).reshape(7, 3)
+        return ObserverEstimate(force=out[0:1], torque=out[1:2],  # fresh arrays, not views of the float state
+                                states={"attitude": out[None, 2:5], "angular_velocity": out[5:6], "sigma": out[6:7]})
+
+    def _sync_single(self) -> None:
+        """Write the float state of the last N = 1 fast step back into self._state / self._held."""
+        if self._single is not None:
+            r_hat, omega_hat, sigma_hat, l, omega_m = self._single
+            self._state = (np.array(r_hat).reshape(1, 3, 3), np.array([omega_hat]), np.array([sigma_hat]))
+            self._held = (np.array(l).reshape(1, 3, 3), np.array([omega_m]))
+            self._single = None
 
     def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
                dt: float) -> ObserverEstimate:
         if self._state is None or self._held is None:
             raise ValueError("HcEsoSO3.update called before reset(measurement)")
+        if self._fast_path and self._state[0].shape[0] == 1:
+            est = self._update_single(measurement, thrust, torque, dt)
+            if est is not None:
+                return est
+        self._sync_single()
         meas, _, tau = self._inputs(measurement, thrust, torque, dt)
         r_hat, omega_hat, sigma_hat = self._state
         n = r_hat.shape[0]
@@ -224,6 +435,8 @@ class HcEsoSO3(Observer):
         new_l, new_omega = self._measured(meas)
         if new_l.shape[0] != n:
             raise ValueError(f"measurement batch size {new_l.shape[0]} != {n} set at reset")
+        if new_omega.shape[0] != n:
+            raise ValueError(f"measurement[{self.rate_key!r}] batch size {new_omega.shape[0]} != {n} set at reset")
         self._state = (r_hat, omega_hat, sigma_hat)
         self._held = (new_l, new_omega)
         return ObserverEstimate(force=np.zeros((n, 3)), torque=sigma_hat @ self.inertia.T,

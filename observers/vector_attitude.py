@@ -17,6 +17,9 @@ vehicle's own acceleration is small compared with g), the Earth field, and their
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -204,3 +207,28 @@ def imu_body_vectors(f: NDArray[np.float64], m: NDArray[np.float64]) -> NDArray[
 
 _I1 = np.array([1, 2, 0])
 _I2 = np.array([2, 0, 1])
+
+
+def imu_body_vectors_single(f: Sequence[float], m: Sequence[float]) -> list[float] | None:
+    """:func:`imu_body_vectors` for one vehicle in Python floats (the HC-ESO's N = 1 fast path).
+
+    ``f``, ``m``: the 3 finite components of the specific force and the magnetometer.  Returns U^m
+    (3 x 3, columns -f/|f|, m/|m|, their normalized cross product) row-major as 9 floats, with the
+    same operations as the batched function, or None where that function raises (a direction of
+    length < 1e-9); the caller then takes the batched path, which raises the error.
+    """
+    f0, f1, f2 = f
+    n = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+    if n < 1e-9:
+        return None
+    g0, g1, g2 = -f0 / n, -f1 / n, -f2 / n
+    m0, m1, m2 = m
+    n = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+    if n < 1e-9:
+        return None
+    m0, m1, m2 = m0 / n, m1 / n, m2 / n
+    c0, c1, c2 = g1 * m2 - g2 * m1, g2 * m0 - g0 * m2, g0 * m1 - g1 * m0  # g_b x m_b
+    n = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+    if n < 1e-9:
+        return None
+    return [g0, m0, c0 / n, g1, m1, c1 / n, g2, m2, c2 / n]
