@@ -42,11 +42,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.envs.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FORCE
 
+from ._obs_common import single_inputs
 from .base import Observer, ObserverEstimate, register_observer
 from .lie import hat, vee
 from .pdt_sta import check_params, switch_and_gain_times
 from .quest import _cross as _cross_any
-from .quest import quest_unit
+from .quest import _quest_unit_batch, quest_floats, quest_unit
 
 _EYE = np.eye(3)
 
@@ -198,9 +199,65 @@ class GibbsSTSMO:
         t_s, t_d = switch_and_gain_times(float(t_c), t_switch, early_form)
         self.t_s = t_s if mode == "predefined" else 0.0
         self.t_d = t_d
-        self.x1: NDArray[np.float64] = np.zeros((1, 3))
-        self.x2: NDArray[np.float64] = np.zeros((1, 3))
-        self.t: NDArray[np.float64] = np.zeros(1)
+        self._x1: NDArray[np.float64] = np.zeros((1, 3))
+        self._x2: NDArray[np.float64] = np.zeros((1, 3))
+        self._t: NDArray[np.float64] = np.zeros(1)
+        #: N = 1 state as Python floats (x1, x2, t) after a float step, written to the arrays when they are read
+        self._floats: tuple[list[float], list[float], float] | None = None
+
+    # the state (N, 3), (N, 3), (N,): arrays, materialized from the N = 1 float state on access
+    def _sync(self) -> None:
+        if self._floats is not None:
+            x1, x2, t = self._floats
+            self._x1, self._x2, self._t, self._floats = np.array([x1]), np.array([x2]), np.array([t]), None
+
+    @property
+    def x1(self) -> NDArray[np.float64]:
+        """g_hat (N, 3)."""
+        self._sync()
+        return self._x1
+
+    @x1.setter
+    def x1(self, value: NDArray[np.float64]) -> None:
+        self._sync()
+        self._x1 = value
+
+    @property
+    def x2(self) -> NDArray[np.float64]:
+        """g_hat' (N, 3)."""
+        self._sync()
+        return self._x2
+
+    @x2.setter
+    def x2(self, value: NDArray[np.float64]) -> None:
+        self._sync()
+        self._x2 = value
+
+    @property
+    def t(self) -> NDArray[np.float64]:
+        """Time since :meth:`reset` (N,) [s]."""
+        self._sync()
+        return self._t
+
+    @t.setter
+    def t(self, value: NDArray[np.float64]) -> None:
+        self._sync()
+        self._t = value
+
+    @property
+    def n(self) -> int:
+        """Batch size N (set by :meth:`reset`)."""
+        return self._x1.shape[0]
+
+    def state_floats(self) -> tuple[list[float], list[float], float]:
+        """(x1, x2, t) of an N = 1 observer as Python floats."""
+        if self._floats is not None:
+            return self._floats
+        return self._x1[0].tolist(), self._x2[0].tolist(), float(self._t[0])
+
+    def set_state_floats(self, x1: list[float], x2: list[float], t: float) -> None:
+        """Store an N = 1 state given as Python floats (finite; the arrays are written when read)."""
+        self._floats = (x1, x2, t)
 
     def reset(self, x1: ArrayLike, x2: ArrayLike | None = None) -> None:
         """Initial estimates g_hat(0) (N, 3) and g_hat'(0) (default 0); t = 0."""
@@ -222,13 +279,13 @@ class GibbsSTSMO:
             raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
         y = np.asarray(y, dtype=float)
         u = np.asarray(torque, dtype=float)
-        if u.shape != self.x1.shape:
-            u = np.broadcast_to(u, self.x1.shape)
-        x1, x2, t = self.x1, self.x2, self.t
-        if (x1.shape[0] == 1 and omega is None and self.mode == "predefined" and self.integrator == "exact"
-                and y.shape == x1.shape and u.shape == x1.shape):
+        shape = (self.n, 3)
+        if u.shape != shape:
+            u = np.broadcast_to(u, shape)
+        if shape[0] == 1 and omega is None and y.shape == shape:
             self._step_single(y[0].tolist(), u[0].tolist(), float(dt))
             return
+        x1, x2, t = self.x1, self.x2, self.t
         e1 = y - x1  # eq. 79
         w = self.omega if omega is None else np.broadcast_to(np.asarray(omega, dtype=float), x1.shape)
         unit1, sta = _units(e1)
@@ -263,37 +320,81 @@ class GibbsSTSMO:
             raise ValueError("observer state became non-finite (step too large for the gains?)")
 
     def _step_single(self, y: list[float], u: list[float], dt: float) -> None:
-        """:meth:`step` for N = 1 (predefined mode, exact integrator, omega_hat) on plain floats: the same
-        formulas in the same order as the batched path (1-element arrays cost ~1 us per operation)."""
-        x1, x2, t = self.x1[0].tolist(), self.x2[0].tolist(), float(self.t[0])
-        e1 = [a - b for a, b in zip(y, x1, strict=True)]
-        d11 = _dot3(x1, x1)
-        c = _cross3(x1, x2)
-        w = [2.0 * (x2[i] - c[i]) / (1.0 + d11) for i in range(3)]  # eq. 80
-        n = math.sqrt(_dot3(e1, e1))
-        unit1 = [e / n for e in e1] if n > 0 else [0.0, 0.0, 0.0]
-        sta = [self.kappa1 * (e / math.sqrt(n)) for e in e1] if n > 0 else [0.0, 0.0, 0.0]
-        d2w, d1w, c2w = _dot3(x2, w), _dot3(x1, w), _cross3(x2, w)
-        gdw = [x1[i] * d2w + x2[i] * d1w + c2w[i] for i in range(3)]
-        jw = [_dot3(row, w) for row in self._J_rows]
-        c = _cross3(jw, w)
-        rhs = [c[i] + u[i] + self.kappa2 * unit1[i] for i in range(3)]
-        v = [_dot3(row, rhs) for row in self._J_inv_rows]
-        d1v, c1v = _dot3(x1, v), _cross3(x1, v)
-        x2_dot = [0.5 * (gdw[i] + x1[i] * d1v + c1v[i] + v[i]) for i in range(3)]
-        h1 = min(max(self.t_s - t, 0.0), dt)
-        h2 = dt - h1
-        if h1 > 0:
-            tau0 = max(self.t_d - t, 1e-300)
-            r = (tau0 - h1) / tau0
-            phi = float(np.power(r, self.eta))  # numpy's pow, as the batched path
-            psi = (tau0 - h1) * (1.0 - float(np.power(r, self.eta - 1.0))) / (self.eta - 1.0)
-            x1 = [y[i] - phi * e1[i] + psi * x2[i] for i in range(3)]
-        x1_new = [x1[i] + h2 * (x2[i] + sta[i]) for i in range(3)]
-        x2_new = [x2[i] + dt * x2_dot[i] for i in range(3)]
-        if not all(math.isfinite(a) for a in x1_new + x2_new):
+        """:meth:`step` for N = 1 with omega_hat (eq. 80) on plain floats (see :meth:`advance_floats`)."""
+        x1, x2, t = self.state_floats()
+        x1, x2 = self.advance_floats(x1, x2, t, y, u, dt)
+        self._floats = (x1, x2, t + dt)
+
+    def advance_floats(self, x1: list[float], x2: list[float], t: float, y: list[float], u: list[float],
+                       dt: float) -> tuple[list[float], list[float]]:
+        """One step of eqs. 75-77 (or 81-82) for one vehicle on plain floats, omega = omega_hat of eq. 80: the
+        state (x1, x2) at time t, the Gibbs measurement y (eq. 79) and torque u held over dt -> the new
+        (x1, x2).  The same formulas in the same order as the batched :meth:`step` (1-element numpy arrays
+        cost ~1 us per operation); raises ValueError if the new state is not finite.  Does not touch the
+        stored state."""
+        a0, a1, a2 = x1
+        b0, b1, b2 = x2
+        y0, y1, y2 = y
+        e0, e1, e2 = y0 - a0, y1 - a1, y2 - a2  # eq. 79
+        # eq. 80: omega_hat = 2 (g' - g x g') / (1 + g.g)
+        den = 1.0 + (a0 * a0 + a1 * a1 + a2 * a2)
+        w0 = 2.0 * (b0 - (a1 * b2 - a2 * b1)) / den
+        w1 = 2.0 * (b1 - (a2 * b0 - a0 * b2)) / den
+        w2 = 2.0 * (b2 - (a0 * b1 - a1 * b0)) / den
+        n = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        if n > 0:  # x1_tilde / ||x1_tilde|| and x1_tilde / ||x1_tilde||^(1/2) (0 at 0, see _units)
+            sn = math.sqrt(n)
+            n0, n1, n2, s0, s1, s2 = e0 / n, e1 / n, e2 / n, e0 / sn, e1 / sn, e2 / sn
+        else:
+            n0 = n1 = n2 = s0 = s1 = s2 = 0.0
+        # eq. 76 / 82 with Gamma'(g) w = g (g'.w) + g' (g.w) + g' x w and Gamma(g) v = g (g.v) + g x v + v
+        d2w = b0 * w0 + b1 * w1 + b2 * w2
+        d1w = a0 * w0 + a1 * w1 + a2 * w2
+        gd0 = a0 * d2w + b0 * d1w + (b1 * w2 - b2 * w1)
+        gd1 = a1 * d2w + b1 * d1w + (b2 * w0 - b0 * w2)
+        gd2 = a2 * d2w + b2 * d1w + (b0 * w1 - b1 * w0)
+        (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._J_rows
+        jw0 = j00 * w0 + j01 * w1 + j02 * w2
+        jw1 = j10 * w0 + j11 * w1 + j12 * w2
+        jw2 = j20 * w0 + j21 * w1 + j22 * w2
+        k2 = self.kappa2
+        u0, u1, u2 = u
+        q0 = (jw1 * w2 - jw2 * w1) + u0 + k2 * n0
+        q1 = (jw2 * w0 - jw0 * w2) + u1 + k2 * n1
+        q2 = (jw0 * w1 - jw1 * w0) + u2 + k2 * n2
+        (i00, i01, i02), (i10, i11, i12), (i20, i21, i22) = self._J_inv_rows
+        v0 = i00 * q0 + i01 * q1 + i02 * q2
+        v1 = i10 * q0 + i11 * q1 + i12 * q2
+        v2 = i20 * q0 + i21 * q1 + i22 * q2
+        d1v = a0 * v0 + a1 * v1 + a2 * v2
+        xd0 = 0.5 * (gd0 + a0 * d1v + (a1 * v2 - a2 * v1) + v0)
+        xd1 = 0.5 * (gd1 + a1 * d1v + (a2 * v0 - a0 * v2) + v1)
+        xd2 = 0.5 * (gd2 + a2 * d1v + (a0 * v1 - a1 * v0) + v2)
+        # eq. 75 / 77 / 81
+        k1 = self.kappa1
+        s0, s1, s2 = k1 * s0, k1 * s1, k1 * s2
+        if self.mode == "conventional":
+            c0, c1, c2 = a0 + dt * (b0 + s0), a1 + dt * (b1 + s1), a2 + dt * (b2 + s2)
+        elif self.integrator == "euler":
+            if (self.t_s - t) > 1e-6 * dt:  # a clock within rounding of t_s counts as switched
+                gain = self.eta / (self.t_d - t)
+                s0, s1, s2 = gain * e0, gain * e1, gain * e2
+            c0, c1, c2 = a0 + dt * (b0 + s0), a1 + dt * (b1 + s1), a2 + dt * (b2 + s2)
+        else:
+            h1 = min(max(self.t_s - t, 0.0), dt)
+            h2 = dt - h1
+            if h1 > 0:  # the exact transition of eq. 7 (see pdt_sta.exact_linear_step) up to t_s
+                tau0 = max(self.t_d - t, 1e-300)
+                r = (tau0 - h1) / tau0
+                phi = float(np.power(r, self.eta))  # numpy's pow, as the batched path (libm's differs by 1 ulp)
+                psi = (tau0 - h1) * (1.0 - float(np.power(r, self.eta - 1.0))) / (self.eta - 1.0)
+                a0, a1, a2 = y0 - phi * e0 + psi * b0, y1 - phi * e1 + psi * b1, y2 - phi * e2 + psi * b2
+            c0, c1, c2 = a0 + h2 * (b0 + s0), a1 + h2 * (b1 + s1), a2 + h2 * (b2 + s2)
+        new1 = [c0, c1, c2]
+        new2 = [b0 + dt * xd0, b1 + dt * xd1, b2 + dt * xd2]
+        if not math.isfinite(c0 + c1 + c2 + new2[0] + new2[1] + new2[2]):
             raise ValueError("observer state became non-finite (step too large for the gains?)")
-        self.x1, self.x2, self.t = np.array([x1_new]), np.array([x2_new]), np.array([t + dt])
+        return new1, new2
 
 
 def _dot3(a: list[float], b: list[float]) -> float:
@@ -370,6 +471,10 @@ class PdtStaAttitudeObserver(Observer):
         self._weights_row = w[None]
         self._min_field = 0.1 * float(np.linalg.norm(m))
         self.anchor = np.eye(3)[None]
+        # plain-float copies for the N = 1 path (the anchor's, refreshed when self.anchor is replaced)
+        self._ref_list, self._weights_list = self._ref_unit[0].tolist(), w.tolist()
+        self._anchor_src: NDArray[np.float64] | None = None
+        self._anchor_list: list[float] = []
 
     def _quest(self, meas: Mapping[str, NDArray[np.float64]],
                predict: Callable[[], NDArray[np.float64]] | None = None
@@ -413,6 +518,10 @@ class PdtStaAttitudeObserver(Observer):
 
     def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
                dt: float) -> ObserverEstimate:
+        if self.core._x1.shape[0] == 1:
+            est = self._update_single(measurement, thrust, torque, dt)
+            if est is not None:
+                return est
         meas, _, tau = self._inputs(measurement, thrust, torque, dt)
         n = self.core.x1.shape[0]
         if meas[SPECIFIC_FORCE].shape[0] != n:
@@ -433,6 +542,69 @@ class PdtStaAttitudeObserver(Observer):
             "attitude": R_hat, "angular_velocity": self.core.omega, "attitude_quest": R_q,
             "gibbs": self.core.x1.copy(), "quest_valid": valid})
 
+    def _update_single(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
+                       dt: float) -> ObserverEstimate | None:
+        """N = 1 fast path of :meth:`update` on plain Python floats: the validity test of :meth:`_quest`, QUEST
+        (eqs. 57-66, :func:`~fawtgym.observers.quest.quest_floats`), the Gibbs measurement relative to the
+        anchor (eq. 79, :func:`_safe_gibbs`), the STSMO step (eqs. 75-77 / 81-82, :meth:`GibbsSTSMO.advance_floats`),
+        the re-anchoring (:meth:`_maybe_reanchor`) and the outputs R_hat = R_a D(g_hat)^T (eq. 45) and omega_hat
+        (eq. 80), in the same order as the batched path (small numpy operations cost ~1 us each).
+
+        Returns None, touching nothing, unless the step is a well-formed, finite single-vehicle step whose
+        vectors give an attitude (the batched path then runs: it raises the usual errors and handles a row
+        without a vector attitude); also the rare QUEST eigenvector branch (eq. 64) is taken from the batched
+        QUEST.
+        """
+        inputs = single_inputs(measurement, _QUEST_KEYS, thrust, torque, dt)
+        if inputs is None:
+            return None
+        (sf, mag), _, u = inputs
+        f0, f1, f2 = sf
+        m0, m1, m2 = mag
+        # _quest's validity test: |a| >= 0.2 g, |m| >= 10 % of the field, the vectors >= 1 deg from parallel
+        na = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+        nm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+        c0, c1, c2 = f1 * m2 - f2 * m1, f2 * m0 - f0 * m2, f0 * m1 - f1 * m0
+        sin = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / max(na * nm, 1e-300)
+        if not (na > 0.2 * self.gravity and nm > self._min_field and sin > 0.0175):
+            return None
+        body = [[f0 / na, f1 / na, f2 / na], [m0 / nm, m1 / nm, m2 / nm]]
+        res = quest_floats(body, self._ref_list, self._weights_list)
+        if res is None:  # near a half turn from NED: the eigenvector of K (eq. 64), batched
+            rq = _quest_unit_batch(np.array([body]), self._ref_unit, self._weights_row).R[0].ravel().tolist()
+        else:
+            rq = res[0]
+        if self._anchor_src is not self.anchor:
+            self._anchor_src, self._anchor_list = self.anchor, self.anchor[0].ravel().tolist()
+        A = self._anchor_list
+        # y = Gibbs vector of (R_a^T R_q)^T (eq. 79), as _safe_gibbs
+        rel = _mat_t_mat(A, rq)
+        den = 1.0 + (rel[0] + rel[4] + rel[8])
+        den = den if den > 1e-6 else 1e-6
+        y = [2.0 * (0.5 * (rel[7] - rel[5])) / den, 2.0 * (0.5 * (rel[2] - rel[6])) / den,
+             2.0 * (0.5 * (rel[3] - rel[1])) / den]
+        yy = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
+        if yy > 1e5:
+            ny = math.sqrt(yy)
+            if ny > 1e3:
+                y = [yi * 1e3 / ny for yi in y]
+        core = self.core
+        x1, x2, t = core.state_floats()
+        x1, x2 = core.advance_floats(x1, x2, t, y, u, dt)
+        a0, a1, a2 = x1
+        if math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) > self.reanchor:  # _maybe_reanchor
+            w = _omega_floats(x1, x2)
+            A = _mat_mat(A, _gibbs_to_rot_floats(x1))
+            self.anchor = np.array(A).reshape(1, 3, 3)
+            self._anchor_src, self._anchor_list = self.anchor, A
+            x1, x2 = [0.0, 0.0, 0.0], [0.5 * w[0], 0.5 * w[1], 0.5 * w[2]]  # g' = 1/2 Gamma(0) omega (eq. 47)
+        core.set_state_floats(x1, x2, t + dt)
+        # one buffer, rows: R_hat (3), omega_hat, R_q (3), g_hat, zero force, zero torque
+        out = np.array(_mat_mat(A, _gibbs_to_rot_floats(x1)) + _omega_floats(x1, x2) + rq + x1 + _ZEROS6).reshape(10, 3)
+        return ObserverEstimate(force=out[8:9], torque=out[9:10], states={
+            "attitude": out[None, 0:3], "angular_velocity": out[3:4], "attitude_quest": out[None, 4:7],
+            "gibbs": out[7:8], "quest_valid": np.array([True])})
+
     def _maybe_reanchor(self) -> None:
         x1 = self.core.x1
         far = np.sqrt((x1 * x1).sum(axis=-1)) > self.reanchor
@@ -447,6 +619,47 @@ class PdtStaAttitudeObserver(Observer):
     def params(self) -> dict[str, Any]:
         c = self.core
         return dict(t_c=c.t_c, eta=c.eta, kappa1=c.kappa1, kappa2=c.kappa2, t_switch=c.t_s, mode=c.mode)
+
+
+_QUEST_KEYS = (SPECIFIC_FORCE, MAGNETOMETER)
+_ZEROS6 = [0.0] * 6
+
+
+def _mat_mat(A: list[float], B: list[float]) -> list[float]:
+    """A B for row-major 3x3 lists (9)."""
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = A
+    b00, b01, b02, b10, b11, b12, b20, b21, b22 = B
+    return [a00 * b00 + a01 * b10 + a02 * b20, a00 * b01 + a01 * b11 + a02 * b21, a00 * b02 + a01 * b12 + a02 * b22,
+            a10 * b00 + a11 * b10 + a12 * b20, a10 * b01 + a11 * b11 + a12 * b21, a10 * b02 + a11 * b12 + a12 * b22,
+            a20 * b00 + a21 * b10 + a22 * b20, a20 * b01 + a21 * b11 + a22 * b21, a20 * b02 + a21 * b12 + a22 * b22]
+
+
+def _mat_t_mat(A: list[float], B: list[float]) -> list[float]:
+    """A^T B for row-major 3x3 lists (9)."""
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = A
+    b00, b01, b02, b10, b11, b12, b20, b21, b22 = B
+    return [a00 * b00 + a10 * b10 + a20 * b20, a00 * b01 + a10 * b11 + a20 * b21, a00 * b02 + a10 * b12 + a20 * b22,
+            a01 * b00 + a11 * b10 + a21 * b20, a01 * b01 + a11 * b11 + a21 * b21, a01 * b02 + a11 * b12 + a21 * b22,
+            a02 * b00 + a12 * b10 + a22 * b20, a02 * b01 + a12 * b11 + a22 * b21, a02 * b02 + a12 * b12 + a22 * b22]
+
+
+def _gibbs_to_rot_floats(g: list[float]) -> list[float]:
+    """:func:`gibbs_to_rot` for one Gibbs vector (row-major 9): R = D(g)^T, eq. 45."""
+    g0, g1, g2 = g
+    gg = g0 * g0 + g1 * g1 + g2 * g2
+    d, m = 1.0 - gg, 1.0 + gg
+    return [(d + 2.0 * (g0 * g0)) / m, (2.0 * (g0 * g1) - 2.0 * g2) / m, (2.0 * (g0 * g2) + 2.0 * g1) / m,
+            (2.0 * (g1 * g0) + 2.0 * g2) / m, (d + 2.0 * (g1 * g1)) / m, (2.0 * (g1 * g2) - 2.0 * g0) / m,
+            (2.0 * (g2 * g0) - 2.0 * g1) / m, (2.0 * (g2 * g1) + 2.0 * g0) / m, (d + 2.0 * (g2 * g2)) / m]
+
+
+def _omega_floats(g: list[float], gd: list[float]) -> list[float]:
+    """omega = 2 (g' - g x g') / (1 + g.g) (eq. 80) for one vehicle."""
+    a0, a1, a2 = g
+    b0, b1, b2 = gd
+    den = 1.0 + (a0 * a0 + a1 * a1 + a2 * a2)
+    return [2.0 * (b0 - (a1 * b2 - a2 * b1)) / den, 2.0 * (b1 - (a2 * b0 - a0 * b2)) / den,
+            2.0 * (b2 - (a0 * b1 - a1 * b0)) / den]
 
 
 def _safe_gibbs(R: NDArray[np.float64]) -> NDArray[np.float64]:

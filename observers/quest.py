@@ -142,11 +142,17 @@ def _newton_lambda(lam, a1, b1, c1, rho, d1):  # type: ignore[no-untyped-def]
 def quest_unit(b: NDArray[np.float64], r: NDArray[np.float64], a: NDArray[np.float64]) -> QuestResult:
     """QUEST core (eqs. 57-66) on validated input: unit vectors b, r (N, n, 3), weights a (N, n) > 0
     (normalized here, eq. 63).  :func:`quest` validates and calls this; callers that already
-    guarantee the preconditions (finite unit vectors, >= 2 non-collinear pairs) may call it directly."""
+    guarantee the preconditions (finite unit vectors, >= 2 non-collinear pairs) may call it directly.
+    N = 1 runs on plain floats (:func:`_quest_unit_single`) unless the eigenvector branch is needed."""
     if b.shape[0] == 1 and r.shape[0] == 1 and a.shape[0] == 1:
         res = _quest_unit_single(b[0].tolist(), r[0].tolist(), a[0].tolist())
         if res is not None:
             return res
+    return _quest_unit_batch(b, r, a)
+
+
+def _quest_unit_batch(b: NDArray[np.float64], r: NDArray[np.float64], a: NDArray[np.float64]) -> QuestResult:
+    """:func:`quest_unit` on numpy arrays for any N (the reference implementation)."""
     a = a / a.sum(axis=1, keepdims=True)  # eq. 63 normalization
     ab = a[:, :, None] * b
     B = (ab[:, :, :, None] * r[:, :, None, :]).sum(axis=1)  # eq. 61: sum_i a_i b_i r_i^T (no BLAS: no FMA)
@@ -212,39 +218,94 @@ _EYE_FLAT = np.eye(3).reshape(9)
 
 
 def _quest_unit_single(b: list[list[float]], r: list[list[float]], a: list[float]) -> QuestResult | None:
-    """:func:`quest_unit` for N = 1 on plain floats: the same formulas in the same order (1-element numpy
-    arrays cost ~1 us per operation); None where the eigenvector branch (eq. 64) is needed."""
+    """:func:`quest_unit` for N = 1 on plain floats (see :func:`quest_floats`); None where the eigenvector
+    branch (eq. 64) is needed."""
+    res = quest_floats(b, r, a)
+    if res is None:
+        return None
+    R, q, g, lam = res
+    return QuestResult(R=np.array(R).reshape(1, 3, 3), quaternion=np.array([q]), gibbs=np.array([g]),
+                       lambda_max=np.array([lam]), loss=np.array([1.0 - lam]))
+
+
+def quest_floats(b: list[list[float]], r: list[list[float]], a: list[float]
+                 ) -> tuple[list[float], list[float], list[float], float] | None:
+    """QUEST (eqs. 57-66) for one attitude on plain Python floats: unit vectors ``b``, ``r`` (n lists of 3),
+    weights ``a`` (n) > 0.  Returns (R row-major (9), quaternion (w, x, y, z), Gibbs vector g, lambda_max), the
+    same formulas in the same order as :func:`_quest_unit_batch` (1-element numpy arrays cost ~1 us per
+    operation), or None where |g| > 10 or eq. 65 is singular, i.e. where the batched path takes the
+    eigenvector of K (eq. 64).  Preconditions as :func:`quest_unit` (not checked)."""
     sa = sum(a)
-    ab = [[ai / sa * x for x in bi] for ai, bi in zip(a, b, strict=True)]  # a_i b_i, eq. 63 weights
-    B = [[sum(abi[j] * ri[k] for abi, ri in zip(ab, r, strict=True)) for k in range(3)] for j in range(3)]
-    S = [[B[j][k] + B[k][j] for k in range(3)] for j in range(3)]
-    rho = B[0][0] + B[1][1] + B[2][2]
-    z = [sum(c) for c in zip(*(_cross3(abi, ri) for abi, ri in zip(ab, r, strict=True)), strict=True)]
-    CS, detS = _cofactors3(S)
-    Sz = [S[i][0] * z[0] + S[i][1] * z[1] + S[i][2] * z[2] for i in range(3)]
+    if len(a) == 2:  # the accelerometer + magnetometer case, unrolled
+        (p0, p1, p2), (s0, s1, s2) = b
+        (r00, r01, r02), (r10, r11, r12) = r
+        w0, w1 = a[0] / sa, a[1] / sa  # eq. 63
+        p0, p1, p2, s0, s1, s2 = w0 * p0, w0 * p1, w0 * p2, w1 * s0, w1 * s1, w1 * s2  # a_i b_i
+        # eq. 61: B = sum_i a_i b_i r_i^T
+        B00, B01, B02 = p0 * r00 + s0 * r10, p0 * r01 + s0 * r11, p0 * r02 + s0 * r12
+        B10, B11, B12 = p1 * r00 + s1 * r10, p1 * r01 + s1 * r11, p1 * r02 + s1 * r12
+        B20, B21, B22 = p2 * r00 + s2 * r10, p2 * r01 + s2 * r11, p2 * r02 + s2 * r12
+        # eq. 62: z = sum_i a_i b_i x r_i
+        z0 = (p1 * r02 - p2 * r01) + (s1 * r12 - s2 * r11)
+        z1 = (p2 * r00 - p0 * r02) + (s2 * r10 - s0 * r12)
+        z2 = (p0 * r01 - p1 * r00) + (s0 * r11 - s1 * r10)
+    else:
+        ab = [[ai / sa * x for x in bi] for ai, bi in zip(a, b, strict=True)]  # a_i b_i, eq. 63 weights
+        (B00, B01, B02), (B10, B11, B12), (B20, B21, B22) = (
+            [sum(abi[j] * ri[k] for abi, ri in zip(ab, r, strict=True)) for k in range(3)] for j in range(3))
+        z0, z1, z2 = (sum(c) for c in zip(*(_cross3(abi, ri) for abi, ri in zip(ab, r, strict=True)), strict=True))
+    # eq. 59 S = B + B^T, eq. 60 rho = tr B
+    S00, S01, S02, S11, S12, S22 = B00 + B00, B01 + B10, B02 + B20, B11 + B11, B12 + B21, B22 + B22
+    S10, S20, S21 = B10 + B01, B20 + B02, B21 + B12
+    rho = B00 + B11 + B22
+    # cofactors of S (rows S1 x S2, S2 x S0, S0 x S1) and det S, as _cofactors
+    C00, C01, C02 = S11 * S22 - S12 * S21, S12 * S20 - S10 * S22, S10 * S21 - S11 * S20
+    C11 = S22 * S00 - S20 * S02
+    C22 = S00 * S11 - S01 * S10
+    detS = S00 * C00 + S01 * C01 + S02 * C02
+    Sz0 = S00 * z0 + S01 * z1 + S02 * z2
+    Sz1 = S10 * z0 + S11 * z1 + S12 * z2
+    Sz2 = S20 * z0 + S21 * z1 + S22 * z2
+    # Shuster's characteristic equation of K (58), see _quest_unit_batch
     rho2 = rho * rho
-    a1 = rho2 - (CS[0][0] + CS[1][1] + CS[2][2])
-    b1 = rho2 + (z[0] * z[0] + z[1] * z[1] + z[2] * z[2])
-    c1 = detS + (z[0] * Sz[0] + z[1] * Sz[1] + z[2] * Sz[2])
-    d1 = Sz[0] * Sz[0] + Sz[1] * Sz[1] + Sz[2] * Sz[2]
-    lam = _newton_lambda(1.0, a1, b1, c1, rho, d1)
+    a1 = rho2 - (C00 + C11 + C22)
+    b1 = rho2 + (z0 * z0 + z1 * z1 + z2 * z2)
+    c1 = detS + (z0 * Sz0 + z1 * Sz1 + z2 * Sz2)
+    d1 = Sz0 * Sz0 + Sz1 * Sz1 + Sz2 * Sz2
+    lam = 1.0  # _newton_lambda's scalar branch, inlined
+    for _ in range(_NEWTON_ITERS):
+        l2 = lam * lam
+        f = (l2 - a1) * (l2 - b1) - c1 * lam + c1 * rho - d1
+        df = 2 * lam * (2 * l2 - a1 - b1) - c1
+        step = f / df if abs(df) > 1e-14 else 0.0
+        lam = lam - step
+        if abs(step) < 1e-15:
+            break
+    # eq. 65: g = adj(M) z / det M, M = (lambda + rho) I - S
     lr = lam + rho
-    CM, detM = _cofactors3([[(lr if i == j else 0.0) - S[i][j] for j in range(3)] for i in range(3)])
+    M00, M11, M22 = lr - S00, lr - S11, lr - S22
+    M01, M02, M10, M12, M20, M21 = 0.0 - S01, 0.0 - S02, 0.0 - S10, 0.0 - S12, 0.0 - S20, 0.0 - S21
+    D00, D01, D02 = M11 * M22 - M12 * M21, M12 * M20 - M10 * M22, M10 * M21 - M11 * M20
+    D10, D11, D12 = M21 * M02 - M22 * M01, M22 * M00 - M20 * M02, M20 * M01 - M21 * M00
+    D20, D21, D22 = M01 * M12 - M02 * M11, M02 * M10 - M00 * M12, M00 * M11 - M01 * M10
+    detM = M00 * D00 + M01 * D01 + M02 * D02
     if not abs(detM) > 1e-9:
         return None
-    g = [(CM[i][0] * z[0] + CM[i][1] * z[1] + CM[i][2] * z[2]) / detM for i in range(3)]
-    gg = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
+    g0 = (D00 * z0 + D01 * z1 + D02 * z2) / detM
+    g1 = (D10 * z0 + D11 * z1 + D12 * z2) / detM
+    g2 = (D20 * z0 + D21 * z1 + D22 * z2) / detM
+    gg = g0 * g0 + g1 * g1 + g2 * g2
     if not gg <= _GIBBS_SWITCH * _GIBBS_SWITCH:
         return None
+    # eq. 66: q = [g; 1] / sqrt(1 + g.g), reordered to (w, x, y, z), renormalized as the batched path
     denom = math.sqrt(1.0 + gg)
-    q = [1.0 / denom, g[0] / denom, g[1] / denom, g[2] / denom]
-    qn = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    w, x, y, zz = (qi / qn for qi in q)
-    R = [[1 - 2 * (y * y + zz * zz), 2 * (x * y - w * zz), 2 * (x * zz + w * y)],
-         [2 * (x * y + w * zz), 1 - 2 * (x * x + zz * zz), 2 * (y * zz - w * x)],
-         [2 * (x * zz - w * y), 2 * (y * zz + w * x), 1 - 2 * (x * x + y * y)]]
-    return QuestResult(R=np.array([R]), quaternion=np.array([[w, x, y, zz]]), gibbs=np.array([g]),
-                       lambda_max=np.array([lam]), loss=np.array([1.0 - lam]))
+    w, x, y, zz = 1.0 / denom, g0 / denom, g1 / denom, g2 / denom
+    qn = math.sqrt(w * w + x * x + y * y + zz * zz)
+    w, x, y, zz = w / qn, x / qn, y / qn, zz / qn
+    R = [1 - 2 * (y * y + zz * zz), 2 * (x * y - w * zz), 2 * (x * zz + w * y),
+         2 * (x * y + w * zz), 1 - 2 * (x * x + zz * zz), 2 * (y * zz - w * x),
+         2 * (x * zz - w * y), 2 * (y * zz + w * x), 1 - 2 * (x * x + y * y)]
+    return R, [w, x, y, zz], [g0, g1, g2], lam
 
 
 def _cross3(a: list[float], b: list[float]) -> list[float]:

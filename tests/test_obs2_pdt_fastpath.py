@@ -1,12 +1,15 @@
 """The plain-float N = 1 paths equal the batched paths: QUEST (observers/quest.py ``_quest_unit_single``) and
-the STSMO step (observers/gyroless_attitude.py ``GibbsSTSMO._step_single``)."""
+the STSMO step (observers/gyroless_attitude.py ``GibbsSTSMO._step_single``), and the whole N = 1 update of the env
+estimator ``pdt_sta`` (``PdtStaAttitudeObserver._update_single``) against the batched numpy path (the reference)."""
 
 import numpy as np
 import pytest
 
+from fawtgym.envs.measurement import EARTH_FIELD_NED, batch_measurement
+from fawtgym.observers import make_observer
 from fawtgym.observers import quest as Q
-from fawtgym.observers.gyroless_attitude import GibbsSTSMO
-from fawtgym.observers.lie import exp_so3
+from fawtgym.observers.gyroless_attitude import GibbsSTSMO, rot_to_gibbs
+from fawtgym.observers.lie import exp_so3, log_so3
 
 FIELDS = ("R", "quaternion", "gibbs", "lambda_max", "loss")
 
@@ -62,3 +65,204 @@ def test_stsmo_single_step_equals_batch_step() -> None:
             for a, b in ((one.x1, two.x1), (one.x2, two.x2), (one.t, two.t)):
                 np.testing.assert_allclose(a, b[:1], rtol=0, atol=1e-15)
         assert one.t[0] > one.t_s  # both phases were covered
+
+
+# --------------------------------------------------------------------------------------------------
+# the env estimator pdt_sta: PdtStaAttitudeObserver._update_single (plain floats) vs the batched path
+# --------------------------------------------------------------------------------------------------
+#: agreement of the N = 1 float path with the batched numpy path, per step over the whole run: attitude
+#: entries and Gibbs vectors absolutely, rates relative to their scale.  The two paths evaluate the same
+#: formulas and differ only in the rounding of a few sums/products (BLAS matmul, numpy reductions); measured
+#: differences are <= 3e-14 over these runs.
+TOL = 1e-12
+KEYS = ("attitude", "angular_velocity", "attitude_quest", "gibbs", "quest_valid")
+
+
+def _pair(mass, inertia, **kw):
+    """(fast, spy, ref): an N = 1 observer whose fast-path calls are recorded, and the reference observer that
+    runs the same vehicle twice (N = 2 equal rows: the batched numpy path throughout)."""
+    fast = make_observer("pdt_sta", mass, inertia, **kw)
+    ref = make_observer("pdt_sta", mass, inertia, **kw)
+    spy = []
+    inner = fast._update_single
+
+    def wrapped(*args, **kwargs):
+        est = inner(*args, **kwargs)
+        spy.append(est is not None)
+        return est
+
+    fast._update_single = wrapped
+    return fast, spy, ref
+
+
+def _twice(meas):
+    """The measurement of one vehicle as a batch of two equal rows."""
+    return {k: np.repeat(v, 2, 0) for k, v in batch_measurement(meas).items()}
+
+
+def _agree(a, b, what):
+    assert set(a.states) == set(b.states) == set(KEYS), what
+    for k in ("attitude", "attitude_quest", "gibbs"):
+        assert a.states[k].shape == b.states[k][:1].shape, (what, k)
+        np.testing.assert_allclose(a.states[k], b.states[k][:1], rtol=0, atol=TOL, err_msg=f"{what}: {k}")
+    w_scale = 1.0 + np.abs(b.states["angular_velocity"]).max()
+    np.testing.assert_allclose(a.states["angular_velocity"], b.states["angular_velocity"][:1], rtol=0,
+                               atol=TOL * w_scale, err_msg=f"{what}: angular_velocity")
+    np.testing.assert_array_equal(a.states["quest_valid"], b.states["quest_valid"][:1])
+    np.testing.assert_array_equal(a.force, np.zeros((1, 3)))
+    np.testing.assert_array_equal(a.torque, np.zeros((1, 3)))
+
+
+@pytest.fixture(scope="module")
+def env_sequence():
+    """1000 steps (10 s at 100 Hz) of the hover env in the fawt-50 wind under PX4 control, with its noisy IMU."""
+    import gymnasium as gym
+
+    import fawtgym  # noqa: F401  (registers the env ids)
+    from fawtgym.agents.px4_agent import PX4Agent
+
+    env = gym.make("fawtgym/Hover-v0", sensors="mocap_imu", wind="fawt-50")
+    u = env.unwrapped
+    _, info = env.reset(seed=5)
+    agent = PX4Agent.for_env(env)
+    agent.reset(info, seed=5)
+    first = info["measurement"]
+    steps = []
+    for _ in range(1000):
+        _, _, term, _, info = env.step(agent.act(None, info))
+        assert not term, info["failure"]
+        ap = info["applied"]
+        steps.append((info["measurement"], ap["thrust"], ap["torque"], info["truth"]))
+    env.close()
+    return first, steps, u.preset, u.dt
+
+
+def test_observer_fast_path_equals_batched_path_on_the_env(env_sequence) -> None:
+    first, steps, preset, dt = env_sequence
+    fast, spy, ref = _pair(preset.mass, preset.inertia_matrix)
+    fast.reset(first)
+    ref.reset(_twice(first))
+    att_err = []
+    for k, (meas, thrust, torque, truth) in enumerate(steps):
+        a = fast.update(meas, thrust, torque, dt)
+        b = ref.update(_twice(meas), np.repeat(thrust, 2), np.repeat(np.atleast_2d(torque), 2, 0), dt)
+        _agree(a, b, f"step {k}")
+        r_true = np.asarray(truth["attitude"]).reshape(3, 3)
+        att_err.append(float(np.linalg.norm(log_so3(a.states["attitude"][0].T @ r_true))))
+    assert all(spy) and len(spy) == len(steps)  # every env step took the float path
+    assert fast.core.t[0] > fast.core.t_s  # both phases of eq. 77 were run
+    np.testing.assert_allclose(fast.core.x1, ref.core.x1[:1], rtol=0, atol=TOL)
+    np.testing.assert_allclose(fast.core.t, ref.core.t[:1], rtol=0, atol=1e-12)
+    # a real estimation run, not two equal failures: after t_c the attitude follows the truth
+    assert np.median(att_err[200:]) < 0.05
+
+
+def _imu(r, rng, noise, field=EARTH_FIELD_NED):
+    rt = r.T
+    return {"specific_force": -9.80665 * rt[:, 2] + noise * rng.standard_normal(3),
+            "magnetometer": rt @ field + 0.02 * noise * rng.standard_normal(3), "time": 0.0}
+
+
+def test_observer_fast_path_equals_batched_path_tumbling() -> None:
+    """1200 steps of a body tumbling through large angles (re-anchoring, QUEST's eigenvector branch near a half
+    turn from NED), with noise, varying dt, free-fall rows (no vector attitude: the batched path in both) and
+    the conventional STSMO (eqs. 81-82)."""
+    J3 = np.diag([0.03, 0.03, 0.06])
+    rng = np.random.default_rng(21)
+    for kw, n_steps in (({}, 1200), ({"mode": "conventional"}, 300), ({"t_c": 0.8, "noise_bound": 0.05}, 300)):
+        fast, spy, ref = _pair(1.0, J3, **kw)
+        r = exp_so3(np.array([0.2, -0.1, 3.0]))  # yaw near pi: |g| of the QUEST attitude > 10
+        w = np.array([0.5, -0.4, 1.5])
+        m0 = _imu(r, rng, 0.05)
+        fast.reset(m0)
+        ref.reset(_twice(m0))
+        anchors = 0
+        eig = 0
+        for k in range(n_steps):
+            dt = (0.01, 0.004, 0.0075)[k % 3]
+            tau = -0.02 * w + 0.01 * np.array([np.sin(0.01 * k), np.cos(0.02 * k), 0.3])
+            w = w + dt * (np.cross(J3 @ w, w) + tau) / np.diag(J3)
+            r = r @ exp_so3(dt * w)
+            m = _imu(r, rng, 0.05)
+            if k % 150 == 75:
+                m["specific_force"] = 0.01 * rng.standard_normal(3)  # free fall
+            anchor = fast.anchor
+            a = fast.update(m, 0.0, tau, dt)
+            b = ref.update(_twice(m), np.zeros(2), np.repeat(tau[None], 2, 0), dt)
+            assert spy[-1] == (k % 150 != 75)
+            _agree(a, b, f"{kw} step {k}")
+            anchors += fast.anchor is not anchor
+            g = rot_to_gibbs(a.states["attitude_quest"]) if abs(np.trace(a.states["attitude_quest"][0]) + 1) > 1e-6 \
+                else np.full((1, 3), np.inf)
+            eig += bool(np.linalg.norm(g) > 10)
+        if n_steps == 1200:
+            assert anchors >= 3 and eig >= 5, (anchors, eig)  # both special cases were exercised
+        np.testing.assert_allclose(fast.core.x2, ref.core.x2[:1], rtol=0, atol=TOL * (1 + np.abs(ref.core.x2).max()))
+
+
+def _hover_meas(n: int = 1):
+    r = exp_so3(np.array([0.05, -0.03, 0.4]))
+    m = {"position": np.zeros(3), "velocity": np.zeros(3), "attitude": r, "angular_velocity": np.zeros(3),
+         "gyro": np.zeros(3), "specific_force": r.T @ np.array([0.0, 0.0, -9.80665]),
+         "magnetometer": r.T @ EARTH_FIELD_NED, "time": 0.0}
+    return m if n == 1 else {k: np.repeat(v, n, 0) for k, v in batch_measurement(m).items()}
+
+
+def test_batch_of_two_takes_the_batched_path() -> None:
+    fast, spy, _ = _pair(1.0, [0.03, 0.03, 0.06])
+    fast.reset(_hover_meas(2))
+    est = fast.update(_hover_meas(2), np.ones(2), np.zeros((2, 3)), 0.01)
+    assert spy == [] and est.states["attitude"].shape == (2, 3, 3)
+
+
+@pytest.mark.parametrize("change, match", [
+    (lambda m: m.update(specific_force=np.array([np.nan, 0.0, -9.8])), "non-finite"),
+    (lambda m: m.update(magnetometer=np.array([np.inf, 0.0, 0.0])), "non-finite"),
+    (lambda m: m.pop("magnetometer"), "magnetometer"),
+    (lambda m: m.update(specific_force=np.zeros((2, 3)), magnetometer=np.zeros((2, 3))), "batch size changed"),
+])
+def test_malformed_measurement_takes_the_batched_path_and_raises(change, match) -> None:
+    fast, spy, _ = _pair(1.0, [0.03, 0.03, 0.06])
+    fast.reset(_hover_meas())
+    fast.update(_hover_meas(), 1.0, np.zeros(3), 0.01)
+    x1, x2, t = fast.core.x1.copy(), fast.core.x2.copy(), fast.core.t.copy()
+    m = _hover_meas()
+    change(m)
+    with pytest.raises(ValueError, match=match):
+        fast.update(m, 1.0, np.zeros(3), 0.01)
+    assert spy == [True, False]
+    for now, before in ((fast.core.x1, x1), (fast.core.x2, x2), (fast.core.t, t)):
+        np.testing.assert_array_equal(now, before)  # nothing was changed
+
+
+@pytest.mark.parametrize("thrust, torque, dt, match", [
+    (1.0, np.zeros(3), 0.0, "dt"), (1.0, np.zeros(3), float("nan"), "dt"),
+    (1.0, np.array([0.0, np.nan, 0.0]), 0.01, "non-finite"), (np.nan, np.zeros(3), 0.01, "non-finite"),
+    (1.0, np.zeros(4), 0.01, "torque"),
+])
+def test_malformed_step_takes_the_batched_path_and_raises(thrust, torque, dt, match) -> None:
+    fast, spy, _ = _pair(1.0, [0.03, 0.03, 0.06])
+    fast.reset(_hover_meas())
+    with pytest.raises(ValueError, match=match):
+        fast.update(_hover_meas(), thrust, torque, dt)
+    assert spy == [False]
+
+
+@pytest.mark.parametrize("mode, integrator", [("conventional", "exact"), ("predefined", "euler")])
+def test_stsmo_single_step_equals_batch_step_other_modes(mode, integrator) -> None:
+    rng = np.random.default_rng(4)
+    J = np.diag([0.082, 0.0845, 0.1377])
+    one, two = (GibbsSTSMO(J, t_c=0.3, eta=5.0, kappa1=2.5, kappa2=0.5, mode=mode, integrator=integrator)
+                for _ in range(2))
+    x0 = 0.3 * rng.standard_normal((1, 3))
+    one.reset(x0)
+    two.reset(np.repeat(x0, 2, 0))
+    for k in range(200):
+        y = 0.3 * rng.standard_normal((1, 3)) if k % 7 else one.x1.copy()
+        u = 0.05 * rng.standard_normal((1, 3))
+        dt = float(rng.choice([1e-3, 2e-3, 7e-3]))
+        one.step(y, u, dt)
+        two.step(np.repeat(y, 2, 0), np.repeat(u, 2, 0), dt)
+        assert one._floats is not None  # the float path ran
+        for a, b in ((one.x1, two.x1), (one.x2, two.x2), (one.t, two.t)):
+            np.testing.assert_allclose(a, b[:1], rtol=0, atol=1e-15)
