@@ -148,8 +148,6 @@ class HoverEnv(gym.Env):
                 raise ValueError(f"reward weight {key!r} must be finite and >= 0, got {value!r}")
             self.reward_weights[key] = float(value)
         w = self.reward_weights
-        # weights over the observation layout [e_b, v, R[:, 0], R[:, 1], Omega, action]; attitude enters via Phi
-        self._reward_w = np.repeat([w["pos"], w["vel"], 0.0, w["rate"], w["action"]], [3, 3, 6, 3, 4])
         self._w_att = w["att"]
         self.action_type = action_type
         self.wind = make_wind(wind)
@@ -205,8 +203,8 @@ class HoverEnv(gym.Env):
         self._alloc_rows = self._alloc.tolist()
         self._hull = [tuple(p) for p in hull_points(self.preset).tolist()]
         self._hull_radius = float(np.linalg.norm(hull_points(self.preset), axis=1).max())
-        self._obs_low_list, self._obs_high_list = self._obs_low.tolist(), self._obs_high.tolist()
-        self._reward_w_list = self._reward_w.tolist()
+        self._obs_limits = (float(high[0]), float(high[3]), float(high[12]))
+        self._reward_terms = (w["pos"], w["vel"], w["action"], w["rate"])
         self._rotor_offsets = self._rotor_pos.tolist()
         # views into MuJoCo's buffers (stable for the life of self.data)
         # (item assignment through a memoryview costs a quarter of a numpy slice assignment)
@@ -319,13 +317,17 @@ class HoverEnv(gym.Env):
             if a.shape != (4,):
                 raise ValueError(f"action must have 4 entries, got shape {np.shape(action)}")
             values = a.tolist()
-        clipped = []
-        for i, (x, lo, hi) in enumerate(zip(values, self._act_low_list, self._act_high_list, strict=True)):
-            if not math.isfinite(x):
-                raise ValueError(f"action[{i}] is {x}; every action entry must be finite "
-                                 f"(bounds {self._act_low_list} .. {self._act_high_list})")
-            clipped.append(lo if x < lo else hi if x > hi else x)
-        action_clipped = clipped != values
+        (x0, x1, x2, x3), (l0, l1, l2, l3), (h0, h1, h2, h3) = values, self._act_low_list, self._act_high_list
+        if l0 <= x0 <= h0 and l1 <= x1 <= h1 and l2 <= x2 <= h2 and l3 <= x3 <= h3:  # (False for NaN)
+            clipped, action_clipped = values, False
+        else:
+            clipped = []
+            for i, (x, lo, hi) in enumerate(zip(values, self._act_low_list, self._act_high_list, strict=True)):
+                if not math.isfinite(x):
+                    raise ValueError(f"action[{i}] is {x}; every action entry must be finite "
+                                     f"(bounds {self._act_low_list} .. {self._act_high_list})")
+                clipped.append(lo if x < lo else hi if x > hi else x)
+            action_clipped = clipped != values
 
         (fx, fy, fz), (tx, ty, tz), _ = self._disturbance  # NED/FRD -> MuJoCo world z-up / body FLU
         xfrc, ctrl = self._xfrc_mv, self._ctrl_mv
@@ -422,21 +424,24 @@ class HoverEnv(gym.Env):
         lists = self.sensor.measure_floats(b, v, r, w, self._accel)
         pos, vel, att, rate = lists[0], lists[1], lists[2], lists[3]
         sp = self.setpoint.tolist()
-        x = [pos[0] - sp[0], pos[1] - sp[1], pos[2] - sp[2], *vel, att[0], att[3], att[6], att[1], att[4], att[7],
-             *rate, *action]
-        obs = np.array([lo if xi < lo else hi if xi > hi else xi
-                        for xi, lo, hi in zip(x, self._obs_low_list, self._obs_high_list, strict=True)],
-                       dtype=np.float32)
+        lp, lv, lw = self._obs_limits  # symmetric box of the position error, velocity and rate entries
+        e = [pos[0] - sp[0], pos[1] - sp[1], pos[2] - sp[2], *vel, *rate]
+        ec = [lp if x > lp else -lp if x < -lp else x for x in e[0:3]] + \
+             [lv if x > lv else -lv if x < -lv else x for x in e[3:6]] + \
+             [lw if x > lw else -lw if x < -lw else x for x in e[6:9]]
+        # the attitude entries of a rotation matrix and the (clipped) action are inside their bounds already
+        obs = np.array([*ec[0:6], att[0], att[3], att[6], att[1], att[4], att[7], *ec[6:9], *action], dtype=np.float32)
         if self._failure:
             self._reward = -self.reward_weights["failure"]
         else:
             cos_phi = 0.5 * (att[0] + att[4] + att[8] - 1.0)
             phi = math.acos(1.0 if cos_phi > 1.0 else -1.0 if cos_phi < -1.0 else cos_phi)
             last = self._last_action
-            x[15], x[16], x[17], x[18] = x[15] - last[0], x[16] - last[1], x[17] - last[2], x[18] - last[3]
-            cost = 0.0
-            for wi, xi in zip(self._reward_w_list, x, strict=True):
-                cost += wi * xi * xi
+            da = [action[0] - last[0], action[1] - last[1], action[2] - last[2], action[3] - last[3]]
+            wp, wv, wa, ww = self._reward_terms
+            cost = (wp * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]) + wv * (e[3] * e[3] + e[4] * e[4] + e[5] * e[5])
+                    + ww * (e[6] * e[6] + e[7] * e[7] + e[8] * e[8])
+                    + wa * (da[0] * da[0] + da[1] * da[1] + da[2] * da[2] + da[3] * da[3]))
             self._reward = math.exp(-(cost + self._w_att * phi * phi))
         t_rot = self._applied_thrusts
         (a0, a1, a2, a3), force, torque, wind = self._alloc_rows, *self._disturbance
