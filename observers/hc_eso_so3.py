@@ -26,6 +26,7 @@ projection.  Between two measurements the measured vectors are propagated with t
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Mapping, Sequence
 
@@ -70,6 +71,14 @@ class HcEsoGains:
             v = getattr(self, name)
             if isinstance(v, bool) or not (isinstance(v, number) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite positive number, got {v!r}")
+
+    @functools.cached_property
+    def single_constants(self) -> tuple[float, ...]:
+        """Constants of :func:`hc_eso_step_single`: ``((alpha-1)/gamma, 2 (1-alpha)/gamma, (alpha-1)/2, alpha-1,
+        kappa, k_Psi, k_sigma)`` as Python floats."""
+        a, g = float(self.alpha), float(self.gamma)
+        return ((a - 1.0) / g, 2.0 * (1.0 - a) / g, (a - 1.0) / 2.0, a - 1.0, float(self.kappa), float(self.k_psi),
+                float(self.k_sigma))
 
 
 def hc_eso_rates(r_hat: NDArray[np.float64], omega_hat: NDArray[np.float64], sigma_hat: NDArray[np.float64],
@@ -170,8 +179,7 @@ def hc_eso_step_single(r_hat: Sequence[float], omega_hat: Sequence[float], sigma
     The floor on s^T s and Psi^T Psi is :data:`vector_attitude._S2_FLOOR`, as in the batched functions.
     Returns (R_hat, Omega_hat, sigma_hat) as tuples of floats.
     """
-    a_, g_ = gains.alpha, float(gains.gamma)
-    kap = gains.kappa
+    e_z, c_h, e_psi, e_sig, kap, k_psi, k_sig = gains.single_constants
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = r_hat
     l00, l01, l02, l10, l11, l12, l20, l21, l22 = l
     w0, w1, w2 = omega_hat
@@ -193,12 +201,12 @@ def hc_eso_step_single(r_hat: Sequence[float], omega_hat: Sequence[float], sigma
     wl2 = (t01 * w2 - a02 * w0 - a12 * w1) - (t01 * o2 - a20 * o0 - a21 * o1)
     ss = s0 * s0 + s1 * s1 + s2 * s2
     ss = ss if ss > va._S2_FLOOR else va._S2_FLOOR
-    zf = ss ** ((a_ - 1.0) / g_)  # (s^T s)^((alpha-1)/gamma), eqs. 26, 30
+    zf = ss**e_z  # (s^T s)^((alpha-1)/gamma), eqs. 26, 30
     kz = kap * zf
     p0, p1, p2 = (o0 - w0) - kz * s0, (o1 - w1) - kz * s1, (o2 - w2) - kz * s2  # Psi, eq. 29
     pp = p0 * p0 + p1 * p1 + p2 * p2
     pp = pp if pp > va._S2_FLOOR else va._S2_FLOOR
-    hc = 2.0 * (1.0 - a_) / g_ * (s0 * wl0 + s1 * wl1 + s2 * wl2) / ss  # H(s_L) w_L, eq. 28
+    hc = c_h * (s0 * wl0 + s1 * wl1 + s2 * wl2) / ss  # H(s_L) w_L, eq. 28
     hw0, hw1, hw2 = wl0 - hc * s0, wl1 - hc * s1, wl2 - hc * s2
     j00, j01, j02, j10, j11, j12, j20, j21, j22 = inertia
     i00, i01, i02, i10, i11, i12, i20, i21, i22 = inertia_inv
@@ -206,12 +214,12 @@ def hc_eso_step_single(r_hat: Sequence[float], omega_hat: Sequence[float], sigma
     u0 = jw1 * o2 - jw2 * o1 + tau[0]  # J Omega^m x Omega^m + tau
     u1 = jw2 * o0 - jw0 * o2 + tau[1]
     u2 = jw0 * o1 - jw1 * o0 + tau[2]
-    kp = gains.k_psi * pp ** ((a_ - 1.0) / 2.0)
+    kp = k_psi * pp**e_psi
     sg0, sg1, sg2 = sigma_hat
     pd0 = i00 * u0 + i01 * u1 + i02 * u2 + sg0 + kp * p0 - kz * hw0  # P of eq. 30
     pd1 = i10 * u0 + i11 * u1 + i12 * u2 + sg1 + kp * p1 - kz * hw1
     pd2 = i20 * u0 + i21 * u1 + i22 * u2 + sg2 + kp * p2 - kz * hw2
-    ks = gains.k_sigma * pp ** (a_ - 1.0)  # Q of eq. 30 is ks Psi
+    ks = k_sig * pp**e_sig  # Q of eq. 30 is ks Psi
     rot = _matmul_single(r_hat, _exp_so3_single(h * w0, h * w1, h * w2))
     return (rot, (w0 + h * pd0, w1 + h * pd1, w2 + h * pd2),
             (sg0 + h * (ks * p0), sg1 + h * (ks * p1), sg2 + h * (ks * p2)))
@@ -223,24 +231,23 @@ _SINGLE_SHAPES = {k: (t, (1,) + t) for k, t in _MEAS_TRAILING.items()}
 
 def _single_shapes_ok(measurement: Mapping[str, object], torque: object) -> bool:
     """True iff :func:`fawtgym.envs.measurement.batch_measurement` accepts ``measurement`` as an N = 1 batch
-    (every value a numeric ndarray or a number, every known key shaped (trailing) or (1, *trailing)) and
-    ``torque`` is (3,) or (1, 3).
+    (every value a numeric numpy array/scalar, or a Python number under ``"time"`` or an unknown key; every
+    known key shaped (trailing) or (1, *trailing)) and ``torque`` is (3,) or (1, 3).
 
     Anything else goes to the batched path, which raises (or, for a shape it does accept, computes) as before.
     """
     ts = torque.shape if type(torque) is np.ndarray else np.shape(torque)
     if ts != (3,) and ts != (1, 3):
         return False
-    shapes = _SINGLE_SHAPES
+    get = _SINGLE_SHAPES.get
     for key, value in measurement.items():
-        if type(value) is np.ndarray:
-            if value.dtype.kind not in "fiub":
+        try:
+            allowed = get(key)
+            if allowed is not None and value.shape not in allowed or value.dtype.kind not in "fiub":
                 return False
-            allowed = shapes.get(key)
-            if allowed is not None and value.shape not in allowed:
+        except AttributeError:  # not a numpy array or scalar
+            if not isinstance(value, (int, float)) or key != M.TIME and key in _SINGLE_SHAPES:
                 return False
-        elif not isinstance(value, (int, float)) or key in shapes and key != M.TIME:
-            return False
     return True
 
 

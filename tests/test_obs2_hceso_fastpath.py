@@ -227,6 +227,9 @@ _BAD = {
     "unused key misshaped": ({"position": np.zeros(4)}, 0.0, np.zeros(3), 0.01),
     "rate (3, 1)": ({"angular_velocity": np.zeros((3, 1))}, 0.0, np.zeros(3), 0.01),
     "attitude (9,)": ({"attitude": np.eye(3).ravel()}, 0.0, np.zeros(3), 0.01),
+    "text under an unknown key": ({"note": np.array(["x"])}, 0.0, np.zeros(3), 0.01),
+    "time (1, 1)": ({"time": np.zeros((1, 1))}, 0.0, np.zeros(3), 0.01),
+    "number as a vector": ({"velocity": 1.0}, 0.0, np.zeros(3), 0.01),
     "collinear vectors": ({"magnetometer": np.array([0.0, 0.0, 0.4]), "specific_force": np.array([0.0, 0.0, -G])},
                           0.0, np.zeros(3), 0.01),
 }
@@ -259,6 +262,21 @@ def test_malformed_steps_raise_the_batched_errors_and_change_nothing(case, vecto
         assert vectors == "attitude" and case in _FINE_WITH_ATTITUDE
         _agree(fast.update(bad, thrust, torque, dt), ref, case)
     _agree(fast.update(_good(), 0.0, np.zeros(3), 0.01), slow.update(_good(), 0.0, np.zeros(3), 0.01), case)
+
+
+@pytest.mark.parametrize("extra, fast_path", [
+    ({"time": 0.5}, True), ({"time": np.float64(0.5)}, True), ({"seq": 3}, True), ({"time": np.zeros(1)}, True),
+    ({"time": [0.5]}, False), ({"angular_velocity": [0.1, 0.0, -0.2]}, False),
+])
+def test_which_values_take_the_fast_path(extra, fast_path):
+    fast, slow = _pair(1.0, J_QUAD)
+    fast.reset(_good())
+    slow.reset(_good())
+    m = {**_good(), **extra}
+    for _ in range(3):
+        a, b = fast.update(m, 0.0, np.zeros(3), 0.01), slow.update(m, 0.0, np.zeros(3), 0.01)
+        assert (fast._single is not None) == fast_path
+        _agree(a, b, str(extra))
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # numpy's overflow warnings in the batched path
