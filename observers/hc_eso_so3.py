@@ -21,6 +21,10 @@ Integration is geometric (Sec. 6): one Lie-Euler step of size h is
 with P, Q the right-hand sides at the start of the step, so R_hat stays on SO(3) without
 projection.  Between two measurements the measured vectors are propagated with the measured rate
 (``L <- L exp(h (Omega^m)^x)``, the same L' = L Omega^x that eq. 27 assumes).
+
+A single vehicle runs the same step in Python floats (:func:`hc_eso_step_single`, numpy's per-call
+overhead dominating 3-vectors); the batched numpy functions are the reference it is tested against
+(tests/test_obs2_hceso_fastpath.py).
 """
 
 from __future__ import annotations
