@@ -40,8 +40,11 @@ exactly as each single env would; cost grows with the number of distinct reset t
 ``info`` holds batched arrays with HoverEnv's keys: ``measurement``/``applied``/``truth`` dicts of
 (N, ...) arrays, ``setpoint`` (N, 3), ``action_clipped`` (N,), ``failure`` (N,) str, ``time`` (N,).
 
-Not implemented: ``action_type="ctbr"`` (its inner rate loop runs at the physics rate, which needs one
-rollout per substep; raises NotImplementedError) and rendering.
+``action_type="ctbr"``: the inner rate loop (:mod:`fawtgym.envs.ctbr`) runs at the physics rate on the
+true body rates, so the physics is one single-substep rollout per substep (``n_substeps`` calls per
+control step), with :class:`BatchRateLoop` (RateLoop's law row by row) in between.
+
+Not implemented: rendering (render a single ``fawtgym/Hover-v0``).
 """
 
 from __future__ import annotations
@@ -62,10 +65,11 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.observers.lie import exp_so3
 
 from . import measurement as M
+from .ctbr import MAX_RATES, RateLoop
 from .frames import SIGN2_MJ_NED, SIGN_MJ_NED, rot_ned_to_quat_mj
 from .hover_env import INIT_SPREAD, HoverEnv
 from .mjcf import hull_points
-from .motors import allocation_matrix, hover_command
+from .motors import allocation_matrix
 from .sensors_batch import BatchSensorModel
 from .wind import WindModel
 from .wind.base import CalmWind
@@ -155,6 +159,47 @@ class BatchWind:
         return out
 
 
+class BatchRateLoop:
+    """:class:`fawtgym.envs.ctbr.RateLoop` for N vehicles: the same gains and law, row by row (batch-first)."""
+
+    def __init__(self, loop: RateLoop, n: int) -> None:
+        self.dt = loop.dt
+        self.kp, self.ki, self.kd = loop.kp, loop.ki, loop.kd
+        self.i_lim = loop.i_lim
+        self.j_t = loop.j.T
+        self.b_thrust = loop.b_inv[:, 0]
+        self.b_torque_t = loop.b_inv[:, 1:].T
+        self.t_min, self.t_max = loop.t_min, loop.t_max
+        self.integral = np.zeros((n, 3))
+        self.prev_rate = np.zeros((n, 3))
+        self.has_prev = np.zeros(n, dtype=bool)
+
+    def reset_rows(self, rows: NDArray[np.intp]) -> None:
+        self.integral[rows] = 0.0
+        self.prev_rate[rows] = 0.0
+        self.has_prev[rows] = False
+
+    def rotor_thrusts(self, collective: NDArray[np.float64], rate_sp: NDArray[np.float64],
+                      rate: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Rotor thrusts (N, 4) [N] for collective thrusts (N,) [N] and body-rate setpoints (N, 3) [rad/s]."""
+        err = rate_sp - rate
+        rate_dot = np.where(self.has_prev[:, None], (rate - self.prev_rate) / self.dt, 0.0)
+        self.prev_rate = rate.copy()
+        self.has_prev[:] = True
+        ang_acc = self.kp * err + self.integral - self.kd * rate_dot
+        torque = ang_acc @ self.j_t + np.cross(rate, rate @ self.j_t)
+        thrust_part = self.b_thrust * collective[:, None]
+        torque_part = torque @ self.b_torque_t
+        lo, hi = self.t_min - thrust_part, self.t_max - thrust_part
+        with np.errstate(divide="ignore", invalid="ignore"):
+            room = np.where(torque_part > 0, hi / torque_part, np.where(torque_part < 0, lo / torque_part, np.inf))
+        scale = np.clip(room.min(axis=1), 0.0, 1.0)
+        free = scale >= 1.0  # PX4: freeze the integrator while the actuators saturate
+        self.integral = np.where(free[:, None], np.clip(self.integral + self.ki * err * self.dt, -self.i_lim,
+                                                        self.i_lim), self.integral)
+        return np.clip(thrust_part + scale[:, None] * torque_part, self.t_min, self.t_max)
+
+
 class HoverBatchEnv(VectorEnv):
     """N hover vehicles stepped together; per-row semantics of :class:`HoverEnv` (module docstring).
 
@@ -183,10 +228,6 @@ class HoverBatchEnv(VectorEnv):
                           setpoint=setpoint, init_noise=init_noise, reward_weights=reward_weights,
                           max_position_error=max_position_error, integrator=integrator,
                           render_width=render_width, render_height=render_height)
-        if action_type != "motors":
-            raise NotImplementedError(f"HoverBatchEnv supports action_type='motors' only (got {action_type!r}): "
-                                      "the 'ctbr' inner rate loop runs at the physics rate; use the single "
-                                      "fawtgym/Hover-v0 with vectorization_mode='sync' for it")
         n = self.num_envs = int(num_envs)
         self.preset = single.preset
         self.action_type = action_type
@@ -218,7 +259,11 @@ class HoverBatchEnv(VectorEnv):
         self._hull_t = hull_points(p).T
         self._alloc_t = allocation_matrix(p).T
         self._rotor_pos_t = np.ascontiguousarray(p.rotor_positions.T)
-        self._hover = np.full(4, hover_command(p), dtype=np.float32)
+        self._hover = single.hover_action().astype(np.float32)
+        self._rate_loop = BatchRateLoop(RateLoop(p, self.physics_dt), n) if action_type == "ctbr" else None
+        sub_times = np.array([[0.5 * self.physics_dt], [self.physics_dt]])
+        self._sub_decay_up, self._sub_decay_down = np.exp(-sub_times / p.tau_up), np.exp(-sub_times / p.tau_down)
+        self._max_thrust = 4.0 * p.max_thrust_per_rotor
         self._act_low = self.single_action_space.low.astype(float)
         self._act_high = self.single_action_space.high.astype(float)
         self._obs_low = self.single_observation_space.low.astype(float)
@@ -232,7 +277,8 @@ class HoverBatchEnv(VectorEnv):
         self._ctrl = np.zeros((n, k, mujoco.mj_stateSize(self.model, _CONTROL_SPEC)))
         self._mj_state = np.zeros((n, mujoco.mj_stateSize(self.model, _STATE_SPEC)))
         self._out = np.zeros((n, k, self._mj_state.shape[1]))
-        self._t_end = None  # MuJoCo's end time of a clean rollout (measured once)
+        self._out1 = np.zeros((n, 1, mujoco.mj_stateSize(self.model, _STATE_SPEC)))  # ctbr: one substep
+        self._ctrl1 = np.zeros((n, 1, self._ctrl.shape[2]))
         self.external_force = np.zeros((n, 3))
         self.external_torque = np.zeros((n, 3))
         self._row_rngs: list[np.random.Generator] | None = None
@@ -295,6 +341,8 @@ class HoverBatchEnv(VectorEnv):
         self._failure[rows] = ""
         self.wind.reset_rows(rows, ints, wind_seeds)
         self.sensor.reset_rows(rows, sensor_rngs)
+        if self._rate_loop is not None:
+            self._rate_loop.reset_rows(rows)
         if self.num_envs == 1:  # N = 1: the row's own sensor stream, as HoverEnv
             self.sensor.set_noise_rng(sensor_rngs[0])
 
@@ -373,28 +421,13 @@ class HoverBatchEnv(VectorEnv):
             clipped[resetting] = self._hover
         action_clipped = (clipped != a).any(axis=1) & stepping
 
-        # motors: exact lag from the current speeds (HoverEnv._run_motors for every row at once)
-        ref = (clipped * self._omega_span + self._omega_min)[:, None, :]
-        w0 = self.rotor_speeds[:, None, :]
-        speeds = ref + (w0 - ref) * np.where(ref > w0, self._decay_up, self._decay_down)  # (N, K + 1, 4)
-        thrusts = speeds[:, :-1] ** 2 * self.preset.k_thrust
-        ctrl = self._ctrl
-        ctrl[:, :, 0:4] = thrusts
-        ctrl[:, :, 4:7] = (self._torque * _SIGN)[:, None, :]
-        c = self._xfrc_col
-        ctrl[:, :, c:c + 3] = (self._force * _SIGN)[:, None, :]
         state = self._mj_state
-        state[:, 0] = _MJ_T0
-        self._rollout.rollout(self._models, [self._data], state, ctrl, control_spec=_CONTROL_SPEC, skip_checks=True,
-                              nstep=self.n_substeps, state=self._out)
-        final = self._out[:, -1]
-        if self._t_end is None:
-            self._t_end = _MJ_T0 + self.n_substeps * self.physics_dt
-        diverged = (np.abs(final[:, 0] - self._t_end) > 0.5 * self.physics_dt) | ~np.isfinite(final).all(axis=1)
+        if self._rate_loop is None:
+            final, diverged = self._run_motors(clipped)
+        else:
+            final, diverged = self._run_ctbr(clipped)
         diverged &= stepping
         ok = stepping & ~diverged
-        self.rotor_speeds = speeds[:, -1].copy()
-        self._applied = thrusts.sum(axis=1) * self._inv_substeps
         self.time = self.time + np.where(stepping, self.dt, 0.0)
         self._steps = self._steps + stepping
 
@@ -430,6 +463,64 @@ class HoverBatchEnv(VectorEnv):
             reward[resetting] = 0.0
         self._autoreset = terminated | truncated
         return obs, reward, terminated, truncated, info
+
+    def _rollout_rows(self, state: NDArray[np.float64], ctrl: NDArray[np.float64], out: NDArray[np.float64]
+                      ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """One rollout from ``state`` (N, 14) with controls ``ctrl`` (N, nstep, 19) into ``out`` (N, nstep, 14)
+        (all C-contiguous float64: the checks are skipped); returns (final states, diverged rows)."""
+        nstep = ctrl.shape[1]
+        state[:, 0] = _MJ_T0
+        self._rollout.rollout(self._models, [self._data], state, ctrl, control_spec=_CONTROL_SPEC,
+                              skip_checks=True, nstep=nstep, state=out)
+        final = out[:, -1]
+        t_end = _MJ_T0 + nstep * self.physics_dt
+        diverged = (np.abs(final[:, 0] - t_end) > 0.5 * self.physics_dt) | ~np.isfinite(final).all(axis=1)
+        return final, diverged
+
+    def _held_wrench(self, ctrl: NDArray[np.float64]) -> None:
+        """The disturbance torque (body, via the ext_t* actuators) and force (world, xfrc_applied), held."""
+        ctrl[:, :, 4:7] = (self._torque * _SIGN)[:, None, :]
+        c = self._xfrc_col
+        ctrl[:, :, c:c + 3] = (self._force * _SIGN)[:, None, :]
+
+    def _run_motors(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """HoverEnv._run_motors for every row: exact lag, mid-substep thrusts, one rollout of the control step."""
+        ref = (u * self._omega_span + self._omega_min)[:, None, :]
+        w0 = self.rotor_speeds[:, None, :]
+        speeds = ref + (w0 - ref) * np.where(ref > w0, self._decay_up, self._decay_down)  # (N, K + 1, 4)
+        thrusts = speeds[:, :-1] ** 2 * self.preset.k_thrust
+        self._ctrl[:, :, 0:4] = thrusts
+        self._held_wrench(self._ctrl)
+        final, diverged = self._rollout_rows(self._mj_state, self._ctrl, self._out)
+        self.rotor_speeds = speeds[:, -1].copy()
+        self._applied = thrusts.sum(axis=1) * self._inv_substeps
+        return final, diverged
+
+    def _run_ctbr(self, a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """HoverEnv._run_ctbr for every row: the rate loop on the true rates at each substep, one rollout each."""
+        k_t = self.preset.k_thrust
+        collective = a[:, 0] * self._max_thrust
+        rate_sp = a[:, 1:] * MAX_RATES
+        self._held_wrench(self._ctrl1)
+        state = self._mj_state.copy()
+        total = np.zeros((self.num_envs, 4))
+        diverged = np.zeros(self.num_envs, dtype=bool)
+        speeds = self.rotor_speeds
+        for _ in range(self.n_substeps):  # substeps (the rate loop closes the loop at the physics rate)
+            t_cmd = self._rate_loop.rotor_thrusts(collective, rate_sp, state[:, 11:14] * _SIGN)
+            ref = np.sqrt(t_cmd / k_t)[:, None, :]
+            w0 = speeds[:, None, :]
+            mid_end = ref + (w0 - ref) * np.where(ref > w0, self._sub_decay_up, self._sub_decay_down)  # (N, 2, 4)
+            thrust = k_t * mid_end[:, 0] ** 2
+            self._ctrl1[:, 0, 0:4] = thrust
+            final, bad = self._rollout_rows(state, self._ctrl1, self._out1)
+            diverged |= bad
+            state = final.copy()
+            speeds = mid_end[:, 1]
+            total += thrust
+        self.rotor_speeds = speeds.copy()
+        self._applied = total / self.n_substeps
+        return state, diverged
 
     def _update_disturbance(self, rows: NDArray[np.bool_]) -> None:
         """Wind at [CoM, hubs] and the aero + external wrench for the next step (rows not diverged)."""

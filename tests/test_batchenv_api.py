@@ -166,8 +166,14 @@ def test_bad_input():
         HoverBatchEnv(2, wind="hurricane")
     with pytest.raises(ValueError, match="control_rate"):
         HoverBatchEnv(2, control_rate=300.0)
-    with pytest.raises(NotImplementedError, match="ctbr"):
-        HoverBatchEnv(2, action_type="ctbr")
+    with pytest.raises(ValueError, match="action_type"):
+        HoverBatchEnv(2, action_type="rates")
+    ctbr = HoverBatchEnv(2, action_type="ctbr")
+    ctbr.reset(seed=0)
+    a = np.zeros((2, 4))
+    a[0, 3] = -np.inf
+    with pytest.raises(ValueError, match=r"actions\[0, 3\] is -inf"):
+        ctbr.step(a)
 
 
 def test_reset_options_per_row_setpoint():

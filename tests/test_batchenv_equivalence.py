@@ -69,6 +69,25 @@ def test_rows_match_hover_env_calm_exact_sensors(init_noise):
     assert worst < TOL
 
 
+def _ctbr_actions(n, steps, seed=0):
+    rng = np.random.default_rng(seed)
+    a = np.empty((steps, n, 4))
+    a[..., 0] = 0.27 + 0.05 * rng.standard_normal((steps, n))
+    a[..., 1:] = 0.2 * rng.standard_normal((steps, n, 3))
+    a[::9, :, 1] = 1.4  # clipped
+    return a.astype(np.float32)
+
+
+def test_ctbr_rows_match_hover_env():
+    # the inner rate loop at the physics rate: one single-substep rollout per substep
+    kw = dict(wind="calm", sensors="none", init_noise=1.0, episode_seconds=0.3, action_type="ctbr")
+    worst, _ = _compare(kw, 3, 5, _ctbr_actions(3, 45))
+    assert worst < TOL
+    kw.update(wind="fawt-50", sensors="mocap_imu", control_rate=200.0)
+    worst, _ = _compare(kw, 1, 5, _ctbr_actions(1, 30))
+    assert worst < TOL
+
+
 def test_single_row_matches_hover_env_in_fawt_wind_with_noisy_sensors():
     # N = 1: the row's own wind and sensor streams are the single env's
     kw = dict(wind="fawt-50", sensors="mocap_imu", init_noise=1.0, episode_seconds=0.2, control_rate=200.0)
