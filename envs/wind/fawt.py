@@ -284,38 +284,39 @@ class FawtWind(WindModel):
         self._t = t
         scale = self.mean_speed * level
         ox, oy, oz = _ORIGIN
-        sig_g, half_y, half_z, kappa, core_ref, f_ref = (GOERTLER_SIGMA, HALF_SPAN, HALF_HEIGHT, DECAY_KAPPA,
-                                                         _CORE_REF, _F_REF)
+        sig_g, half_y, half_z, kappa, core_ref = GOERTLER_SIGMA, HALF_SPAN, HALF_HEIGHT, DECAY_KAPPA, _CORE_REF
         erf, exp = math.erf, math.exp
         turbulent = self.turbulence and level > 0.0
-        means, weights = [], []
-        for k in range(0, len(flat), 3):  # inlined _profile_point
+        gain = scale / _F_REF
+        n = len(flat)
+        out = [0.0] * n
+        weights = [0.0] * n
+        for k in range(0, n, 3):  # inlined _profile_point; the mean goes straight into the output's x slot
             x = flat[k] - ox
             if x <= 0.0:
-                means.append(0.0)
-                weights.append(0.0)
                 continue
-            s = sig_g / x if x > 1e-3 else sig_g / 1e-3
+            if x < 1e-3:
+                x = 1e-3
+            s = sig_g / x
             ey = (half_y - abs(oy - flat[k + 1])) * s
             ez = (half_z - abs(oz - flat[k + 2])) * s
             fy = 0.5 + 0.5 * erf(ey)
             fz = 0.5 + 0.5 * erf(ez)
-            core = core_ref / (1.0 + kappa * (x if x > 1e-3 else 1e-3))
-            means.append(scale * fy * fz * core / f_ref)
+            core = core_ref / (1.0 + kappa * x)
+            out[k] = gain * fy * fz * core
             if turbulent:
                 gy, gz = exp(-ey * ey) * fz, exp(-ez * ez) * fy
-                weights.append((gy if gy > gz else gz) * core * core)
-        out: list[float] = []
+                weights[k] = (gy if gy > gz else gz) * core * core
         if turbulent:
-            rx = means[0] - vx
+            rx = out[0] - vx
             gu, gv, gw = self.process.step1(dt, math.sqrt(rx * rx + vy * vy + vz * vz))[:3]
             ti, sh = self.ti, (SHEAR_TI * scale) ** 2
-            for u, g in zip(means, weights, strict=True):
-                s = math.sqrt((ti * u) ** 2 + sh * g) if g > 0.0 else ti * u
-                out += (u + s * gu, -s * gv, -s * gw)
-            return out
-        for u in means:
-            out += (u, 0.0, 0.0)
+            for k in range(0, n, 3):
+                u, g = out[k], weights[k]
+                s = math.sqrt(ti * ti * u * u + sh * g) if g > 0.0 else ti * u
+                out[k] = u + s * gu
+                out[k + 1] = -s * gv
+                out[k + 2] = -s * gw
         return out
 
     def mean_wind_at(self, points_ned: Sequence[float] | NDArray[np.float64]) -> NDArray[np.float64]:

@@ -4,9 +4,10 @@
 
 * ``wind.step`` and ``AeroModel.wrench`` per call for N = 1 and N = 1024 (and per env);
 * the env step cost with ``wind="calm"`` and ``wind="fawt-50"``, alternating single steps so that
-  machine load affects both alike, and their ratio (target: the FAWT wind adds <= 20 %).  Both fly the hover
-  command open loop from the hover point; the FAWT env gets a constant external wrench cancelling the
-  mean aerodynamic wrench so that it stays near hover like the calm one (same physics being timed);
+  machine load affects both alike, and their ratio (target: the FAWT wind adds <= 20 %).  Both hover at the
+  FAWT point under the PX4 cascade (:class:`~fawtgym.agents.PX4Agent`, not timed), so the FAWT env meets the
+  airspeeds of a real hover in the jet (an open-loop vehicle is blown away: its ever-new airspeeds would
+  time the one-off filling of the Dryden step-matrix table instead of the wind);
 * a numpy reference op (``a + b`` on a (1, 3) array) so numbers from loaded machines can be compared.
 
 Times are CPU time of this process (``time.process_time``), best of several repeats, so other jobs on
@@ -74,36 +75,29 @@ def env_costs(steps: int, blocks: int) -> dict[str, float] | None:
         import gymnasium as gym
 
         import fawtgym  # noqa: F401  (registers the ids)
-        envs = {name: gym.make("fawtgym/Hover-v0", wind=name, init_noise=0.0) for name in ("calm", "fawt-50")}
-    except Exception as exc:  # the env is written in parallel; report instead of failing
+        from fawtgym.agents import PX4Agent
+        envs = {name: gym.make("fawtgym/Hover-v0", wind=name, init_noise=0.0, episode_seconds=1e6)
+                for name in ("calm", "fawt-50")}
+    except Exception as exc:  # report instead of failing
         print(f"env benchmark skipped: {type(exc).__name__}: {exc}")
         return None
-    p = make_vehicle("s500")
-    hover = (p.hover_omega - p.omega_min) / (p.omega_max - p.omega_min)
-    action = np.full(4, hover, dtype=np.float32)
-    totals = {name: [] for name in envs}
-    # cancel the FAWT mean drag with a constant external wrench so both envs fly the same near-hover states
-    # (otherwise the open-loop vehicle is blown away and the comparison times different physics)
-    fawt = make_wind("fawt-50")
-    fawt.reset(1, seed=0)
-    pts = np.vstack([FAWT_HOVER_POINT_NED, FAWT_HOVER_POINT_NED + p.rotor_positions])[None]
-    mean = fawt.mean_wind_at(pts)
-    f_mean, tau_mean = AeroModel(p).wrench(np.eye(3)[None], np.zeros((1, 3)), np.zeros((1, 3)),
-                                 np.full((1, 4), p.hover_omega), mean)
+    agents = {name: PX4Agent.for_env(env) for name, env in envs.items()}
+    infos = {}
 
     def reset(name: str) -> None:
-        envs[name].reset(seed=0)
-        if name == "fawt-50":
-            envs[name].unwrapped.set_external_wrench(-f_mean[0], -tau_mean[0])
+        _, infos[name] = envs[name].reset(seed=0)
+        agents[name].reset(infos[name])
 
     for name in envs:
         reset(name)
+    totals: dict[str, list[float]] = {name: [] for name in envs}
     for _ in range(blocks):
         t_sum = dict.fromkeys(envs, 0.0)
         for _ in range(steps):  # alternate single steps so both envs see the same machine load
             for name, env in envs.items():
+                action = agents[name].act(None, infos[name]).astype(np.float32)
                 t0 = time.process_time()
-                _, _, term, trunc, _ = env.step(action)
+                _, _, term, trunc, infos[name] = env.step(action)
                 t_sum[name] += time.process_time() - t0
                 if term or trunc:
                     reset(name)
