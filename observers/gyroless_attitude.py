@@ -193,7 +193,7 @@ class GibbsSTSMO:
             raise ValueError(f"inertia must be positive definite 3x3 or 3 diagonal entries, got {inertia!r}")
         self.J = J
         self.J_inv = np.linalg.inv(J)
-        self._J_rows, self._J_inv_rows = J.tolist(), self.J_inv.tolist()
+        self._J_flat, self._J_inv_flat = tuple(J.ravel().tolist()), tuple(self.J_inv.ravel().tolist())
         self.t_c, self.eta, self.kappa1, self.kappa2 = float(t_c), float(eta), float(kappa1), float(kappa2)
         self.mode, self.integrator = mode, integrator
         t_s, t_d = switch_and_gain_times(float(t_c), t_switch, early_form)
@@ -353,7 +353,7 @@ class GibbsSTSMO:
         gd0 = a0 * d2w + b0 * d1w + (b1 * w2 - b2 * w1)
         gd1 = a1 * d2w + b1 * d1w + (b2 * w0 - b0 * w2)
         gd2 = a2 * d2w + b2 * d1w + (b0 * w1 - b1 * w0)
-        (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._J_rows
+        j00, j01, j02, j10, j11, j12, j20, j21, j22 = self._J_flat
         jw0 = j00 * w0 + j01 * w1 + j02 * w2
         jw1 = j10 * w0 + j11 * w1 + j12 * w2
         jw2 = j20 * w0 + j21 * w1 + j22 * w2
@@ -362,7 +362,7 @@ class GibbsSTSMO:
         q0 = (jw1 * w2 - jw2 * w1) + u0 + k2 * n0
         q1 = (jw2 * w0 - jw0 * w2) + u1 + k2 * n1
         q2 = (jw0 * w1 - jw1 * w0) + u2 + k2 * n2
-        (i00, i01, i02), (i10, i11, i12), (i20, i21, i22) = self._J_inv_rows
+        i00, i01, i02, i10, i11, i12, i20, i21, i22 = self._J_inv_flat
         v0 = i00 * q0 + i01 * q1 + i02 * q2
         v1 = i10 * q0 + i11 * q1 + i12 * q2
         v2 = i20 * q0 + i21 * q1 + i22 * q2
@@ -381,7 +381,8 @@ class GibbsSTSMO:
                 s0, s1, s2 = gain * e0, gain * e1, gain * e2
             c0, c1, c2 = a0 + dt * (b0 + s0), a1 + dt * (b1 + s1), a2 + dt * (b2 + s2)
         else:
-            h1 = min(max(self.t_s - t, 0.0), dt)
+            h1 = self.t_s - t  # clip(t_s - t, 0, dt)
+            h1 = (h1 if h1 < dt else dt) if h1 > 0.0 else 0.0
             h2 = dt - h1
             if h1 > 0:  # the exact transition of eq. 7 (see pdt_sta.exact_linear_step) up to t_s
                 tau0 = max(self.t_d - t, 1e-300)
@@ -390,11 +391,10 @@ class GibbsSTSMO:
                 psi = (tau0 - h1) * (1.0 - float(np.power(r, self.eta - 1.0))) / (self.eta - 1.0)
                 a0, a1, a2 = y0 - phi * e0 + psi * b0, y1 - phi * e1 + psi * b1, y2 - phi * e2 + psi * b2
             c0, c1, c2 = a0 + h2 * (b0 + s0), a1 + h2 * (b1 + s1), a2 + h2 * (b2 + s2)
-        new1 = [c0, c1, c2]
-        new2 = [b0 + dt * xd0, b1 + dt * xd1, b2 + dt * xd2]
-        if not math.isfinite(c0 + c1 + c2 + new2[0] + new2[1] + new2[2]):
+        b0, b1, b2 = b0 + dt * xd0, b1 + dt * xd1, b2 + dt * xd2
+        if not math.isfinite(c0 + c1 + c2 + b0 + b1 + b2):
             raise ValueError("observer state became non-finite (step too large for the gains?)")
-        return new1, new2
+        return [c0, c1, c2], [b0, b1, b2]
 
 
 def _dot3(a: list[float], b: list[float]) -> float:
@@ -565,7 +565,8 @@ class PdtStaAttitudeObserver(Observer):
         na = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
         nm = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
         c0, c1, c2 = f1 * m2 - f2 * m1, f2 * m0 - f0 * m2, f0 * m1 - f1 * m0
-        sin = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / max(na * nm, 1e-300)
+        nn = na * nm
+        sin = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / (nn if nn > 1e-300 else 1e-300)
         if not (na > 0.2 * self.gravity and nm > self._min_field and sin > 0.0175):
             return None
         body = [[f0 / na, f1 / na, f2 / na], [m0 / nm, m1 / nm, m2 / nm]]
@@ -577,30 +578,48 @@ class PdtStaAttitudeObserver(Observer):
         if self._anchor_src is not self.anchor:
             self._anchor_src, self._anchor_list = self.anchor, self.anchor[0].ravel().tolist()
         A = self._anchor_list
-        # y = Gibbs vector of (R_a^T R_q)^T (eq. 79), as _safe_gibbs
-        rel = _mat_t_mat(A, rq)
-        den = 1.0 + (rel[0] + rel[4] + rel[8])
+        # y = Gibbs vector of D = rel^T, rel = R_a^T R_q (eq. 79), as _safe_gibbs: 2 vee(rel) / (1 + tr rel)
+        a00, a01, a02, a10, a11, a12, a20, a21, a22 = A
+        q00, q01, q02, q10, q11, q12, q20, q21, q22 = rq
+        den = 1.0 + ((a00 * q00 + a10 * q10 + a20 * q20) + (a01 * q01 + a11 * q11 + a21 * q21)
+                     + (a02 * q02 + a12 * q12 + a22 * q22))
         den = den if den > 1e-6 else 1e-6
-        y = [2.0 * (0.5 * (rel[7] - rel[5])) / den, 2.0 * (0.5 * (rel[2] - rel[6])) / den,
-             2.0 * (0.5 * (rel[3] - rel[1])) / den]
+        y = [2.0 * (0.5 * ((a02 * q01 + a12 * q11 + a22 * q21) - (a01 * q02 + a11 * q12 + a21 * q22))) / den,
+             2.0 * (0.5 * ((a00 * q02 + a10 * q12 + a20 * q22) - (a02 * q00 + a12 * q10 + a22 * q20))) / den,
+             2.0 * (0.5 * ((a01 * q00 + a11 * q10 + a21 * q20) - (a00 * q01 + a10 * q11 + a20 * q21))) / den]
         yy = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
         if yy > 1e5:
             ny = math.sqrt(yy)
             if ny > 1e3:
                 y = [yi * 1e3 / ny for yi in y]
         core = self.core
-        x1, x2, t = core.state_floats()
+        x1, x2, t = core._floats or core.state_floats()
         x1, x2 = core.advance_floats(x1, x2, t, y, u, dt)
-        a0, a1, a2 = x1
-        if math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) > self.reanchor:  # _maybe_reanchor
+        g0, g1, g2 = x1
+        if math.sqrt(g0 * g0 + g1 * g1 + g2 * g2) > self.reanchor:  # _maybe_reanchor
             w = _omega_floats(x1, x2)
             A = _mat_mat(A, _gibbs_to_rot_floats(x1))
             self.anchor = np.array(A).reshape(1, 3, 3)
             self._anchor_src, self._anchor_list = self.anchor, A
             x1, x2 = [0.0, 0.0, 0.0], [0.5 * w[0], 0.5 * w[1], 0.5 * w[2]]  # g' = 1/2 Gamma(0) omega (eq. 47)
-        core.set_state_floats(x1, x2, t + dt)
+            a00, a01, a02, a10, a11, a12, a20, a21, a22 = A
+            g0 = g1 = g2 = 0.0
+        core._floats = (x1, x2, t + dt)  # GibbsSTSMO.set_state_floats
+        b0, b1, b2 = x2
+        # R_hat = R_a D(g_hat)^T (eq. 45, as gibbs_to_rot) and omega_hat (eq. 80)
+        gg = g0 * g0 + g1 * g1 + g2 * g2
+        d, m = 1.0 - gg, 1.0 + gg
+        d00, d01, d02 = (d + 2.0 * (g0 * g0)) / m, (2.0 * (g0 * g1) - 2.0 * g2) / m, (2.0 * (g0 * g2) + 2.0 * g1) / m
+        d10, d11, d12 = (2.0 * (g1 * g0) + 2.0 * g2) / m, (d + 2.0 * (g1 * g1)) / m, (2.0 * (g1 * g2) - 2.0 * g0) / m
+        d20, d21, d22 = (2.0 * (g2 * g0) - 2.0 * g1) / m, (2.0 * (g2 * g1) + 2.0 * g0) / m, (d + 2.0 * (g2 * g2)) / m
         # one buffer, rows: R_hat (3), omega_hat, R_q (3), g_hat, zero force, zero torque
-        out = np.array(_mat_mat(A, _gibbs_to_rot_floats(x1)) + _omega_floats(x1, x2) + rq + x1 + _ZEROS6).reshape(10, 3)
+        out = np.fromiter([
+            a00 * d00 + a01 * d10 + a02 * d20, a00 * d01 + a01 * d11 + a02 * d21, a00 * d02 + a01 * d12 + a02 * d22,
+            a10 * d00 + a11 * d10 + a12 * d20, a10 * d01 + a11 * d11 + a12 * d21, a10 * d02 + a11 * d12 + a12 * d22,
+            a20 * d00 + a21 * d10 + a22 * d20, a20 * d01 + a21 * d11 + a22 * d21, a20 * d02 + a21 * d12 + a22 * d22,
+            2.0 * (b0 - (g1 * b2 - g2 * b1)) / m, 2.0 * (b1 - (g2 * b0 - g0 * b2)) / m,
+            2.0 * (b2 - (g0 * b1 - g1 * b0)) / m, q00, q01, q02, q10, q11, q12, q20, q21, q22,
+            g0, g1, g2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], float, 30).reshape(10, 3)
         return ObserverEstimate(force=out[8:9], torque=out[9:10], states={
             "attitude": out[None, 0:3], "angular_velocity": out[3:4], "attitude_quest": out[None, 4:7],
             "gibbs": out[7:8], "quest_valid": np.array([True])})
@@ -622,7 +641,6 @@ class PdtStaAttitudeObserver(Observer):
 
 
 _QUEST_KEYS = (SPECIFIC_FORCE, MAGNETOMETER)
-_ZEROS6 = [0.0] * 6
 
 
 def _mat_mat(A: list[float], B: list[float]) -> list[float]:

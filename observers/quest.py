@@ -256,7 +256,7 @@ def quest_floats(b: list[list[float]], r: list[list[float]], a: list[float]
         z0, z1, z2 = (sum(c) for c in zip(*(_cross3(abi, ri) for abi, ri in zip(ab, r, strict=True)), strict=True))
     # eq. 59 S = B + B^T, eq. 60 rho = tr B
     S00, S01, S02, S11, S12, S22 = B00 + B00, B01 + B10, B02 + B20, B11 + B11, B12 + B21, B22 + B22
-    S10, S20, S21 = B10 + B01, B20 + B02, B21 + B12
+    S10, S20, S21 = S01, S02, S12  # B10 + B01 == B01 + B10 exactly
     rho = B00 + B11 + B22
     # cofactors of S (rows S1 x S2, S2 x S0, S0 x S1) and det S, as _cofactors
     C00, C01, C02 = S11 * S22 - S12 * S21, S12 * S20 - S10 * S22, S10 * S21 - S11 * S20
