@@ -183,3 +183,18 @@ def test_reset_options_per_row_setpoint():
     assert np.array_equal(info["setpoint"], sp)
     assert np.allclose(info["truth"]["position"], sp)
     assert np.allclose(obs[:, :3], 0.0)
+
+
+def test_gymnasium_vector_wrappers_work():
+    """gymnasium has no vector-env checker; its vector wrappers (which read the autoreset mode) must run."""
+    from gymnasium.wrappers.vector import ClipAction, NormalizeObservation, RecordEpisodeStatistics
+
+    env = ClipAction(NormalizeObservation(RecordEpisodeStatistics(HoverBatchEnv(N, episode_seconds=0.2))))
+    env.reset(seed=0)
+    episodes = 0
+    for _ in range(25):
+        *_, info = env.step(env.action_space.sample())
+        if "episode" in info:
+            episodes += int(info["_episode"].sum())
+            assert np.all(info["episode"]["l"][info["_episode"]] == 20)
+    assert episodes == N
