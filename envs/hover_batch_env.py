@@ -34,8 +34,9 @@ with N = 1 it is the row's own generator, so N = 1 reproduces ``HoverEnv`` with 
 Wind: a wind model whose output does not depend on time (``calm``, steady ``fawt-*``, ``dryden-*``)
 is stepped once for all N rows; a row that resets gets a fresh draw of its gust-filter state from
 the stationary distribution.  Any other model (a fan schedule, ``gust-1cos``, a user class) is run
-in cohorts: rows that reset at the same step share one copy of the model with its own episode time,
-exactly as each single env would; cost grows with the number of distinct reset times alive.
+in cohorts: rows that reset at the same step share one copy of the model, stepped with their episode
+time as each single env would (a deterministic model reproduces the single envs exactly; a random one
+draws one stream set per cohort); cost grows with the number of distinct reset times alive.
 
 ``info`` holds batched arrays with HoverEnv's keys: ``measurement``/``applied``/``truth`` dicts of
 (N, ...) arrays, ``setpoint`` (N, 3), ``action_clipped`` (N,), ``failure`` (N,) str, ``time`` (N,).
