@@ -407,7 +407,7 @@ def _cross3(a: list[float], b: list[float]) -> list[float]:
 
 def _matvec(A: NDArray[np.float64], x: NDArray[np.float64]) -> NDArray[np.float64]:
     """Rows A x for (N, 3) x, as explicit products and sums (no BLAS: the same rounding as :func:`_dot3`)."""
-    return _sum3(x[:, None, :] * A)
+    return x[:, 0:1] * A[:, 0] + x[:, 1:2] * A[:, 1] + x[:, 2:3] * A[:, 2]
 
 
 # --------------------------------------------------------------------------------------------------

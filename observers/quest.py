@@ -155,10 +155,15 @@ def _quest_unit_batch(b: NDArray[np.float64], r: NDArray[np.float64], a: NDArray
     """:func:`quest_unit` on numpy arrays for any N (the reference implementation)."""
     a = a / a.sum(axis=1, keepdims=True)  # eq. 63 normalization
     ab = a[:, :, None] * b
-    B = (ab[:, :, :, None] * r[:, :, None, :]).sum(axis=1)  # eq. 61: sum_i a_i b_i r_i^T (no BLAS: no FMA)
+    # eq. 61: B = sum_i a_i b_i r_i^T and eq. 62: z = sum_i a_i b_i x r_i, summed in order over the n pairs
+    # (no BLAS: no FMA; a loop over the observations, not over N, cheaper than an (N, n, 3, 3) reduction)
+    B = ab[:, 0, :, None] * r[:, 0, None, :]
+    z = _cross(ab[:, 0], r[:, 0])
+    for i in range(1, ab.shape[1]):
+        B = B + ab[:, i, :, None] * r[:, i, None, :]
+        z = z + _cross(ab[:, i], r[:, i])
     S = B + np.swapaxes(B, -1, -2)  # eq. 59
     rho = B[:, 0, 0] + B[:, 1, 1] + B[:, 2, 2]  # eq. 60
-    z = _cross(ab, r).sum(axis=1)  # eq. 62
 
     # Shuster's characteristic equation of K (58):
     # (l^2 - a1)(l^2 - b1) - c1 l + c1 rho - d1 = 0, with
