@@ -317,12 +317,6 @@ def _cross3(a: list[float], b: list[float]) -> list[float]:
     return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 
 
-def _cofactors3(M: list[list[float]]) -> tuple[list[list[float]], float]:
-    """:func:`_cofactors` of one 3x3 matrix (nested lists)."""
-    C = [_cross3(M[1], M[2]), _cross3(M[2], M[0]), _cross3(M[0], M[1])]
-    return C, M[0][0] * C[0][0] + M[0][1] * C[0][1] + M[0][2] * C[0][2]
-
-
 def quat_wxyz_to_rot(q: ArrayLike) -> NDArray[np.float64]:
     """Rotation matrix (body -> world) of a unit quaternion (..., 4) in (w, x, y, z) order (Hamilton):
     R = [[1 - 2(y^2 + z^2), 2(xy - wz), 2(xz + wy)], [2(xy + wz), 1 - 2(x^2 + z^2), 2(yz - wx)],
