@@ -304,9 +304,16 @@ class FawtWind(WindModel):
             fz = 0.5 + 0.5 * erf(ez)
             core = core_ref / (1.0 + kappa * x)
             out[k] = gain * fy * fz * core
-            if turbulent:
-                gy, gz = exp(-ey * ey) * fz, exp(-ez * ez) * fy
-                weights[k] = (gy if gy > gz else gz) * core * core
+            if turbulent:  # max(exp(-ey^2) fz, exp(-ez^2) fy); one exp where one term dominates in both factors
+                ay, az = abs(ey), abs(ez)
+                if ey <= ez and ay <= az:
+                    g = exp(-ey * ey) * fz
+                elif ey >= ez and ay >= az:
+                    g = exp(-ez * ez) * fy
+                else:
+                    gy, gz = exp(-ey * ey) * fz, exp(-ez * ez) * fy
+                    g = gy if gy > gz else gz
+                weights[k] = g * core * core
         if turbulent:
             rx = out[0] - vx
             gu, gv, gw = self.process.step1(dt, math.sqrt(rx * rx + vy * vy + vz * vz))[:3]
