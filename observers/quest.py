@@ -14,8 +14,11 @@ world).  The returned Gibbs vector ``gibbs`` is the paper's g of D (so R = D(g)^
 Algorithm.  Vectors are normalized to unit length (QUEST's assumption; then lambda_max <= 1 with
 normalized weights a_i / m, eq. 63).  lambda_max is found by Newton-Raphson on Shuster's
 characteristic polynomial of K, started from 1; g from eq. 65 by a 3x3 solve.  Where that solve is
-ill-conditioned (|g| > 10: rotation angle above 168.6 deg, g -> infinity at pi) the eigenvector of K (eq. 64) from
-``numpy.linalg.eigh`` is used instead, so every attitude is returned finitely.
+ill-conditioned (|g| > 10: rotation angle above 168.6 deg, g -> infinity at pi) the problem is solved again with
+the reference vectors rotated by pi about x, y or z (Shuster and Oh's method of sequential rotations; one of the
+three rotated attitudes is within 120 deg of identity) and the quaternion rotated back exactly; the eigenvector of
+K (eq. 64) from ``numpy.linalg.eigh`` remains as the last resort, so every attitude is returned finitely.  For
+N = 1 the same arithmetic runs on plain Python floats (:func:`quest_floats`).
 """
 
 from __future__ import annotations
@@ -151,8 +154,11 @@ def quest_unit(b: NDArray[np.float64], r: NDArray[np.float64], a: NDArray[np.flo
     return _quest_unit_batch(b, r, a)
 
 
-def _quest_unit_batch(b: NDArray[np.float64], r: NDArray[np.float64], a: NDArray[np.float64]) -> QuestResult:
-    """:func:`quest_unit` on numpy arrays for any N (the reference implementation)."""
+def _gibbs_batch(b: NDArray[np.float64], r: NDArray[np.float64], a: NDArray[np.float64]
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
+                            dict[str, NDArray[np.float64]]]:
+    """Eqs. 57-65 on arrays: (g (N, 3), lambda_max (N,), det M (N,), ok (N,), {"S", "z", "rho"}); ok is False where
+    eq. 65 is ill-conditioned (|det M| <= 1e-9 or |g| > 10; g is then meaningless)."""
     a = a / a.sum(axis=1, keepdims=True)  # eq. 63 normalization
     ab = a[:, :, None] * b
     # eq. 61: B = sum_i a_i b_i r_i^T and eq. 62: z = sum_i a_i b_i x r_i, summed in order over the n pairs
@@ -186,27 +192,66 @@ def _quest_unit_batch(b: NDArray[np.float64], r: NDArray[np.float64], a: NDArray
     CM, detM = _cofactors(M)
     good = np.abs(detM) > 1e-9
     g = _sum3(CM * z[:, None, :]) / np.where(good, detM, 1.0)[:, None]
+    ok = good & (_sum3(g * g) <= _GIBBS_SWITCH * _GIBBS_SWITCH)  # also catches non-finite g
+    return g, lam, detM, ok, {"S": S, "z": z, "rho": rho}
+
+
+#: Shuster and Oh's method of sequential rotations: the reference vectors rotated by pi about x, y, z (two
+#: components negated, exact), and the map of the rotated problem's quaternion q' = (w, x, y, z) back,
+#: q = (0, e_k) (x) q' (Hamilton product; R = T_k R'), a permutation with signs (exact)
+_FLIPS = ((1.0, -1.0, -1.0), (-1.0, 1.0, -1.0), (-1.0, -1.0, 1.0))
+_UNFLIP = (((1, -1.0), (0, 1.0), (3, -1.0), (2, 1.0)),  # (-x, w, -z, y)
+           ((2, -1.0), (3, 1.0), (0, 1.0), (1, -1.0)),  # (-y, z, w, -x)
+           ((3, -1.0), (2, -1.0), (1, 1.0), (0, 1.0)))  # (-z, -y, x, w)
+
+
+def _quest_unit_batch(b: NDArray[np.float64], r: NDArray[np.float64], a: NDArray[np.float64]) -> QuestResult:
+    """:func:`quest_unit` on numpy arrays for any N (the reference implementation).
+
+    Rows where eq. 65 is ill-conditioned (|g| > 10, rotation angle above 168.6 deg) are solved again with the
+    references rotated by pi about x, then y, then z (Shuster and Oh's method of sequential rotations): for one
+    of them the rotated attitude is within 120 deg of identity (|g'| <= sqrt 3).  The eigenvector of K
+    (eq. 64, ``numpy.linalg.eigh``) is the last resort (a degenerate lambda_max)."""
+    g, lam, _, ok, parts = _gibbs_batch(b, r, a)
     gg = _sum3(g * g)
-    q = np.empty((b.shape[0], 4))  # (w, x, y, z) = (q4, q_vec) (see module docstring)
+    q = np.empty((g.shape[0], 4))  # (w, x, y, z) = (q4, q_vec) (see module docstring)
     denom = np.sqrt(1.0 + gg)
     q[:, 0] = 1.0 / denom
     q[:, 1:] = g / denom[:, None]
-    bad = ~good | ~(gg <= _GIBBS_SWITCH * _GIBBS_SWITCH)  # also catches non-finite g
-    if bad.any():
-        g[~good] = 0.0
-        K = np.zeros((int(bad.sum()), 4, 4))
-        K[:, :3, :3] = S[bad] - rho[bad][:, None, None] * np.eye(3)
-        K[:, :3, 3] = z[bad]
-        K[:, 3, :3] = z[bad]
-        K[:, 3, 3] = rho[bad]
-        w, v = np.linalg.eigh(K)  # eq. 64
-        qs = v[:, :, -1]  # scalar-last, eigenvalue ascending
-        qs = qs * np.where(qs[:, 3:4] < 0, -1.0, 1.0)
-        q[bad, 0] = qs[:, 3]
-        q[bad, 1:] = qs[:, :3]
-        lam[bad] = w[:, -1]
-        q4 = np.maximum(qs[:, 3], 1.0 / GIBBS_MAX)
-        g[bad] = qs[:, :3] / q4[:, None]
+    if not ok.all():
+        shape = np.broadcast_shapes(b.shape, r.shape)
+        bb, rr = np.broadcast_to(b, shape), np.broadcast_to(r, shape)
+        aa = np.broadcast_to(a, shape[:2])
+        todo = np.nonzero(~ok)[0]
+        for flip, unflip in zip(_FLIPS, _UNFLIP, strict=True):
+            gk, lk, _, okk, _ = _gibbs_batch(bb[todo], rr[todo] * np.array(flip), aa[todo])
+            rows = todo[okk]
+            gk = gk[okk]
+            dk = np.sqrt(1.0 + _sum3(gk * gk))
+            qk = np.empty((rows.size, 4))
+            qk[:, 0] = 1.0 / dk
+            qk[:, 1:] = gk / dk[:, None]
+            qr = np.stack([sign * qk[:, src] for src, sign in unflip], axis=-1)
+            q[rows] = qr * np.where(qr[:, 0:1] < 0, -1.0, 1.0)
+            lam[rows] = lk[okk]
+            todo = todo[~okk]
+            if todo.size == 0:
+                break
+        if todo.size:
+            S, z, rho = parts["S"][todo], parts["z"][todo], parts["rho"][todo]
+            K = np.zeros((todo.size, 4, 4))
+            K[:, :3, :3] = S - rho[:, None, None] * np.eye(3)
+            K[:, :3, 3] = z
+            K[:, 3, :3] = z
+            K[:, 3, 3] = rho
+            w, v = np.linalg.eigh(K)  # eq. 64
+            qs = v[:, :, -1]  # scalar-last, eigenvalue ascending
+            qs = qs * np.where(qs[:, 3:4] < 0, -1.0, 1.0)
+            q[todo, 0] = qs[:, 3]
+            q[todo, 1:] = qs[:, :3]
+            lam[todo] = w[:, -1]
+        bad = ~ok
+        g[bad] = q[bad, 1:] / np.maximum(q[bad, 0], 1.0 / GIBBS_MAX)[:, None]
     q /= np.sqrt((q * q).sum(axis=-1, keepdims=True))
     R = quat_wxyz_to_rot(q)
     return QuestResult(R=R, quaternion=q, gibbs=g, lambda_max=lam, loss=1.0 - lam)
@@ -238,8 +283,43 @@ def quest_floats(b: list[list[float]], r: list[list[float]], a: list[float]
     """QUEST (eqs. 57-66) for one attitude on plain Python floats: unit vectors ``b``, ``r`` (n lists of 3),
     weights ``a`` (n) > 0.  Returns (R row-major (9), quaternion (w, x, y, z), Gibbs vector g, lambda_max), the
     same formulas in the same order as :func:`_quest_unit_batch` (1-element numpy arrays cost ~1 us per
-    operation), or None where |g| > 10 or eq. 65 is singular, i.e. where the batched path takes the
-    eigenvector of K (eq. 64).  Preconditions as :func:`quest_unit` (not checked)."""
+    operation), including its sequential rotations where |g| > 10; None where those fail too and the batched
+    path takes the eigenvector of K (eq. 64).  Preconditions as :func:`quest_unit` (not checked)."""
+    res = _gibbs_floats(b, r, a)
+    if res is not None:
+        g0, g1, g2, lam = res
+        gg = g0 * g0 + g1 * g1 + g2 * g2
+        denom = math.sqrt(1.0 + gg)
+        w, x, y, zz = 1.0 / denom, g0 / denom, g1 / denom, g2 / denom
+    else:  # eq. 65 ill-conditioned: the method of sequential rotations, as _quest_unit_batch
+        for k in range(3):
+            f0, f1, f2 = _FLIPS[k]
+            res = _gibbs_floats(b, [[f0 * ri[0], f1 * ri[1], f2 * ri[2]] for ri in r], a)
+            if res is not None:
+                break
+        else:
+            return None
+        k0, k1, k2, lam = res
+        dk = math.sqrt(1.0 + (k0 * k0 + k1 * k1 + k2 * k2))
+        qk = (1.0 / dk, k0 / dk, k1 / dk, k2 / dk)
+        w, x, y, zz = (sign * qk[src] for src, sign in _UNFLIP[k])
+        if w < 0:
+            w, x, y, zz = -w, -x, -y, -zz
+        q4 = w if w > 1.0 / GIBBS_MAX else 1.0 / GIBBS_MAX
+        g0, g1, g2 = x / q4, y / q4, zz / q4
+    # eq. 66 (w, x, y, z), renormalized as the batched path, and R(q)
+    qn = math.sqrt(w * w + x * x + y * y + zz * zz)
+    w, x, y, zz = w / qn, x / qn, y / qn, zz / qn
+    R = [1 - 2 * (y * y + zz * zz), 2 * (x * y - w * zz), 2 * (x * zz + w * y),
+         2 * (x * y + w * zz), 1 - 2 * (x * x + zz * zz), 2 * (y * zz - w * x),
+         2 * (x * zz - w * y), 2 * (y * zz + w * x), 1 - 2 * (x * x + y * y)]
+    return R, [w, x, y, zz], [g0, g1, g2], lam
+
+
+def _gibbs_floats(b: list[list[float]], r: list[list[float]], a: list[float]
+                  ) -> tuple[float, float, float, float] | None:
+    """Eqs. 57-65 for one attitude on plain floats, as :func:`_gibbs_batch`: (g, lambda_max), or None where eq. 65
+    is ill-conditioned (|det M| <= 1e-9 or |g| > 10)."""
     sa = sum(a)
     if len(a) == 2:  # the accelerometer + magnetometer case, unrolled
         (p0, p1, p2), (s0, s1, s2) = b
@@ -299,18 +379,9 @@ def quest_floats(b: list[list[float]], r: list[list[float]], a: list[float]
     g0 = (D00 * z0 + D01 * z1 + D02 * z2) / detM
     g1 = (D10 * z0 + D11 * z1 + D12 * z2) / detM
     g2 = (D20 * z0 + D21 * z1 + D22 * z2) / detM
-    gg = g0 * g0 + g1 * g1 + g2 * g2
-    if not gg <= _GIBBS_SWITCH * _GIBBS_SWITCH:
+    if not g0 * g0 + g1 * g1 + g2 * g2 <= _GIBBS_SWITCH * _GIBBS_SWITCH:
         return None
-    # eq. 66: q = [g; 1] / sqrt(1 + g.g), reordered to (w, x, y, z), renormalized as the batched path
-    denom = math.sqrt(1.0 + gg)
-    w, x, y, zz = 1.0 / denom, g0 / denom, g1 / denom, g2 / denom
-    qn = math.sqrt(w * w + x * x + y * y + zz * zz)
-    w, x, y, zz = w / qn, x / qn, y / qn, zz / qn
-    R = [1 - 2 * (y * y + zz * zz), 2 * (x * y - w * zz), 2 * (x * zz + w * y),
-         2 * (x * y + w * zz), 1 - 2 * (x * x + zz * zz), 2 * (y * zz - w * x),
-         2 * (x * zz - w * y), 2 * (y * zz + w * x), 1 - 2 * (x * x + y * y)]
-    return R, [w, x, y, zz], [g0, g1, g2], lam
+    return g0, g1, g2, lam
 
 
 def _cross3(a: list[float], b: list[float]) -> list[float]:

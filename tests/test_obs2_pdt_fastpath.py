@@ -35,16 +35,60 @@ def test_single_path_equals_batch_path(nobs: int) -> None:
         two = Q.quest_unit(np.repeat(body, 2, 0), np.repeat(ref, 2, 0), np.repeat(a, 2, 0))  # batched
         for f in FIELDS:
             np.testing.assert_allclose(getattr(one, f), getattr(two, f)[:1], rtol=0, atol=1e-15, err_msg=f)
-    assert used > 100  # the float path itself was exercised, not only its fallback
+    assert used == 200  # the float path handled every case (also the near half turns, by sequential rotations)
 
 
-def test_single_path_falls_back_near_half_turn() -> None:
+def _eigh_quaternion(body, ref, a):
+    """The eigenvector of K for its largest eigenvalue (eq. 64), (w, x, y, z) with w >= 0, computed independently."""
+    a = a / a.sum(axis=1, keepdims=True)
+    B = np.einsum("ni,nij,nik->njk", a, body, ref)
+    S = B + np.swapaxes(B, 1, 2)
+    rho = np.trace(B, axis1=1, axis2=2)
+    z = np.einsum("ni,nij->nj", a, np.cross(body, ref))
+    K = np.zeros((len(a), 4, 4))
+    K[:, :3, :3] = S - rho[:, None, None] * np.eye(3)
+    K[:, :3, 3] = K[:, 3, :3] = z
+    K[:, 3, 3] = rho
+    w, v = np.linalg.eigh(K)
+    q = np.concatenate([v[:, 3:, -1], v[:, :3, -1]], axis=1)
+    return q * np.where(q[:, :1] < 0, -1.0, 1.0), w[:, -1]
+
+
+@pytest.mark.parametrize("angle", [2.95, 3.05, np.pi - 1e-4, np.pi])
+def test_near_half_turn_sequential_rotations(angle: float) -> None:
+    """|g| > 10: QUEST is solved again with the references rotated by pi (Shuster and Oh's sequential rotations),
+    on floats as in the batch; the quaternion is the eigenvector of K (eq. 64) from eigh to 1e-12."""
     rng = np.random.default_rng(7)
-    body, ref, a = _case(rng, angle=np.pi - 1e-4, noise=0.0, nobs=2)
-    assert Q._quest_unit_single(body[0].tolist(), ref[0].tolist(), a[0].tolist()) is None  # |g| > 10
-    res = Q.quest_unit(body, ref, a)
-    assert np.linalg.norm(res.gibbs) > 10
-    np.testing.assert_allclose(res.lambda_max, 1.0, atol=1e-12)
+    flipped = 0
+    for k in range(30):
+        body, ref, a = _case(rng, angle=angle, noise=(0.0, 1e-3, 0.05)[k % 3], nobs=2 + k % 2)
+        single = Q._quest_unit_single(body[0].tolist(), ref[0].tolist(), a[0].tolist())
+        assert single is not None  # the float path handles it
+        two = Q.quest_unit(np.repeat(body, 2, 0), np.repeat(ref, 2, 0), np.repeat(a, 2, 0))
+        for f in FIELDS:
+            np.testing.assert_allclose(getattr(single, f), getattr(two, f)[:1], rtol=0, atol=1e-15, err_msg=f)
+        q, lam = _eigh_quaternion(body, ref, a)
+        if q[0, 0] < 1e-9:  # an exact half turn: q and -q have w = 0, compare up to sign
+            q = q * np.sign(np.vdot(q, single.quaternion))
+        np.testing.assert_allclose(single.quaternion, q, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(single.lambda_max, lam, rtol=0, atol=1e-12)
+        assert np.all(np.isfinite(single.gibbs))
+        flipped += Q._gibbs_floats(body[0].tolist(), ref[0].tolist(), a[0].tolist()) is None
+    assert flipped >= 20  # eq. 65 in the given frame was ill-conditioned (|g| > 10) in most cases
+
+
+def test_eigh_is_the_last_resort(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With eq. 65 declared ill-conditioned everywhere, every frame fails: the float path returns None and the batch
+    takes the eigenvector of K (eq. 64), which equals the regular result."""
+    rng = np.random.default_rng(8)
+    cases = [_case(rng, angle=rng.uniform(0.0, np.pi), noise=0.01, nobs=2) for _ in range(20)]
+    body, ref, a = (np.concatenate(x) for x in zip(*cases, strict=True))
+    regular = Q.quest_unit(body, ref, a)
+    monkeypatch.setattr(Q, "_GIBBS_SWITCH", 0.0)
+    assert Q._quest_unit_single(body[0].tolist(), ref[0].tolist(), a[0].tolist()) is None
+    last = Q.quest_unit(body, ref, a)
+    np.testing.assert_allclose(last.quaternion, regular.quaternion, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(last.R, regular.R, rtol=0, atol=1e-12)
 
 
 def test_stsmo_single_step_equals_batch_step() -> None:
