@@ -1,0 +1,33 @@
+"""The benchmarks run end to end at tiny sizes and print their key lines (no timing is asserted)."""
+
+import pytest
+
+from fawtgym.eval.bench import closed_loop, env, observers, wind
+
+
+def test_bench_env_prints_ratio_and_reference_speed(capsys):
+    assert env.main(["--steps", "20", "--rounds", "1"]) == 0
+    out = capsys.readouterr().out
+    for line in ("env steps/s", "env / raw cost ratio", "one env step in bare mj_steps", "targets:"):
+        assert line in out
+
+
+def test_bench_env_reference_units_are_consistent():
+    r = env.measure(steps=20, rounds=1)
+    assert r["env_step_in_bare_steps"] == pytest.approx(r["bare_mj_steps_per_s"] / r["env_steps_per_s"])
+    assert r["reference_env_steps_per_s"] == pytest.approx(env.REFERENCE_BARE_STEPS_PER_S / r["env_step_in_bare_steps"])
+    assert r["ratio"] > 1.0  # the env cannot be cheaper than the physics it steps
+
+
+def test_bench_wind_runs_the_closed_loop_comparison(capsys):
+    assert wind.main(["--calls", "20", "--batch", "8", "--env-steps", "20", "--env-blocks", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "ratio fawt-50 / calm" in out and "wind.step (fawt-50)" in out
+
+
+def test_bench_observers_and_closed_loop_run(capsys):
+    assert observers.main(["--repeats", "1", "--n", "1", "4", "--only", "ffts_eso"]) == 0
+    assert closed_loop.main(["--steps", "10", "--rounds", "1", "--batch", "8", "--batch-sizes", "4",
+                             "--vehicle-steps", "20"]) == 0
+    out = capsys.readouterr().out
+    assert "ffts_eso" in out and "AGGREGATE" in out
