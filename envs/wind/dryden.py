@@ -53,7 +53,9 @@ children), so field ``i`` is the same whatever ``N`` is.  Normals are drawn per 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.linalg
@@ -261,8 +263,8 @@ class DrydenProcess:
         self._dense = np.zeros((n_keys, 2 * self.n_states, self.n_states + self.c.shape[0]))
         self._filled = np.zeros(n_keys, dtype=bool)
         self._last_d, self._last_m = -1.0, self._dense[0]
-        self._last_d1, self._sp = -1.0, []
-        self._sparse_cache: dict[int, list[tuple[int, int, float]]] = {}
+        self._last_d1, self._step_fn = -1.0, None
+        self._step_fn_cache: dict[int, Callable[[list[float]], tuple[list[float], list[float]]]] = {}
         self._n_out_total = self.n_states + self.c.shape[0]
         self._x, self._xl = np.zeros((0, self.n_states)), None
         self._ct = np.ascontiguousarray(self.c.T)
@@ -343,27 +345,41 @@ class DrydenProcess:
         rows, cols = np.nonzero(np.abs(m) > tol)
         return [(int(i), int(j), float(m[i, j])) for i, j in zip(rows, cols, strict=True)]
 
+    def _compile(self, d: float) -> Callable[[list[float]], tuple[list[float], list[float]]]:
+        """The float path's step for this bin as one straight-line function ``[x, z] -> (x+, y+)``.
+
+        Generated from :meth:`_sparse` (every non-zero entry written out as ``z[i] * M_ij``, terms in the
+        order of increasing ``i`` as a loop over the entries would add them, so the sums are the same); a
+        loop over the entries costs several times more interpreter work per step.  The source holds only
+        indices and ``repr`` of floats (exact round trip).
+        """
+        ns, n_out = self.n_states, self._n_out_total
+        terms: list[list[str]] = [[] for _ in range(n_out)]
+        for i, j, v in self._sparse(d):
+            terms[j].append(f"z[{i}] * {v!r}")
+        sums = [" + ".join(t) if t else "0.0" for t in terms]
+        src = f"def step(z):\n    return [{', '.join(sums[:ns])}], [{', '.join(sums[ns:])}]\n"
+        namespace: dict[str, Any] = {}
+        exec(compile(src, f"<dryden step d={d:.6g}>", "exec"), namespace)  # generated from numbers only
+        return namespace["step"]
+
     def step1(self, dt: float, airspeed: float) -> list[float]:
         """N = 1 :meth:`step` in float arithmetic (same update, sparse step matrix); outputs as a list."""
         if self.n != 1:
             raise ValueError(f"step1 needs n = 1 field, have {self.n}")
         if self._k >= self.block:
             self._refill()
-        ns = self.n_states
         d = (airspeed if airspeed > V_FLOOR else V_FLOOR) * dt
         if d != self._last_d1:
             idx = int(math.floor(math.log(min(max(d, _D_MIN), _D_MAX)) / _BIN + 0.5)) - self._k0
-            sp = self._sparse_cache.get(idx)
-            if sp is None:
-                sp = self._sparse_cache[idx] = self._sparse(d)
-            self._last_d1, self._sp = d, sp
+            fn = self._step_fn_cache.get(idx)
+            if fn is None:
+                fn = self._step_fn_cache[idx] = self._compile(d)
+            self._last_d1, self._step_fn = d, fn
         xz = (self._xl if self._xl is not None else self._x[0].tolist()) + self._zl[self._k]
         self._k += 1
-        out = [0.0] * self._n_out_total
-        for i, j, v in self._sp:
-            out[j] += xz[i] * v
-        self._xl = out[:ns]
-        return out[ns:]
+        self._xl, y = self._step_fn(xz)
+        return y
 
     def step(self, dt: float, airspeed: float | NDArray[np.float64]) -> NDArray[np.float64]:
         """Advance every field by ``dt`` [s] at ``airspeed`` [m/s] (floored at ``V_FLOOR``); return outputs.

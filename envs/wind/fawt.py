@@ -298,17 +298,17 @@ class FawtWind(WindModel):
             if x < 1e-3:
                 x = 1e-3
             s = sig_g / x
-            ey = (half_y - abs(oy - flat[k + 1])) * s
-            ez = (half_z - abs(oz - flat[k + 2])) * s
+            dy, dz = flat[k + 1] - oy, flat[k + 2] - oz  # (|.| inline: a builtin call costs more than the branch)
+            ey = (half_y - (dy if dy >= 0.0 else -dy)) * s
+            ez = (half_z - (dz if dz >= 0.0 else -dz)) * s
             fy = 0.5 + 0.5 * erf(ey)
             fz = 0.5 + 0.5 * erf(ez)
             core = core_ref / (1.0 + kappa * x)
             out[k] = gain * fy * fz * core
             if turbulent:  # max(exp(-ey^2) fz, exp(-ez^2) fy); one exp where one term dominates in both factors
-                ay, az = abs(ey), abs(ez)
-                if ey <= ez and ay <= az:
+                if 0.0 <= ey <= ez:
                     g = exp(-ey * ey) * fz
-                elif ey >= ez and ay >= az:
+                elif 0.0 <= ez <= ey:
                     g = exp(-ez * ez) * fy
                 else:
                     gy, gz = exp(-ey * ey) * fz, exp(-ez * ez) * fy
