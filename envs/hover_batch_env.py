@@ -11,8 +11,9 @@ divergence) and truncation.  What is batched:
 * physics: one ``mujoco.rollout`` call per control step on the env's own one-vehicle model with
   one ``MjData`` on the calling thread (one core): state spec ``mjSTATE_FULLPHYSICS`` (time, qpos,
   qvel; 14 numbers, round-trips this model's state exactly: no actuator activations, contacts
-  disabled so no warm start matters), control spec ``mjSTATE_CTRL | mjSTATE_XFRC_APPLIED`` with the
-  whole (N, n_substeps, 19) array (rotor thrusts per substep, held body torque, held world force);
+  disabled so no warm start matters), control spec ``mjSTATE_CTRL | mjSTATE_QFRC_APPLIED`` with the
+  whole (N, n_substeps, 10) array (rotor thrusts per substep, held world force and body torque as the
+  free joint's generalized force, see :mod:`fawtgym.envs.mjcf`);
 * wind, aero, sensors (:mod:`fawtgym.envs.sensors_batch`), observation, reward, termination: numpy
   over the leading axis N (no Python loop over vehicles per step).
 
@@ -79,7 +80,7 @@ from .wind.outdoor import DrydenWind
 
 _MJ_T0 = 1.0  #: MuJoCo time at the start of every rollout (a MuJoCo reset sets it to 0: divergence test)
 _STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
-_CONTROL_SPEC = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_XFRC_APPLIED)
+_CONTROL_SPEC = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED)
 _SIGN, _SIGN2 = SIGN_MJ_NED, SIGN2_MJ_NED
 
 
@@ -249,8 +250,7 @@ class HoverBatchEnv(VectorEnv):
         self._data = mujoco.MjData(self.model)
         self._rollout = rollout.Rollout(nthread=0)  # rollouts on the calling thread: one core
         self._models = [self.model] * n
-        self._body = self.model.body("vehicle").id
-        self._xfrc_col = self.model.nu + 6 * self._body
+        self._qfrc_col = self.model.nu  # qfrc_applied follows ctrl in the control vector
         self.wind = BatchWind(single.wind, n)
         self.aero = single.aero
         self.sensor = BatchSensorModel(single.sensor.spec, self.dt, n)
@@ -467,7 +467,7 @@ class HoverBatchEnv(VectorEnv):
 
     def _rollout_rows(self, state: NDArray[np.float64], ctrl: NDArray[np.float64], out: NDArray[np.float64]
                       ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        """One rollout from ``state`` (N, 14) with controls ``ctrl`` (N, nstep, 19) into ``out`` (N, nstep, 14)
+        """One rollout from ``state`` (N, 14) with controls ``ctrl`` (N, nstep, 10) into ``out`` (N, nstep, 14)
         (all C-contiguous float64: the checks are skipped); returns (final states, diverged rows)."""
         nstep = ctrl.shape[1]
         state[:, 0] = _MJ_T0
@@ -479,10 +479,10 @@ class HoverBatchEnv(VectorEnv):
         return final, diverged
 
     def _held_wrench(self, ctrl: NDArray[np.float64]) -> None:
-        """The disturbance torque (body, via the ext_t* actuators) and force (world, xfrc_applied), held."""
-        ctrl[:, :, 4:7] = (self._torque * _SIGN)[:, None, :]
-        c = self._xfrc_col
+        """The disturbance force (world) and torque (body), held: the free joint's qfrc_applied (envs/mjcf.py)."""
+        c = self._qfrc_col
         ctrl[:, :, c:c + 3] = (self._force * _SIGN)[:, None, :]
+        ctrl[:, :, c + 3:c + 6] = (self._torque * _SIGN)[:, None, :]
 
     def _run_motors(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         """HoverEnv._run_motors for every row: exact lag, mid-substep thrusts, one rollout of the control step."""

@@ -210,7 +210,7 @@ class HoverEnv(gym.Env):
         # (item assignment through a memoryview costs a quarter of a numpy slice assignment)
         self._ctrl4 = self.data.ctrl[0:4]
         self._ctrl_mv = memoryview(self.data.ctrl)
-        self._xfrc_mv = memoryview(self.data.xfrc_applied[self._body])
+        self._qfrc_mv = memoryview(self.data.qfrc_applied)  # free joint: world force at the CoM, body torque
         self._warnings = self.data.warning.number
         self._qpos, self._qvel = self.data.qpos, self.data.qvel
         self.time = 0.0
@@ -330,9 +330,8 @@ class HoverEnv(gym.Env):
             action_clipped = clipped != values
 
         (fx, fy, fz), (tx, ty, tz), _ = self._disturbance  # NED/FRD -> MuJoCo world z-up / body FLU
-        xfrc, ctrl = self._xfrc_mv, self._ctrl_mv
-        xfrc[0], xfrc[1], xfrc[2] = fx, -fy, -fz
-        ctrl[4], ctrl[5], ctrl[6] = tx, -ty, -tz
+        qfrc = self._qfrc_mv  # see envs/mjcf.py: the free joint's generalized force is exactly this wrench
+        qfrc[0], qfrc[1], qfrc[2], qfrc[3], qfrc[4], qfrc[5] = fx, -fy, -fz, tx, -ty, -tz
         if self.action_type == "motors":
             self._applied_thrusts = self._run_motors(clipped)
         else:

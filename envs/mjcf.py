@@ -5,16 +5,18 @@ Actuators (all ``ctrl`` in physical units, unlimited):
 * ``rotor1..4``: site transmission at each rotor hub, gear (0, 0, 1, 0, 0, -d_i k_M) in the FLU
   site frame: ``ctrl`` is the rotor thrust [N] pushing along body up (= -z FRD), and the rotor's
   reaction torque ``d_i k_M T`` about FRD z (= -z FLU).
-* ``ext_tx/ty/tz``: a body torque at the CoM site, in body FLU axes.  The env writes the
-  disturbance torque (body FRD, converted) here, so it stays fixed in the body over a control step.
 
 Contacts are disabled: the only thing the vehicle could touch is the floor, and touching it ends the
 episode, which the env detects analytically from the hull and rotor points (:func:`hull_points`);
 MuJoCo's collision pipeline would cost a quarter of every physics step for nothing.
 
-The external force (world frame) goes through ``data.xfrc_applied``, which MuJoCo applies at the
-body's centre of mass in world coordinates.  Gravity is ``GRAVITY`` along -z.  The body frame is
-the CoM frame (``inertial pos = 0``), principal or full inertia from the preset.
+The disturbance wrench goes straight into the free joint's generalized force ``data.qfrc_applied``
+(the free joint's six dofs): the body frame is at the CoM, so ``qfrc_applied[0:3]`` is a world-frame force
+at the CoM and ``qfrc_applied[3:6]`` a torque in body axes (MuJoCo's free-joint rotational dofs are
+body-local), i.e. a body-fixed torque over a control step.  No Jacobian is needed (an ``xfrc_applied``
+force and three torque actuators cost MuJoCo ~15 % of a step for the same wrench).  Gravity is
+``GRAVITY`` along -z.  The body frame is the CoM frame (``inertial pos = 0``), principal or full inertia
+from the preset.
 """
 
 from __future__ import annotations
@@ -61,8 +63,6 @@ def vehicle_mjcf(preset: VehiclePreset, physics_dt: float = 0.001, integrator: s
             f'      <geom name="prop{i}" type="cylinder" pos="{p[0]:.6g} {p[1]:.6g} {p[2] + 0.02:.6g}" '
             f'size="{r:.6g} 0.003" contype="0" conaffinity="0" mass="0" rgba="{color}"/>')
         actuators.append(f'<general name="rotor{i}" site="rotor{i}" gear="0 0 1 0 0 {-d * preset.k_moment:.9g}"/>')
-    for axis, gear in (("x", "1 0 0"), ("y", "0 1 0"), ("z", "0 0 1")):
-        actuators.append(f'<general name="ext_t{axis}" site="com" gear="0 0 0 {gear}"/>')
     rotor_xml = "\n      ".join(rotors)
     act_xml = "\n    ".join(actuators)
     return f"""<mujoco model="fawtgym_{preset.name}">
