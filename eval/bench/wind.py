@@ -8,6 +8,8 @@
   FAWT point under the PX4 cascade (:class:`~fawtgym.agents.PX4Agent`, not timed), so the FAWT env meets the
   airspeeds of a real hover in the jet (an open-loop vehicle is blown away: its ever-new airspeeds would
   time the one-off filling of the Dryden step-matrix table instead of the wind);
+* the same comparison for the batched env (:class:`~fawtgym.envs.hover_batch_env.HoverBatchEnv`, N vehicles,
+  one batch-first PX4 agent, not timed), per vehicle-step;
 * a numpy reference op (``a + b`` on a (1, 3) array) so numbers from loaded machines can be compared.
 
 Times are CPU time of this process (``time.process_time``), best of several repeats, so other jobs on
@@ -108,13 +110,38 @@ def env_costs(steps: int, blocks: int) -> dict[str, float] | None:
     return {name: float(np.median(v[1:] if len(v) > 1 else v)) for name, v in totals.items()}
 
 
+def batch_env_costs(n: int, steps: int, blocks: int) -> dict[str, float]:
+    """Per-vehicle-step seconds of HoverBatchEnv(n) with calm and FAWT-50 wind, blocks interleaved, under PX4."""
+    from fawtgym.agents import PX4Agent
+    from fawtgym.envs.hover_batch_env import HoverBatchEnv
+
+    envs = {name: HoverBatchEnv(n, wind=name, init_noise=0.0, episode_seconds=1e6) for name in ("calm", "fawt-50")}
+    agents = {name: PX4Agent.for_env(env) for name, env in envs.items()}
+    infos = {}
+    for name, env in envs.items():
+        _, infos[name] = env.reset(seed=0)
+        agents[name].reset(infos[name])
+    totals: dict[str, list[float]] = {name: [] for name in envs}
+    for _ in range(blocks):
+        for name, env in envs.items():
+            t_sum = 0.0
+            for _ in range(steps):
+                actions = agents[name].act(None, infos[name]).astype(np.float32)
+                t0 = time.process_time()
+                _, _, _, _, infos[name] = env.step(actions)
+                t_sum += time.process_time() - t0
+            totals[name].append(t_sum / (steps * n))
+    return {name: float(np.median(v[1:] if len(v) > 1 else v)) for name, v in totals.items()}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fawtgym bench wind", description=__doc__.split("\n")[0])
     parser.add_argument("--calls", type=int, default=2000, help="calls per timing repeat for N = 1")
     parser.add_argument("--batch", type=int, default=1024, help="batched N (default 1024)")
     parser.add_argument("--env-steps", type=int, default=200, help="env steps per block")
     parser.add_argument("--env-blocks", type=int, default=5, help="interleaved blocks per wind")
-    parser.add_argument("--no-env", action="store_true", help="skip the env comparison")
+    parser.add_argument("--no-env", action="store_true", help="skip the env comparisons")
+    parser.add_argument("--env-batch", type=int, default=256, help="N of the batched env comparison")
     ns = parser.parse_args(argv)
     a, b = np.zeros((1, 3)), np.ones((1, 3))
     ref = _best_per_call(lambda: a + b, 20000)
@@ -134,6 +161,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             verdict = "meets" if ratio <= 1.20 else "misses"
             print(f"ratio fawt-50 / calm: {ratio:.3f}  (wind adds {100 * (ratio - 1):.1f} %; "
                   f"{verdict} the <= 20 % target)")
+        benv = batch_env_costs(ns.env_batch, max(ns.env_steps // 10, 5), ns.env_blocks)
+        ratio = benv["fawt-50"] / benv["calm"]
+        print(f"batched env (N = {ns.env_batch}), per vehicle-step: calm {benv['calm'] * 1e6:.1f} us, "
+              f"fawt-50 {benv['fawt-50'] * 1e6:.1f} us")
+        print(f"ratio fawt-50 / calm, batched: {ratio:.3f}  (wind adds {100 * (ratio - 1):.1f} %; "
+              f"{'meets' if ratio <= 1.20 else 'misses'} the <= 20 % target)")
     return 0
 
 
