@@ -214,3 +214,26 @@ def test_observation_carries_the_action_just_applied():
     assert np.allclose(obs[-4:], a)
     obs, *_ = env.step(np.array([0.3, 0.4, 1.5, 0.6]))
     assert np.allclose(obs[-4:], [0.3, 0.4, 1.0, 0.6])  # the clipped action is what was applied
+
+
+def test_external_wrench_has_its_physical_effect():
+    """A world-NED force and a body-FRD torque (held over the step) change v and Omega by F dt / m and J^-1 tau dt."""
+    force, torque = np.array([0.6, -0.4, 0.3]), np.array([0.003, -0.002, 0.001])
+
+    def one_step(with_wrench):
+        env = HoverEnv(init_noise=0.0, control_rate=100.0)
+        env.reset(seed=0)
+        if with_wrench:
+            env.set_external_wrench(force, torque)
+        env.reset(seed=0)  # the wrench is held from the first step on
+        _, _, _, _, info = env.step(env.hover_action())
+        return info["truth"], env
+
+    (t0, _), (t1, env) = one_step(False), one_step(True)
+    dt, p = env.dt, env.preset
+    np.testing.assert_allclose(t1["velocity"] - t0["velocity"], force / p.mass * dt, rtol=0.02)
+    np.testing.assert_allclose(t1["angular_velocity"] - t0["angular_velocity"],
+                               np.linalg.solve(p.inertia_matrix, torque) * dt, rtol=0.02)
+    # the reported wrench is the one held over the next step: the external part plus the drag of the new motion
+    np.testing.assert_allclose(t1["force"] - t0["force"], force, rtol=0.02)
+    np.testing.assert_allclose(t1["torque"] - t0["torque"], torque, rtol=0.02)

@@ -60,3 +60,41 @@ def test_reward_bounded_and_decreasing_with_error():
     env.setpoint = env.setpoint - np.array([0.5, 0.0, 0.0])  # now 0.5 m off
     r1 = env.step(env.hover_action())[1]
     assert 0 < r1 < r0 <= 1
+
+
+@pytest.mark.parametrize("preset", ["none", "seed000", "mocap_imu"])
+def test_float_measurement_equals_numpy_formulas(preset):
+    """measure() (float arithmetic) against the sensor equations written with numpy, same random draws."""
+    from fawtgym.envs.measurement import EARTH_FIELD_NED
+    from fawtgym.observers.lie import exp_so3
+
+    dt = 0.01
+    model = SensorModel(make_sensor_spec(preset), dt)
+    model.reset(np.random.default_rng(3))
+    twin = np.random.default_rng(3)
+    spec = model.spec
+    gb = twin.normal(0.0, spec.gyro_bias_sigma, 3) if spec.gyro_bias_sigma else np.zeros(3)
+    ab = twin.normal(0.0, spec.accel_bias_sigma, 3) if spec.accel_bias_sigma else np.zeros(3)
+    rng = np.random.default_rng(7)
+    pose = None
+    for k in range(6):
+        b, v, w, a = rng.normal(size=3), rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)
+        r = exp_so3(rng.normal(size=3))
+        m = model.measure(k * dt, b, v, r, w, a)
+        f_sp = r.T @ (a - np.array([0.0, 0.0, 9.80665]))
+        mag = r.T @ EARTH_FIELD_NED
+        if not model.noisy:
+            want = {"position": b, "velocity": v, "attitude": r, "angular_velocity": w, "gyro": w,
+                    "specific_force": f_sp, "magnetometer": mag}
+        else:
+            n = twin.normal(size=18)
+            if pose is None or k % model.pose_every == 0:
+                pose = (b + model.sig_pos * n[0:3], v + model.sig_vel * n[3:6], r @ exp_so3(model.sig_att * n[6:9]))
+            want = {"position": pose[0], "velocity": pose[1], "attitude": pose[2],
+                    "angular_velocity": w + model.sig_rate * n[9:12],
+                    "specific_force": f_sp + ab + model.sig_acc * n[12:15],
+                    "gyro": w + gb + model.sig_gyro * n[15:18],
+                    "magnetometer": mag + spec.mag_sigma * twin.normal(size=3)}
+        for key, value in want.items():
+            np.testing.assert_allclose(m[key], value, rtol=1e-12, atol=1e-12, err_msg=key)
+        assert float(m["time"]) == pytest.approx(k * dt)
