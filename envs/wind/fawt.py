@@ -150,18 +150,32 @@ _CORE_REF = 1.0 + DECAY_KAPPA * HOTWIRE_X
 assert np.allclose(R_FAWT_TO_NED, np.diag([1.0, -1.0, -1.0]))  # used by the float path below
 
 
-def _profile_point(x: float, y: float, z: float) -> tuple[float, float]:
-    """:func:`fawt_profile` for one point (FAWT frame, reference x = hot wire), in float arithmetic."""
+def _profile_point_floats(x: float, y: float, z: float, weight: bool = True) -> tuple[float, float]:
+    """:func:`fawt_profile` at one NED point in float arithmetic: ``(F * U_c / U_c(x_ref), shear weight)`` with
+    ``F`` not yet divided by ``F_ref`` (the caller folds it into its gain); the weight only if ``weight``."""
+    x -= _ORIGIN[0]  # FAWT x = NED x - origin; |y|, |z| are sign-free, so the FAWT axis flips do not matter
     if x <= 0.0:
         return 0.0, 0.0
-    xs = max(x, 1e-3)
-    s = GOERTLER_SIGMA / xs
-    ey = (HALF_SPAN - abs(y)) * s
-    ez = (HALF_HEIGHT - abs(z)) * s
+    if x < 1e-3:
+        x = 1e-3
+    s = GOERTLER_SIGMA / x
+    dy, dz = y - _ORIGIN[1], z - _ORIGIN[2]
+    ey = (HALF_SPAN - (dy if dy >= 0.0 else -dy)) * s  # (|.| inline: a builtin call costs more than the branch)
+    ez = (HALF_HEIGHT - (dz if dz >= 0.0 else -dz)) * s
     fy = 0.5 + 0.5 * math.erf(ey)
     fz = 0.5 + 0.5 * math.erf(ez)
-    core = _CORE_REF / (1.0 + DECAY_KAPPA * xs)
-    return fy * fz * core / _F_REF, max(math.exp(-ey * ey) * fz, math.exp(-ez * ez) * fy) * core * core
+    core = _CORE_REF / (1.0 + DECAY_KAPPA * x)
+    if not weight:
+        return fy * fz * core, 0.0
+    # max(exp(-ey^2) fz, exp(-ez^2) fy): one exp where one term dominates in both factors
+    if 0.0 <= ey <= ez:
+        g = math.exp(-ey * ey) * fz
+    elif 0.0 <= ez <= ey:
+        g = math.exp(-ez * ez) * fy
+    else:
+        gy, gz = math.exp(-ey * ey) * fz, math.exp(-ez * ez) * fy
+        g = gy if gy > gz else gz
+    return fy * fz * core, g * core * core
 
 
 def check_points(points_ned: NDArray[np.float64], velocity_ned: NDArray[np.float64], n: int) -> None:
@@ -283,47 +297,23 @@ class FawtWind(WindModel):
         self.level = level = self.schedule.advance(t - dt, t, self.level)
         self._t = t
         scale = self.mean_speed * level
-        ox, oy, oz = _ORIGIN
-        sig_g, half_y, half_z, kappa, core_ref = GOERTLER_SIGMA, HALF_SPAN, HALF_HEIGHT, DECAY_KAPPA, _CORE_REF
-        erf, exp = math.erf, math.exp
         turbulent = self.turbulence and level > 0.0
         gain = scale / _F_REF
         n = len(flat)
         out = [0.0] * n
-        weights = [0.0] * n
-        for k in range(0, n, 3):  # inlined _profile_point; the mean goes straight into the output's x slot
-            x = flat[k] - ox
-            if x <= 0.0:
-                continue
-            if x < 1e-3:
-                x = 1e-3
-            s = sig_g / x
-            dy, dz = flat[k + 1] - oy, flat[k + 2] - oz  # (|.| inline: a builtin call costs more than the branch)
-            ey = (half_y - (dy if dy >= 0.0 else -dy)) * s
-            ez = (half_z - (dz if dz >= 0.0 else -dz)) * s
-            fy = 0.5 + 0.5 * erf(ey)
-            fz = 0.5 + 0.5 * erf(ez)
-            core = core_ref / (1.0 + kappa * x)
-            out[k] = gain * fy * fz * core
-            if turbulent:  # max(exp(-ey^2) fz, exp(-ez^2) fy); one exp where one term dominates in both factors
-                if 0.0 <= ey <= ez:
-                    g = exp(-ey * ey) * fz
-                elif 0.0 <= ez <= ey:
-                    g = exp(-ez * ez) * fy
-                else:
-                    gy, gz = exp(-ey * ey) * fz, exp(-ez * ez) * fy
-                    g = gy if gy > gz else gz
-                weights[k] = g * core * core
-        if turbulent:
-            rx = out[0] - vx
-            gu, gv, gw = self.process.step1(dt, math.sqrt(rx * rx + vy * vy + vz * vz))[:3]
-            ti, sh = self.ti, (SHEAR_TI * scale) ** 2
-            for k in range(0, n, 3):
-                u, g = out[k], weights[k]
-                s = math.sqrt(ti * ti * u * u + sh * g) if g > 0.0 else ti * u
-                out[k] = u + s * gu
-                out[k + 1] = -s * gv
-                out[k + 2] = -s * gw
+        gu = gv = gw = 0.0
+        ti2, sh = self.ti * self.ti, (SHEAR_TI * scale) ** 2
+        for k in range(0, n, 3):
+            u, g = _profile_point_floats(flat[k], flat[k + 1], flat[k + 2], turbulent)
+            if k == 0 and turbulent:  # the CoM's mean sets the frozen-turbulence airspeed of the one gust
+                rx = gain * u - vx
+                gu, gv, gw = self.process.step1(dt, math.sqrt(rx * rx + vy * vy + vz * vz))[:3]
+            u *= gain
+            if turbulent:
+                s = math.sqrt(ti2 * u * u + sh * g) if g > 0.0 else self.ti * u
+                out[k], out[k + 1], out[k + 2] = u + s * gu, -s * gv, -s * gw
+            else:
+                out[k] = u
         return out
 
     def mean_wind_at(self, points_ned: Sequence[float] | NDArray[np.float64]) -> NDArray[np.float64]:
