@@ -56,7 +56,7 @@ from fawtgym.observers.lie import exp_so3
 from . import measurement as M
 from .aero import AeroModel
 from .ctbr import MAX_RATES, RateLoop
-from .frames import FAWT_HOVER_POINT_NED, SIGN2_MJ_NED, SIGN_MJ_NED, rot_ned_to_quat_mj, vec_ned_to_mj
+from .frames import FAWT_HOVER_POINT_NED, rot_ned_to_quat_mj, vec_ned_to_mj
 from .mjcf import INTEGRATORS, hull_points, vehicle_mjcf
 from .motors import allocation_matrix, hover_command
 from .sensors import SensorModel, make_sensor_spec
@@ -72,7 +72,6 @@ DEFAULT_REWARD_WEIGHTS: dict[str, float] = {
 INIT_SPREAD = {"position": 0.1, "velocity": 0.1, "attitude": math.radians(3.0), "angular_velocity": 0.1}
 _BADQPOS, _BADQVEL, _BADQACC = (int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
                                                  mujoco.mjtWarning.mjWARN_BADQACC))
-_SIGN, _SIGN2 = SIGN_MJ_NED, SIGN2_MJ_NED  # MuJoCo z-up/FLU <-> NED/FRD, inlined in the hot path
 
 
 def _positive(name: str, value: Any) -> float:
@@ -196,7 +195,9 @@ class HoverEnv(gym.Env):
         self._decay_end = (float(up[-1]), float(down[-1]))
         self._decay_mean = (float(up[:-1].mean()), float(down[:-1].mean()))  # mean decay over the substeps
         self._decay_mean2 = (float((up[:-1] ** 2).mean()), float((down[:-1] ** 2).mean()))  # ... squared
-        self._substep_decay = (np.exp(-sub_times / tau_up)[:, None], np.exp(-sub_times / tau_down)[:, None])
+        self._substep_decay = tuple(tuple(np.exp(-sub_times / tau).tolist()) for tau in (tau_up, tau_down))
+        self._max_collective = 4.0 * self.preset.max_thrust_per_rotor
+        self._max_rates = MAX_RATES.tolist()
         self._omega_min = self.preset.omega_min
         self._omega_span = self.preset.omega_max - self.preset.omega_min
         self._k_thrust = float(self.preset.k_thrust)
@@ -208,7 +209,6 @@ class HoverEnv(gym.Env):
         self._rotor_offsets = self._rotor_pos.tolist()
         # views into MuJoCo's buffers (stable for the life of self.data)
         # (item assignment through a memoryview costs a quarter of a numpy slice assignment)
-        self._ctrl4 = self.data.ctrl[0:4]
         self._ctrl_mv = memoryview(self.data.ctrl)
         self._qfrc_mv = memoryview(self.data.qfrc_applied)  # free joint: world force at the CoM, body torque
         self._warnings = self.data.warning.number
@@ -335,7 +335,7 @@ class HoverEnv(gym.Env):
         if self.action_type == "motors":
             self._applied_thrusts = self._run_motors(clipped)
         else:
-            self._applied_thrusts = self._run_ctbr(np.array(clipped))
+            self._applied_thrusts = self._run_ctbr(clipped)
         self.time += self.dt
         self._step_count += 1
 
@@ -397,24 +397,28 @@ class HoverEnv(gym.Env):
         self._speeds = speeds
         return thrusts
 
-    def _run_ctbr(self, a: NDArray[np.float64]) -> list[float]:
-        p = self.preset
-        collective = a[0] * 4.0 * p.max_thrust_per_rotor
-        rate_sp = a[1:] * MAX_RATES
-        total = np.zeros(4)
+    def _run_ctbr(self, a: list[float]) -> list[float]:
+        """The inner rate loop (:mod:`.ctbr`) and the exact motor lag at the physics rate; mean rotor thrusts."""
+        collective = a[0] * self._max_collective
+        rate_sp = [a[1] * self._max_rates[0], a[2] * self._max_rates[1], a[3] * self._max_rates[2]]
+        (up_mid, up_end), (down_mid, down_end) = self._substep_decay
+        k, inv_k, speeds, total = self._k_thrust, 1.0 / self._k_thrust, list(self._speeds), [0.0, 0.0, 0.0, 0.0]
+        loop, qvel, ctrl, m, data = self._rate_loop, self._qvel, self._ctrl_mv, self.model, self.data
+        step = mujoco.mj_step
         for _ in range(self.n_substeps):
-            omega = self._qvel[3:6] * _SIGN
-            t_cmd = self._rate_loop.rotor_thrusts(collective, rate_sp, omega)
-            omega_ref = np.sqrt(t_cmd / p.k_thrust)
-            w0 = np.array(self._speeds)
-            decay = np.where(omega_ref > w0, *self._substep_decay)
-            mid, end = omega_ref + (w0 - omega_ref) * decay
-            thrust = p.k_thrust * mid**2
-            self._ctrl4[:] = thrust
-            mujoco.mj_step(self.model, self.data)
-            self._speeds = end.tolist()
-            total += thrust
-        return (total / self.n_substeps).tolist()
+            _, _, _, wx, wy, wz = qvel.tolist()
+            t_cmd = loop.rotor_thrusts_floats(collective, rate_sp, [wx, -wy, -wz])
+            for i in range(4):
+                ref, w0 = math.sqrt(t_cmd[i] * inv_k), speeds[i]
+                mid_decay, end_decay = (up_mid, up_end) if ref > w0 else (down_mid, down_end)
+                mid = ref + (w0 - ref) * mid_decay
+                thrust = k * mid * mid
+                ctrl[i] = thrust
+                total[i] += thrust
+                speeds[i] = ref + (w0 - ref) * end_decay
+            step(m, data)
+        self._speeds = speeds
+        return [t / self.n_substeps for t in total]
 
     def _outputs(self, action: list[float], action_clipped: bool) -> tuple[NDArray[np.float32], dict[str, Any]]:
         """Measurement -> observation (with ``action``, the action just applied), reward (kept in ``self._reward``)

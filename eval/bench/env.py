@@ -98,9 +98,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--control-rate", type=float, default=100.0)
     parser.add_argument("--physics-rate", type=float, default=1000.0)
     parser.add_argument("--integrator", default="Euler")
+    parser.add_argument("--action-type", default="motors", choices=["motors", "ctbr"],
+                        help="ctbr: the inner rate loop runs at the physics rate (the targets are for motors)")
     args = parser.parse_args(argv)
-    r = measure(args.control_rate, args.physics_rate, args.steps, args.rounds, integrator=args.integrator)
-    print(f"calm hover env, {args.control_rate:g} Hz control, {args.physics_rate:g} Hz physics "
+    r = measure(args.control_rate, args.physics_rate, args.steps, args.rounds, integrator=args.integrator,
+                action_type=args.action_type)
+    print(f"calm hover env ({args.action_type}), {args.control_rate:g} Hz control, {args.physics_rate:g} Hz physics "
           f"({r['n_substeps']} substeps, integrator {args.integrator}):")
     print(f"  env steps/s                         {r['env_steps_per_s']:12,.0f}")
     print(f"  raw mj_step/s                       {r['raw_mj_steps_per_s']:12,.0f}")
