@@ -34,8 +34,9 @@ MAGNETOMETER = "magnetometer"
 TIME = "time"
 
 MEASUREMENT_KEYS = (POSITION, VELOCITY, ATTITUDE, ANGULAR_VELOCITY, SPECIFIC_FORCE, GYRO, MAGNETOMETER, TIME)
-_TRAILING = {POSITION: (3,), VELOCITY: (3,), ATTITUDE: (3, 3), ANGULAR_VELOCITY: (3,), SPECIFIC_FORCE: (3,),
-             GYRO: (3,), MAGNETOMETER: (3,), TIME: ()}
+#: trailing shape of every measurement key (after the optional batch axis)
+TRAILING_SHAPES = {POSITION: (3,), VELOCITY: (3,), ATTITUDE: (3, 3), ANGULAR_VELOCITY: (3,), SPECIFIC_FORCE: (3,),
+                   GYRO: (3,), MAGNETOMETER: (3,), TIME: ()}
 
 #: Earth magnetic field used by the simulated magnetometer, world NED [gauss] (mid-latitude, ~60 deg dip).
 EARTH_FIELD_NED = np.array([0.22, 0.0, 0.42])
@@ -49,7 +50,7 @@ def batch_measurement(measurement: Mapping[str, object]) -> dict[str, NDArray[np
     out: dict[str, NDArray[np.float64]] = {}
     for key, value in measurement.items():
         arr = np.asarray(value, dtype=float)
-        trailing = _TRAILING.get(key)
+        trailing = TRAILING_SHAPES.get(key)
         if trailing is None:
             out[key] = arr
             continue

@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.envs import measurement as M
-from fawtgym.envs.measurement import _TRAILING as _MEAS_TRAILING
+from fawtgym.envs.measurement import TRAILING_SHAPES as _MEAS_TRAILING
 
 from . import vector_attitude as va
 from ._obs_common import single_inputs
