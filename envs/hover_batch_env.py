@@ -364,8 +364,9 @@ class HoverBatchEnv(VectorEnv):
             self._row_rngs = [seeding.np_random(s)[0] if (s is not None or old is None) else old[i]
                               for i, s in enumerate(seeds)]
         if seed is not None or not hasattr(self, "_noise_seeded"):
-            base = seeds[0] if isinstance(seed, (int, np.integer)) else None
-            self.sensor.set_noise_rng(np.random.default_rng(None if base is None else [base, n, 0x5E45]))
+            ints = [int(x) for x in seeds if isinstance(x, (int, np.integer)) and not isinstance(x, bool)]
+            entropy = None if len(ints) < n else [*ints, n, 0x5E45]  # reproducible iff every row has a seed
+            self.sensor.set_noise_rng(np.random.default_rng(entropy))
             self._noise_seeded = True
         if options:
             unknown = set(options) - {"setpoint", "init_noise"}
@@ -481,8 +482,8 @@ class HoverBatchEnv(VectorEnv):
     def _held_wrench(self, ctrl: NDArray[np.float64]) -> None:
         """The disturbance force (world) and torque (body), held: the free joint's qfrc_applied (envs/mjcf.py)."""
         c = self._qfrc_col
-        ctrl[:, :, c:c + 3] = (self._force * _SIGN)[:, None, :]
-        ctrl[:, :, c + 3:c + 6] = (self._torque * _SIGN)[:, None, :]
+        ctrl[:, :, c:c + 3] = ((self._force + self.external_force) * _SIGN)[:, None, :]
+        ctrl[:, :, c + 3:c + 6] = ((self._torque + self.external_torque) * _SIGN)[:, None, :]
 
     def _run_motors(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         """HoverEnv._run_motors for every row: exact lag, mid-substep thrusts, one rollout of the control step."""
@@ -524,15 +525,14 @@ class HoverBatchEnv(VectorEnv):
         return state, diverged
 
     def _update_disturbance(self, rows: NDArray[np.bool_]) -> None:
-        """Wind at [CoM, hubs] and the aero + external wrench for the next step (rows not diverged)."""
+        """Wind at [CoM, hubs] and the aero wrench for the next step (rows not diverged); the external wrench is
+        added where the wrench is applied and reported, so a new one acts from the next step on."""
         b, r = self._pos, self._rot
         points = np.empty((self.num_envs, 5, 3))
         points[:, 0] = b
         points[:, 1:] = b[:, None, :] + np.matmul(self._rotor_pos_t.T, r.transpose(0, 2, 1))
         wind = self.wind.step(self.time, self.dt, points, self._vel)
         force, torque = self.aero.wrench(r, self._vel, self._omega, self.rotor_speeds, wind)
-        force += self.external_force
-        torque += self.external_torque
         if rows.all():
             self._force, self._torque, self._wind_com = force, torque, wind[:, 0].copy()
         else:
@@ -549,7 +549,7 @@ class HoverBatchEnv(VectorEnv):
                         "rotor_thrusts": self._applied.copy(), "motor_speeds": self.rotor_speeds.copy()},
             "truth": {M.POSITION: self._pos.copy(), M.VELOCITY: self._vel.copy(), M.ATTITUDE: self._rot.copy(),
                       M.ANGULAR_VELOCITY: self._omega.copy(), "wind": self._wind_com.copy(),
-                      "force": self._force.copy(), "torque": self._torque.copy()},
+                      "force": self._force + self.external_force, "torque": self._torque + self.external_torque},
             "setpoint": self.setpoint.copy(),
             "action_clipped": action_clipped,
             "failure": self._failure.copy(),

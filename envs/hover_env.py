@@ -74,6 +74,16 @@ _BADQPOS, _BADQVEL, _BADQACC = (int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPO
                                                  mujoco.mjtWarning.mjWARN_BADQACC))
 
 
+def _init_noise(value: Any) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"init_noise must be a finite number >= 0, got {value!r}") from exc
+    if not (math.isfinite(v) and v >= 0):
+        raise ValueError(f"init_noise must be a finite number >= 0, got {value!r}")
+    return v
+
+
 def _positive(name: str, value: Any) -> float:
     try:
         v = float(value)
@@ -132,13 +142,8 @@ class HoverEnv(gym.Env):
         self.episode_seconds = _positive("episode_seconds", episode_seconds)
         self.max_steps = int(math.ceil(self.episode_seconds / self.dt - 1e-9))
         self.max_position_error = _positive("max_position_error", max_position_error)
-        self.init_noise = float(init_noise)
-        if not (math.isfinite(self.init_noise) and self.init_noise >= 0):
-            raise ValueError(f"init_noise must be a finite number >= 0, got {init_noise!r}")
-        sp = FAWT_HOVER_POINT_NED if setpoint is None else np.asarray(setpoint, dtype=float)
-        if sp.shape != (3,) or not np.all(np.isfinite(sp)):
-            raise ValueError(f"setpoint must be 3 finite NED coordinates, got {setpoint!r}")
-        self.setpoint = sp.copy()
+        self.init_noise = _init_noise(init_noise)
+        self.setpoint = FAWT_HOVER_POINT_NED if setpoint is None else setpoint
         self.reward_weights = dict(DEFAULT_REWARD_WEIGHTS)
         for key, value in (reward_weights or {}).items():
             if key not in DEFAULT_REWARD_WEIGHTS:
@@ -207,18 +212,34 @@ class HoverEnv(gym.Env):
         self._obs_limits = (float(high[0]), float(high[3]), float(high[12]))
         self._reward_terms = (w["pos"], w["vel"], w["action"], w["rate"])
         self._rotor_offsets = self._rotor_pos.tolist()
-        # views into MuJoCo's buffers (stable for the life of self.data)
-        # (item assignment through a memoryview costs a quarter of a numpy slice assignment)
+        self._bind_views()
+        self.time = 0.0
+
+    def _bind_views(self) -> None:
+        """Views into MuJoCo's buffers (stable for the life of ``self.data``; item assignment through a memoryview
+        costs a quarter of a numpy slice assignment)."""
         self._ctrl_mv = memoryview(self.data.ctrl)
         self._qfrc_mv = memoryview(self.data.qfrc_applied)  # free joint: world force at the CoM, body torque
         self._warnings = self.data.warning.number
         self._qpos, self._qvel = self.data.qpos, self.data.qvel
-        self.time = 0.0
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle/deepcopy: MuJoCo's model and data are copied, the views into them rebuilt on load."""
+        state = self.__dict__.copy()
+        for key in ("_ctrl_mv", "_qfrc_mv", "_warnings", "_qpos", "_qvel"):
+            state.pop(key, None)
+        state["_renderer"] = None
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._bind_views()
 
     # ---- public helpers -------------------------------------------------------------------
     def set_external_wrench(self, force_ned: ArrayLike = (0.0, 0.0, 0.0),
                             torque_frd: ArrayLike = (0.0, 0.0, 0.0)) -> None:
-        """A constant extra disturbance (force world NED [N], torque body FRD [N m]), added to the aero wrench."""
+        """A constant extra disturbance (force world NED [N], torque body FRD [N m]) added to the aero wrench from the
+        next step on (and reported in ``info["truth"]``)."""
         f, t = np.asarray(force_ned, dtype=float), np.asarray(torque_frd, dtype=float)
         if f.shape != (3,) or t.shape != (3,) or not (np.all(np.isfinite(f)) and np.all(np.isfinite(t))):
             raise ValueError(f"external wrench must be two finite 3-vectors, got {force_ned!r}, {torque_frd!r}")
@@ -230,6 +251,18 @@ class HoverEnv(gym.Env):
             return np.full(4, hover_command(self.preset), dtype=np.float32)
         return np.array([self.preset.mass * GRAVITY / (4 * self.preset.max_thrust_per_rotor), 0, 0, 0],
                         dtype=np.float32)
+
+    @property
+    def setpoint(self) -> NDArray[np.float64]:
+        """Hover set point, world NED [m] (3,); assign a new one any time (validated)."""
+        return self._setpoint_array
+
+    @setpoint.setter
+    def setpoint(self, value: ArrayLike) -> None:
+        sp = np.array(value, dtype=float)
+        if sp.shape != (3,) or not np.all(np.isfinite(sp)):
+            raise ValueError(f"setpoint must be 3 finite NED coordinates, got {value!r}")
+        self._setpoint_array = sp
 
     @property
     def rotor_speeds(self) -> NDArray[np.float64]:
@@ -267,12 +300,9 @@ class HoverEnv(gym.Env):
             if unknown:
                 raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid: ['init_noise', 'setpoint']")
             if "setpoint" in options:
-                sp = np.asarray(options["setpoint"], dtype=float)
-                if sp.shape != (3,) or not np.all(np.isfinite(sp)):
-                    raise ValueError(f"setpoint must be 3 finite NED coordinates, got {options['setpoint']!r}")
-                self.setpoint = sp
+                self.setpoint = options["setpoint"]
             if "init_noise" in options:
-                self.init_noise = float(options["init_noise"])
+                self.init_noise = _init_noise(options["init_noise"])
         rng = self.np_random
         mujoco.mj_resetData(self.model, self.data)
         s = self.init_noise
@@ -296,7 +326,8 @@ class HoverEnv(gym.Env):
         return self._outputs(self._last_action, False)
 
     def _compute_disturbance(self) -> tuple[list[float], list[float], list[float]]:
-        """Wind at [CoM, rotor hubs] and the aero wrench (+ the user's external wrench), held over the next step."""
+        """Wind at [CoM, rotor hubs] and the aero wrench, held over the next step (the user's external wrench is
+        added where the wrench is applied and reported, so a new one acts from the next step on)."""
         b, r = self._b, self._r
         bx, by, bz = b
         points = [bx, by, bz]
@@ -305,9 +336,7 @@ class HoverEnv(gym.Env):
                        bz + r[6] * px + r[7] * py + r[8] * pz)
         wind = self.wind.step_floats(self.time, self.dt, points, self._v)
         force, torque = self.aero.wrench_floats(r, self._v, self._w, self._speeds, wind)
-        fe, te = self._external_force, self._external_torque
-        return ([force[0] + fe[0], force[1] + fe[1], force[2] + fe[2]],
-                [torque[0] + te[0], torque[1] + te[1], torque[2] + te[2]], wind[0:3])
+        return force, torque, wind[0:3]
 
     def step(self, action: ArrayLike) -> tuple[NDArray[np.float32], float, bool, bool, dict]:
         if type(action) is np.ndarray and action.shape == (4,) and action.dtype.kind == "f":
@@ -329,7 +358,7 @@ class HoverEnv(gym.Env):
                 clipped.append(lo if x < lo else hi if x > hi else x)
             action_clipped = clipped != values
 
-        (fx, fy, fz), (tx, ty, tz), _ = self._disturbance  # NED/FRD -> MuJoCo world z-up / body FLU
+        (fx, fy, fz), (tx, ty, tz) = self._held_wrench()  # NED/FRD -> MuJoCo world z-up / body FLU
         qfrc = self._qfrc_mv  # see envs/mjcf.py: the free joint's generalized force is exactly this wrench
         qfrc[0], qfrc[1], qfrc[2], qfrc[3], qfrc[4], qfrc[5] = fx, -fy, -fz, tx, -ty, -tz
         if self.action_type == "motors":
@@ -361,6 +390,12 @@ class HoverEnv(gym.Env):
         terminated = bool(self._failure)
         truncated = (not terminated) and self._step_count >= self.max_steps
         return obs, reward, terminated, truncated, info
+
+    def _held_wrench(self) -> tuple[list[float], list[float]]:
+        """Aero + external wrench (force NED, torque FRD) held over the next step, as applied and reported."""
+        (ax, ay, az), (bx, by, bz), _ = self._disturbance
+        (fx, fy, fz), (tx, ty, tz) = self._external_force, self._external_torque
+        return [ax + fx, ay + fy, az + fz], [bx + tx, by + ty, bz + tz]
 
     def _touches_ground(self) -> bool:
         """A hull corner or rotor hub at or below the floor (z_NED >= 0)."""
@@ -447,7 +482,8 @@ class HoverEnv(gym.Env):
                     + wa * (da[0] * da[0] + da[1] * da[1] + da[2] * da[2] + da[3] * da[3]))
             self._reward = math.exp(-(cost + self._w_att * phi * phi))
         t_rot = self._applied_thrusts
-        (a0, a1, a2, a3), force, torque, wind = self._alloc_rows, *self._disturbance
+        (a0, a1, a2, a3), wind = self._alloc_rows, self._disturbance[2]
+        force, torque = self._held_wrench()
         wrench = [row[0] * t_rot[0] + row[1] * t_rot[1] + row[2] * t_rot[2] + row[3] * t_rot[3]
                   for row in (a0, a1, a2, a3)]
         # every array handed out is a disjoint view of one fresh buffer (one conversion instead of twenty)

@@ -127,9 +127,26 @@ class SensorModel:
         self.rng = rng
         self.gyro_bias = rng.normal(0.0, self.spec.gyro_bias_sigma, 3) if self.spec.gyro_bias_sigma else np.zeros(3)
         self.accel_bias = rng.normal(0.0, self.spec.accel_bias_sigma, 3) if self.spec.accel_bias_sigma else np.zeros(3)
-        self._gyro_bias, self._accel_bias = self.gyro_bias.tolist(), self.accel_bias.tolist()
         self._pose: tuple[list[float], list[float], list[float]] | None = None
         self._count = 0
+
+    @property
+    def gyro_bias(self) -> NDArray[np.float64]:
+        """Gyroscope turn-on bias [rad/s] (3,), drawn at :meth:`reset`; assign to set it (e.g. a bias sweep)."""
+        return np.array(self._gyro_bias)
+
+    @gyro_bias.setter
+    def gyro_bias(self, value: Any) -> None:
+        self._gyro_bias = _bias("gyro_bias", value)
+
+    @property
+    def accel_bias(self) -> NDArray[np.float64]:
+        """Accelerometer turn-on bias [m/s^2] (3,), drawn at :meth:`reset`; assign to set it."""
+        return np.array(self._accel_bias)
+
+    @accel_bias.setter
+    def accel_bias(self, value: Any) -> None:
+        self._accel_bias = _bias("accel_bias", value)
 
     def measure(self, t: float, position: NDArray[np.float64], velocity: NDArray[np.float64],
                 rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],
@@ -173,6 +190,13 @@ class SensorModel:
 
 
 _FIELD = tuple(M.EARTH_FIELD_NED.tolist())
+
+
+def _bias(name: str, value: Any) -> list[float]:
+    b = np.array(value, dtype=float)
+    if b.shape != (3,) or not np.all(np.isfinite(b)):
+        raise ValueError(f"{name} must be 3 finite values, got {value!r}")
+    return b.tolist()
 
 
 def as_measurement(lists: tuple[list[float], ...], t: float) -> dict[str, NDArray[np.float64]]:

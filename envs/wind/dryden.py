@@ -345,6 +345,12 @@ class DrydenProcess:
         rows, cols = np.nonzero(np.abs(m) > tol)
         return [(int(i), int(j), float(m[i, j])) for i, j in zip(rows, cols, strict=True)]
 
+    def __getstate__(self) -> dict[str, Any]:
+        """Picklable state: the generated step functions are dropped (rebuilt from the table on demand)."""
+        state = self.__dict__.copy()
+        state["_step_fn_cache"], state["_step_fn"], state["_last_d1"] = {}, None, -1.0
+        return state
+
     def _compile(self, d: float) -> Callable[[list[float]], tuple[list[float], list[float]]]:
         """The float path's step for this bin as one straight-line function ``[x, z] -> (x+, y+)``.
 
