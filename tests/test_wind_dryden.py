@@ -179,3 +179,22 @@ def test_float_path_equals_numpy_path(rates):
         ya = a.step1(0.01, v) if k % 7 else a.step(0.01, v)[0].tolist()
         yb = b.step(0.01, v)[0]
         np.testing.assert_allclose(ya, yb, rtol=1e-9, atol=1e-12)
+
+
+def test_float_path_picks_the_same_bin_at_bin_edges():
+    """step1 caches its bin's d range: speeds right at, just inside and just outside bin edges (and outside the
+    table) still give the step matrix the numpy path picks."""
+    from fawtgym.envs.wind.dryden import _BIN, _D_MAX, _D_MIN
+
+    p = DrydenParams(sigma=(1.0, 0.8, 0.5), length=(0.02, 0.02, 0.02))
+    a, b = DrydenProcess(p), DrydenProcess(p)
+    a.reset(1, seed=2)
+    b.reset(1, seed=2)
+    dt = 0.01
+    speeds = []
+    for k in (-110, -109, 20, 21, 150):
+        edge = math.exp((k + 0.5) * _BIN) / dt
+        speeds += [edge, edge * (1 + 1e-15), edge * (1 - 1e-15), edge * (1 + 1e-9), edge * (1 - 1e-9)]
+    speeds += [_D_MIN / dt * 0.5, 2 * _D_MAX / dt, 8.0, 8.0 * (1 + 1e-13)]
+    for v in speeds * 2:
+        np.testing.assert_allclose(a.step1(dt, v), b.step(dt, v)[0], rtol=1e-9, atol=1e-12)

@@ -263,7 +263,7 @@ class DrydenProcess:
         self._dense = np.zeros((n_keys, 2 * self.n_states, self.n_states + self.c.shape[0]))
         self._filled = np.zeros(n_keys, dtype=bool)
         self._last_d, self._last_m = -1.0, self._dense[0]
-        self._last_d1, self._step_fn = -1.0, None
+        self._bin1, self._step_fn = (1.0, 0.0), None  # d range of the float path's current bin (empty at first)
         self._step_fn_cache: dict[int, Callable[[list[float]], tuple[list[float], list[float]]]] = {}
         self._n_out_total = self.n_states + self.c.shape[0]
         self._x, self._xl = np.zeros((0, self.n_states)), None
@@ -348,7 +348,7 @@ class DrydenProcess:
     def __getstate__(self) -> dict[str, Any]:
         """Picklable state: the generated step functions are dropped (rebuilt from the table on demand)."""
         state = self.__dict__.copy()
-        state["_step_fn_cache"], state["_step_fn"], state["_last_d1"] = {}, None, -1.0
+        state["_step_fn_cache"], state["_step_fn"], state["_bin1"] = {}, None, (1.0, 0.0)
         return state
 
     def _compile(self, d: float) -> Callable[[list[float]], tuple[list[float], list[float]]]:
@@ -376,12 +376,18 @@ class DrydenProcess:
         if self._k >= self.block:
             self._refill()
         d = (airspeed if airspeed > V_FLOOR else V_FLOOR) * dt
-        if d != self._last_d1:
+        lo, hi = self._bin1
+        if not lo < d < hi:  # left the current bin (or near its edge): find the bin as _matrix does
             idx = int(math.floor(math.log(min(max(d, _D_MIN), _D_MAX)) / _BIN + 0.5)) - self._k0
             fn = self._step_fn_cache.get(idx)
             if fn is None:
                 fn = self._step_fn_cache[idx] = self._compile(d)
-            self._last_d1, self._step_fn = d, fn
+            self._step_fn = fn
+            # the bin's d range, shrunk by 1e-12 so that a d the test passes maps to idx by the formula above too
+            k = idx + self._k0
+            inner = _D_MIN < d < _D_MAX
+            self._bin1 = ((math.exp((k - 0.5) * _BIN) * (1 + 1e-12), math.exp((k + 0.5) * _BIN) * (1 - 1e-12))
+                          if inner else (1.0, 0.0))
         xz = (self._xl if self._xl is not None else self._x[0].tolist()) + self._zl[self._k]
         self._k += 1
         self._xl, y = self._step_fn(xz)
