@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fawtgym.observers.lie import _SMALL
+from fawtgym.observers.lie import exp_so3_floats, matmul33_floats
 
 from . import measurement as M
 from .vehicles import GRAVITY
@@ -127,7 +127,7 @@ class SensorModel:
         self.rng = rng
         self.gyro_bias = rng.normal(0.0, self.spec.gyro_bias_sigma, 3) if self.spec.gyro_bias_sigma else np.zeros(3)
         self.accel_bias = rng.normal(0.0, self.spec.accel_bias_sigma, 3) if self.spec.accel_bias_sigma else np.zeros(3)
-        self._pose: tuple[list[float], list[float], list[float]] | None = None
+        self._pose: tuple[list[float], list[float], tuple[float, ...]] | None = None
         self._count = 0
 
     @property
@@ -172,10 +172,10 @@ class SensorModel:
             return list(b), list(v), list(r), list(w), f_sp, list(w), mag
         n = self.rng.normal(size=18).tolist()
         if self._pose is None or self._count % self.pose_every == 0:
-            sp, sv = self.sig_pos, self.sig_vel
+            sp, sv, st = self.sig_pos, self.sig_vel, self.sig_att
             self._pose = ([b[0] + sp * n[0], b[1] + sp * n[1], b[2] + sp * n[2]],
                           [v[0] + sv * n[3], v[1] + sv * n[4], v[2] + sv * n[5]],
-                          _mul33(r, _exp_so3(self.sig_att * n[6], self.sig_att * n[7], self.sig_att * n[8])))
+                          matmul33_floats(r, exp_so3_floats(st * n[6], st * n[7], st * n[8])))
         self._count += 1
         sr, sa, sg = self.sig_rate, self.sig_acc, self.sig_gyro
         ba, bg = self._accel_bias, self._gyro_bias
@@ -205,29 +205,3 @@ def as_measurement(lists: tuple[list[float], ...], t: float) -> dict[str, NDArra
     return {M.POSITION: np.array(pos), M.VELOCITY: np.array(vel), M.ATTITUDE: np.array(att).reshape(3, 3),
             M.ANGULAR_VELOCITY: np.array(rate), M.SPECIFIC_FORCE: np.array(f_sp), M.GYRO: np.array(gyro),
             M.MAGNETOMETER: np.array(mag), M.TIME: np.asarray(float(t))}
-
-
-def _exp_so3(x: float, y: float, z: float) -> list[float]:
-    """Rodrigues' formula (row-major 3x3) in floats, with the small-angle series of :func:`.lie.exp_so3`."""
-    th2 = x * x + y * y + z * z
-    if th2 < _SMALL:
-        a = 1.0 - th2 / 6.0 + th2 * th2 / 120.0
-        b = 0.5 - th2 / 24.0 + th2 * th2 / 720.0
-    else:
-        th = math.sqrt(th2)
-        a = math.sin(th) / th
-        b = (1.0 - math.cos(th)) / th2
-    bxy, bxz, byz = b * x * y, b * x * z, b * y * z
-    return [1.0 - b * (y * y + z * z), bxy - a * z, bxz + a * y,
-            bxy + a * z, 1.0 - b * (x * x + z * z), byz - a * x,
-            bxz - a * y, byz + a * x, 1.0 - b * (x * x + y * y)]
-
-
-def _mul33(p: list[float], q: list[float]) -> list[float]:
-    """Row-major 3x3 product p q in floats."""
-    return [p[0] * q[0] + p[1] * q[3] + p[2] * q[6], p[0] * q[1] + p[1] * q[4] + p[2] * q[7],
-            p[0] * q[2] + p[1] * q[5] + p[2] * q[8],
-            p[3] * q[0] + p[4] * q[3] + p[5] * q[6], p[3] * q[1] + p[4] * q[4] + p[5] * q[7],
-            p[3] * q[2] + p[4] * q[5] + p[5] * q[8],
-            p[6] * q[0] + p[7] * q[3] + p[8] * q[6], p[6] * q[1] + p[7] * q[4] + p[8] * q[7],
-            p[6] * q[2] + p[7] * q[5] + p[8] * q[8]]

@@ -50,7 +50,7 @@ from fawtgym.envs.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FOR
 
 from ._obs_common import single_inputs
 from .base import Observer, ObserverEstimate, register_observer
-from .lie import hat, vee
+from .lie import hat, matmul33_floats, vee
 from .pdt_sta import check_params, switch_and_gain_times
 from .quest import _cross as _cross_any
 from .quest import _quest_unit_batch, quest_floats, quest_unit
@@ -586,7 +586,7 @@ class PdtStaAttitudeObserver(Observer):
         g0, g1, g2 = x1
         if math.sqrt(g0 * g0 + g1 * g1 + g2 * g2) > self.reanchor:  # _maybe_reanchor
             w = _omega_floats(x1, x2)
-            A = _mat_mat(A, _gibbs_to_rot_floats(x1))
+            A = matmul33_floats(A, _gibbs_to_rot_floats(x1))
             self.anchor = np.array(A).reshape(1, 3, 3)
             self._anchor_src, self._anchor_list = self.anchor, A
             x1, x2 = [0.0, 0.0, 0.0], [0.5 * w[0], 0.5 * w[1], 0.5 * w[2]]  # g' = 1/2 Gamma(0) omega (eq. 47)
@@ -629,15 +629,6 @@ class PdtStaAttitudeObserver(Observer):
 
 
 _QUEST_KEYS = (SPECIFIC_FORCE, MAGNETOMETER)
-
-
-def _mat_mat(A: list[float], B: list[float]) -> list[float]:
-    """A B for row-major 3x3 lists (9)."""
-    a00, a01, a02, a10, a11, a12, a20, a21, a22 = A
-    b00, b01, b02, b10, b11, b12, b20, b21, b22 = B
-    return [a00 * b00 + a01 * b10 + a02 * b20, a00 * b01 + a01 * b11 + a02 * b21, a00 * b02 + a01 * b12 + a02 * b22,
-            a10 * b00 + a11 * b10 + a12 * b20, a10 * b01 + a11 * b11 + a12 * b21, a10 * b02 + a11 * b12 + a12 * b22,
-            a20 * b00 + a21 * b10 + a22 * b20, a20 * b01 + a21 * b11 + a22 * b21, a20 * b02 + a21 * b12 + a22 * b22]
 
 
 def _gibbs_to_rot_floats(g: list[float]) -> list[float]:

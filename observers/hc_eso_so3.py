@@ -44,7 +44,7 @@ from . import vector_attitude as va
 from ._obs_common import single_inputs
 from .base import Observer, ObserverEstimate, register_observer
 from .lie import _SMALL as _LIE_SMALL
-from .lie import exp_so3
+from .lie import exp_so3, exp_so3_floats, matmul33_floats
 
 #: the Morse-function gains K (Lemma 1) used when none are given; the paper's simulation does not state
 #: its K, any k1 > k2 > k3 >= 1 is admissible.
@@ -138,32 +138,6 @@ def _exp_so3(w: NDArray[np.float64]) -> NDArray[np.float64]:
     return _EYE + a * k + b * (k @ k)
 
 
-def _exp_so3_single(x0: float, x1: float, x2: float) -> tuple[float, ...]:
-    """exp(x^) row-major as 9 Python floats: the formulas and threshold of :func:`_exp_so3` / lie.exp_so3,
-    ``I + a x^ + b x^ x^`` with ``x^ x^ = x x^T - |x|^2 I`` (NaN where those give NaN)."""
-    t2 = x0 * x0 + x1 * x1 + x2 * x2
-    if t2 < _LIE_SMALL:
-        a, b = 1.0 - t2 / 6.0 + t2 * t2 / 120.0, 0.5 - t2 / 24.0 + t2 * t2 / 720.0
-    elif t2 == math.inf:  # numpy's sin(inf) is NaN (math.sin raises): NaN, as the batched exponential
-        return (math.nan,) * 9
-    else:
-        t = math.sqrt(t2)
-        a, b = math.sin(t) / t, (1.0 - math.cos(t)) / (t * t)
-    b01, b02, b12 = b * (x0 * x1), b * (x0 * x2), b * (x1 * x2)
-    return (1.0 + b * (-(x2 * x2) - x1 * x1), -a * x2 + b01, a * x1 + b02,
-            a * x2 + b01, 1.0 + b * (-(x2 * x2) - x0 * x0), -a * x0 + b12,
-            -a * x1 + b02, a * x0 + b12, 1.0 + b * (-(x1 * x1) - x0 * x0))
-
-
-def _matmul_single(a: Sequence[float], b: Sequence[float]) -> tuple[float, ...]:
-    """Product of two 3 x 3 matrices given row-major as 9 floats."""
-    a00, a01, a02, a10, a11, a12, a20, a21, a22 = a
-    b00, b01, b02, b10, b11, b12, b20, b21, b22 = b
-    return (a00 * b00 + a01 * b10 + a02 * b20, a00 * b01 + a01 * b11 + a02 * b21, a00 * b02 + a01 * b12 + a02 * b22,
-            a10 * b00 + a11 * b10 + a12 * b20, a10 * b01 + a11 * b11 + a12 * b21, a10 * b02 + a11 * b12 + a12 * b22,
-            a20 * b00 + a21 * b10 + a22 * b20, a20 * b01 + a21 * b11 + a22 * b21, a20 * b02 + a21 * b12 + a22 * b22)
-
-
 def hc_eso_step_single(r_hat: Sequence[float], omega_hat: Sequence[float], sigma_hat: Sequence[float],
                        l: Sequence[float], omega_m: Sequence[float], tau: Sequence[float],
                        inertia: Sequence[float], inertia_inv: Sequence[float], gains: HcEsoGains,
@@ -224,7 +198,7 @@ def hc_eso_step_single(r_hat: Sequence[float], omega_hat: Sequence[float], sigma
     pd1 = i10 * u0 + i11 * u1 + i12 * u2 + sg1 + kp * p1 - kz * hw1
     pd2 = i20 * u0 + i21 * u1 + i22 * u2 + sg2 + kp * p2 - kz * hw2
     ks = k_sig * pp**e_sig  # Q of eq. 30 is ks Psi
-    rot = _matmul_single(r_hat, _exp_so3_single(h * w0, h * w1, h * w2))
+    rot = matmul33_floats(r_hat, exp_so3_floats(h * w0, h * w1, h * w2))
     return (rot, (w0 + h * pd0, w1 + h * pd1, w2 + h * pd2),
             (sg0 + h * (ks * p0), sg1 + h * (ks * p1), sg2 + h * (ks * p2)))
 
@@ -352,7 +326,7 @@ class HcEsoSO3(Observer):
         :meth:`_measured` raises (degenerate IMU vectors)."""
         if self.vectors == "attitude":
             rm = values[0]
-            u = _matmul_single(rm[0::3] + rm[1::3] + rm[2::3], self._el)  # U^m = (R^m)^T E
+            u = matmul33_floats(rm[0::3] + rm[1::3] + rm[2::3], self._el)  # U^m = (R^m)^T E
         else:
             u = va.imu_body_vectors_single(values[0], values[1])
             if u is None:
@@ -389,13 +363,13 @@ class HcEsoSO3(Observer):
             r_hat, omega_hat, sigma_hat, l, omega_m = cache
         steps = max(1, math.ceil(dt / self.max_step - 1e-9))
         h = dt / steps
-        rot = _exp_so3_single(h * omega_m[0], h * omega_m[1], h * omega_m[2]) if steps > 1 else None
+        rot = exp_so3_floats(h * omega_m[0], h * omega_m[1], h * omega_m[2]) if steps > 1 else None
         jl, jil, gains = self._jl, self._jil, self.gains
         for k in range(steps):  # time substeps, as update()
             r_hat, omega_hat, sigma_hat = hc_eso_step_single(r_hat, omega_hat, sigma_hat, l, omega_m, tau, jl, jil,
                                                              gains, h)
             if k + 1 < steps:
-                l = _matmul_single(l, rot)
+                l = matmul33_floats(l, rot)
         if not math.isfinite(sum(omega_hat) + sum(sigma_hat)) and not all(map(math.isfinite, omega_hat + sigma_hat)):
             raise ValueError(f"HC-ESO state became non-finite (dt={dt}, max_step={self.max_step}); "
                              "reduce max_step or the gains")

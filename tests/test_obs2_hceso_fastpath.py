@@ -22,11 +22,11 @@ from fawtgym.observers import vector_attitude as va
 from fawtgym.observers.hc_eso_so3 import (
     HcEsoGains,
     _exp_so3,
-    _exp_so3_single,
     hc_eso_step,
     hc_eso_step_single,
 )
 from fawtgym.observers.lie import exp_so3
+from fawtgym.observers.lie import exp_so3_floats as _exp_so3_single
 
 TOL = 1e-9
 G = 9.80665
