@@ -52,7 +52,6 @@ Not implemented: rendering (render a single ``fawtgym/Hover-v0``).
 from __future__ import annotations
 
 import copy
-import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -69,7 +68,7 @@ from fawtgym.observers.lie import exp_so3
 from . import measurement as M
 from .ctbr import MAX_RATES, RateLoop
 from .frames import SIGN2_MJ_NED, SIGN_MJ_NED, rot_ned_to_quat_mj
-from .hover_env import INIT_SPREAD, HoverEnv
+from .hover_env import INIT_SPREAD, HoverEnv, check_init_noise
 from .mjcf import hull_points
 from .motors import allocation_matrix
 from .sensors_batch import BatchSensorModel
@@ -379,10 +378,7 @@ class HoverBatchEnv(VectorEnv):
                                      f"got {options['setpoint']!r}")
                 self.setpoint = np.broadcast_to(sp, (n, 3)).copy()
             if "init_noise" in options:
-                s = float(options["init_noise"])
-                if not (math.isfinite(s) and s >= 0):
-                    raise ValueError(f"init_noise must be a finite number >= 0, got {options['init_noise']!r}")
-                self.init_noise = s
+                self.init_noise = check_init_noise(options["init_noise"])
         self._pos, self._vel = np.zeros((n, 3)), np.zeros((n, 3))
         self._rot, self._omega = np.zeros((n, 3, 3)), np.zeros((n, 3))
         self.rotor_speeds, self._applied = np.zeros((n, 4)), np.zeros((n, 4))

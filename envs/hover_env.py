@@ -74,7 +74,8 @@ _BADQPOS, _BADQVEL, _BADQACC = (int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPO
                                                  mujoco.mjtWarning.mjWARN_BADQACC))
 
 
-def _init_noise(value: Any) -> float:
+def check_init_noise(value: Any) -> float:
+    """``init_noise`` as a float; ValueError naming it unless a finite number >= 0 (shared with the batch env)."""
     try:
         v = float(value)
     except (TypeError, ValueError) as exc:
@@ -142,7 +143,7 @@ class HoverEnv(gym.Env):
         self.episode_seconds = _positive("episode_seconds", episode_seconds)
         self.max_steps = int(math.ceil(self.episode_seconds / self.dt - 1e-9))
         self.max_position_error = _positive("max_position_error", max_position_error)
-        self.init_noise = _init_noise(init_noise)
+        self.init_noise = check_init_noise(init_noise)
         self.setpoint = FAWT_HOVER_POINT_NED if setpoint is None else setpoint
         self.reward_weights = dict(DEFAULT_REWARD_WEIGHTS)
         for key, value in (reward_weights or {}).items():
@@ -302,7 +303,7 @@ class HoverEnv(gym.Env):
             if "setpoint" in options:
                 self.setpoint = options["setpoint"]
             if "init_noise" in options:
-                self.init_noise = _init_noise(options["init_noise"])
+                self.init_noise = check_init_noise(options["init_noise"])
         rng = self.np_random
         mujoco.mj_resetData(self.model, self.data)
         s = self.init_noise
