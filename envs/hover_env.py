@@ -166,8 +166,6 @@ class HoverEnv(gym.Env):
                                                                  render_width, render_height))
         self.data = mujoco.MjData(self.model)
         self._body = self.model.body("vehicle").id
-        self._alloc = allocation_matrix(self.preset)
-        self._rotor_pos = self.preset.rotor_positions
         self._rate_loop = RateLoop(self.preset, self.physics_dt) if action_type == "ctbr" else None
 
         if action_type == "motors":
@@ -183,11 +181,8 @@ class HoverEnv(gym.Env):
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self._external_force = [0.0, 0.0, 0.0]
         self._external_torque = [0.0, 0.0, 0.0]
-        self._obs_low = self.observation_space.low.astype(float)
-        self._obs_high = self.observation_space.high.astype(float)
-        self._act_low = self.action_space.low.astype(float)
-        self._act_high = self.action_space.high.astype(float)
-        self._act_low_list, self._act_high_list = self._act_low.tolist(), self._act_high.tolist()
+        self._act_low_list = self.action_space.low.astype(float).tolist()
+        self._act_high_list = self.action_space.high.astype(float).tolist()
         # exact motor lag (see _run_motors): decay factors exp(-t / tau) at the mid-substep times (thrust) and at
         # the end of the step (speed), one table per combination of rotors speeding up (bit i set) or slowing down
         n = self.n_substeps
@@ -207,12 +202,13 @@ class HoverEnv(gym.Env):
         self._omega_min = self.preset.omega_min
         self._omega_span = self.preset.omega_max - self.preset.omega_min
         self._k_thrust = float(self.preset.k_thrust)
-        self._alloc_rows = self._alloc.tolist()
-        self._hull = [tuple(p) for p in hull_points(self.preset).tolist()]
-        self._hull_radius = float(np.linalg.norm(hull_points(self.preset), axis=1).max())
+        self._alloc_rows = allocation_matrix(self.preset).tolist()
+        hull = hull_points(self.preset)
+        self._hull = [tuple(p) for p in hull.tolist()]
+        self._hull_radius = float(np.linalg.norm(hull, axis=1).max())
         self._obs_limits = (float(high[0]), float(high[3]), float(high[12]))
         self._reward_terms = (w["pos"], w["vel"], w["action"], w["rate"])
-        self._rotor_offsets = self._rotor_pos.tolist()
+        self._rotor_offsets = self.preset.rotor_positions.tolist()
         self._bind_views()
         self.time = 0.0
 
