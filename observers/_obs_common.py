@@ -145,3 +145,26 @@ def single_inputs(measurement: Mapping[str, object], keys: tuple[str, ...], thru
             or not math.isfinite(sum(sum(v) for v in values) + fl[0] + sum(tq))):
         return None
     return values, fl[0], tq
+
+
+def single_state(obs: Observer, names: Sequence[str]) -> list[float]:
+    """The N = 1 state of ``obs`` (its ``_s`` dict of (1, 3) arrays under ``names``) as one flat float list:
+    the floats the last fast step cached while ``_s`` is still the dict it stored, else read from ``_s``."""
+    cache = obs._single
+    if cache is not None and cache[0] is obs._s:
+        return cache[1]
+    flat: list[float] = []
+    for k in names:
+        flat += obs._s[k][0].tolist()
+    return flat
+
+
+def store_single_state(obs: Observer, who: str, names: Sequence[str], flat: list[float]) -> None:
+    """Keep a fast step's new N = 1 state: :func:`check_finite` (FloatingPointError naming the first non-finite
+    state), then ``obs._s`` = (1, 3) views of one buffer under ``names`` and ``obs._single`` = (that dict, ``flat``)."""
+    buf = np.array(flat)
+    state = {k: buf[None, 3 * i:3 * i + 3] for i, k in enumerate(names)}
+    if not math.isfinite(sum(flat)):
+        check_finite(who, **{k: v[0] for k, v in state.items()})
+    obs._s = state
+    obs._single = (state, flat)

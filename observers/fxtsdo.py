@@ -20,7 +20,6 @@ rate dt.  The first update after reset has no previous sample and uses the reset
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -34,12 +33,15 @@ from fawtgym.observers._obs_common import (
     require,
     sig,
     single_inputs,
+    single_state,
     step_inputs,
+    store_single_state,
 )
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 
 _E3 = np.array([0.0, 0.0, 1.0])
 _KEYS = ("velocity", "attitude", "angular_velocity")
+_STATE = ("v_prev", "w_prev", "dt_", "da")  # the state dict's entries, (N, 3) each, in the N = 1 path's float order
 
 
 @register_observer("fxtsdo")
@@ -109,13 +111,7 @@ class FxTSDO(Observer):
         if inputs is None:
             return None
         (vm, rm, wm), f0, tq = inputs
-        cache = self._single
-        if cache is not None and cache[0] is self._s:
-            flat = cache[1]
-        else:
-            s = self._s
-            flat = (s["v_prev"][0].tolist() + s["w_prev"][0].tolist() + s["dt_"][0].tolist()
-                    + s["da"][0].tolist())
+        flat = single_state(self, _STATE)
         d0, d1, d2, q0, q1, q2 = flat[6:]
         fm = f0 / self.mass
         m0, m1, m2 = wm
@@ -132,13 +128,7 @@ class FxTSDO(Observer):
               q0 + dt * law((m0 - flat[3]) / dt - (c0 * i00 + c1 * i01 + c2 * i02) - q0),
               q1 + dt * law((m1 - flat[4]) / dt - (c0 * i10 + c1 * i11 + c2 * i12) - q1),
               q2 + dt * law((m2 - flat[5]) / dt - (c0 * i20 + c1 * i21 + c2 * i22) - q2)]
-        if not math.isfinite(sum(nd)):
-            check_finite("fxtsdo", dt_=np.array(nd[0:3]), da=np.array(nd[3:6]))
-        flat = vm + wm + nd
-        buf = np.array(flat)
-        self._s = s = {"v_prev": buf[None, 0:3], "w_prev": buf[None, 3:6], "dt_": buf[None, 6:9],
-                       "da": buf[None, 9:12]}
-        self._single = (s, flat)
+        store_single_state(self, "fxtsdo", _STATE, vm + wm + nd)
         mass = self.mass
         d0, d1, d2, q0, q1, q2 = nd
         out = np.array([mass * d0, mass * d1, mass * d2,

@@ -34,11 +34,21 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.envs.frames import rot_to_euler
-from fawtgym.observers._obs_common import batch_vec, check_finite, positive, require, single_inputs, step_inputs
+from fawtgym.observers._obs_common import (
+    batch_vec,
+    check_finite,
+    positive,
+    require,
+    single_inputs,
+    single_state,
+    step_inputs,
+    store_single_state,
+)
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 
 _E3 = np.array([0.0, 0.0, 1.0])
 _KEYS = ("position", "velocity", "attitude", "angular_velocity")
+_STATE = ("p1", "p2", "p3", "a1", "a2", "a3")  # the state dict's entries, (N, 3) each, in the N = 1 path's float order
 
 
 def bandwidth_gains(omega0: float) -> tuple[float, float, float]:
@@ -114,14 +124,7 @@ class LESO(Observer):
         if inputs is None:
             return None
         (pm, vm, rm, wm), f0, tq = inputs
-        cache = self._single
-        if cache is not None and cache[0] is self._s:
-            flat = cache[1]
-        else:
-            s = self._s
-            flat = []
-            for k in ("p1", "p2", "p3", "a1", "a2", "a3"):
-                flat += s[k][0].tolist()
+        flat = single_state(self, _STATE)
         p10, p11, p12, p20, p21, p22, p30, p31, p32, a10, a11, a12, a20, a21, a22, a30, a31, a32 = flat
         b1, b2, b3 = self.beta_t
         hh = 0.5 * dt * dt
@@ -147,13 +150,7 @@ class LESO(Observer):
                 a12 + dt * (a22 + g1 * ea2) + hh * ad2,
                 a20 + dt * ad0, a21 + dt * ad1, a22 + dt * ad2,
                 a30 + dt * (g3 * ea0), a31 + dt * (g3 * ea1), a32 + dt * (g3 * ea2)]
-        if not math.isfinite(sum(flat)):
-            a = np.array(flat)
-            check_finite("leso", p1=a[0:3], p2=a[3:6], p3=a[6:9], a1=a[9:12], a2=a[12:15], a3=a[15:18])
-        buf = np.array(flat)
-        self._s = s = {"p1": buf[None, 0:3], "p2": buf[None, 3:6], "p3": buf[None, 6:9], "a1": buf[None, 9:12],
-                       "a2": buf[None, 12:15], "a3": buf[None, 15:18]}
-        self._single = (s, flat)
+        store_single_state(self, "leso", _STATE, flat)
         mass = self.mass
         out = np.array([mass * flat[6], mass * flat[7], mass * flat[8], jx * flat[15], jy * flat[16], jz * flat[17]]
                        + flat[0:6] + flat[9:15])

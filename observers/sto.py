@@ -26,7 +26,6 @@ such bound by nature.  Explicit Euler at the update rate dt.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -40,12 +39,15 @@ from fawtgym.observers._obs_common import (
     require,
     sig,
     single_inputs,
+    single_state,
     step_inputs,
+    store_single_state,
 )
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 
 _E3 = np.array([0.0, 0.0, 1.0])
 _KEYS = ("velocity", "attitude", "angular_velocity")
+_STATE = ("v", "w", "dt_", "da")  # the state dict's entries, (N, 3) each, in the N = 1 path's float order
 
 
 def _sig_half(x: float) -> float:
@@ -115,13 +117,7 @@ class SuperTwistingObserver(Observer):
         if inputs is None:
             return None
         (vm, rm, wm), f0, tq = inputs
-        cache = self._single
-        if cache is not None and cache[0] is self._s:
-            flat = cache[1]
-        else:
-            s = self._s
-            flat = s["v"][0].tolist() + s["w"][0].tolist() + s["dt_"][0].tolist() + s["da"][0].tolist()
-        v0, v1, v2, w0, w1, w2, d0, d1, d2, q0, q1, q2 = flat
+        v0, v1, v2, w0, w1, w2, d0, d1, d2, q0, q1, q2 = single_state(self, _STATE)
         st0, st1, st2 = vm[0] - v0, vm[1] - v1, vm[2] - v2
         m0, m1, m2 = wm
         sa0, sa1, sa2 = m0 - w0, m1 - w1, m2 - w2
@@ -144,12 +140,7 @@ class SuperTwistingObserver(Observer):
                 d2 + gt * ((st2 > 0) - (st2 < 0)),
                 q0 + ga * ((sa0 > 0) - (sa0 < 0)), q1 + ga * ((sa1 > 0) - (sa1 < 0)),
                 q2 + ga * ((sa2 > 0) - (sa2 < 0))]
-        if not math.isfinite(sum(flat)):
-            a = np.array(flat)
-            check_finite("sto", v=a[0:3], w=a[3:6], dt_=a[6:9], da=a[9:12])
-        buf = np.array(flat)
-        self._s = s = {"v": buf[None, 0:3], "w": buf[None, 3:6], "dt_": buf[None, 6:9], "da": buf[None, 9:12]}
-        self._single = (s, flat)
+        store_single_state(self, "sto", _STATE, flat)
         mass = self.mass
         d0, d1, d2, q0, q1, q2 = flat[6:]
         out = np.array([mass * d0, mass * d1, mass * d2,
