@@ -16,6 +16,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("fawtgym.eval.demo:main", "fly a short episode (PX4-style hover) and print what happened"),
     "list": ("fawtgym.cli:list_main", "list vehicles, wind presets, observers, env ids"),
     "wind": ("fawtgym.envs.wind.cli:main", "generate FAWT/Dryden wind, plot it and compare to seed-000 Table 3"),
+    "eval": ("fawtgym.eval.runner_cli:main", "fly agents x scenarios x seeds on the same wind; resumable result cells"),
+    "leaderboard": ("fawtgym.eval.leaderboard:main", "rank the agents of an eval run (Markdown, CSV, JSON, HTML)"),
     "reproduce": ("fawtgym.cli:reproduce_main", "reproduce a seed paper's numerical study (see: reproduce --help)"),
     "bench": ("fawtgym.cli:bench_main", "speed benchmarks, printed as ratios measured in one run"),
 }
@@ -28,6 +30,7 @@ REPRODUCTIONS: dict[str, tuple[str, str]] = {
     "hc-eso": ("fawtgym.eval.reproduce.hc_eso:main", "HC-ESO on SO(3), seed-002 Sec. 6"),
     "qb": ("fawtgym.eval.reproduce.qb_observer:main", "QB observer by SDP, seed-001 Figs. 4-7"),
     "pdt-sta": ("fawtgym.eval.reproduce.pdt_sta:main", "predefined-time STA + QUEST, seed-003 Example 1 and Figs. 5-9"),
+    "all": ("fawtgym.eval.reproduce.report:main", "every study above, one report with a verdict per paper claim"),
 }
 
 #: bench <name> -> module:function
@@ -37,6 +40,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "observers": ("fawtgym.eval.bench.observers:main", "per-update cost of every observer, single and N = 1024"),
     "closed-loop": ("fawtgym.eval.bench.closed_loop:main", "PX4 + FFTS-ESO in FAWT-50 wind: real-time factor"),
     "qb-sdp": ("fawtgym.eval.bench.qb_sdp:main", "one QB-observer SDP at fixed alpha"),
+    "eval": ("fawtgym.eval.bench.eval:main", "the quick leaderboard: cells/min and vehicle-s per wall-s vs the env alone"),
 }
 
 
@@ -55,7 +59,7 @@ def _call(target: str, argv: Sequence[str]) -> int:
 def _dispatch(prog: str, table: dict[str, tuple[str, str]], argv: Sequence[str], what: str) -> int:
     parser = argparse.ArgumentParser(prog=prog, description=f"{what}. Names:\n" + "\n".join(
         f"  {k:14s} {h}" for k, (_, h) in table.items()), formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("name", choices=list(table) + (["all"] if prog.endswith("bench") else []))
+    parser.add_argument("name", choices=list(table) + (["all"] if prog.endswith("bench") and "all" not in table else []))
     parser.add_argument("args", nargs=argparse.REMAINDER, help="passed to the named job (try: NAME --help)")
     ns = parser.parse_args(argv)
     if ns.name == "all":
