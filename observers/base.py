@@ -9,6 +9,13 @@ measurement and updated with the measurement and the *known applied* collective 
 and body torque ``tau`` [N m] (``info["applied"]`` of the env).  Everything is batch-first: the
 measurement arrays carry a leading axis N (see :mod:`fawtgym.envs.measurement`), ``thrust`` has
 shape (N,), ``torque`` (N, 3); a single vehicle is N = 1.  No Python loop over N.
+
+Per-row reset.  Rows of a batched env end at different times, so ``reset(measurement, rows=mask)``
+re-initializes only the rows where the bool mask (N,) is True: they get exactly the state a freshly
+built observer reset on those rows' measurements would have, the other rows keep theirs bitwise.
+Every observer keeps its state in arrays with a leading row axis, so this is a masked write
+(:func:`write_rows`); :meth:`Observer.reset` validates the request once for every observer, and a
+subclass implements :meth:`Observer._reset`, which builds the fresh state of the rows it is given.
 """
 
 from __future__ import annotations
@@ -21,7 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.envs.measurement import batch_measurement
+from fawtgym.envs.measurement import TRAILING_SHAPES, batch_measurement
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,7 +48,12 @@ class ObserverEstimate:
 
 
 class Observer(abc.ABC):
-    """Base class: holds (m, J, g), validates inputs, defines reset/update."""
+    """Base class: holds (m, J, g), validates inputs, defines reset/update.
+
+    A subclass implements :meth:`_reset` (the fresh state of the rows of a measurement, written with
+    :func:`write_rows`) and :meth:`update`; :meth:`reset` is the public entry point for both a full and a
+    per-row reset and does the checks they share.
+    """
 
     #: registry name, set by :func:`register_observer`
     name: ClassVar[str] = ""
@@ -59,11 +71,67 @@ class Observer(abc.ABC):
         self.inertia = j
         self.inertia_inv = np.linalg.inv(j)
         self.gravity = float(gravity)
+        #: rows N of the state, set by the last full reset (None before it)
+        self._n_rows: int | None = None
 
-    @abc.abstractmethod
     def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
-              torque: ArrayLike | None = None) -> None:
-        """Initialize the state estimates from a measurement (and optionally initial disturbance guesses)."""
+              torque: ArrayLike | None = None, *, rows: ArrayLike | None = None, **options: Any) -> None:
+        """Initialize the state estimates from a measurement (and optionally initial disturbance guesses).
+
+        ``measurement``: batch-first mapping (:mod:`fawtgym.envs.measurement`) with the keys the observer
+        needs; ``force`` / ``torque``: initial guesses of phi_D (world NED) / tau_D (body FRD), shape (3,)
+        (every row) or (N, 3), default zero (an observer that does not estimate a channel ignores its guess).
+
+        ``rows``: None (default) resets every row; the batch size N of ``measurement`` becomes the
+        observer's N (it may differ from the previous one).  A bool array of shape (N,) resets only the
+        rows where it is True: ``measurement`` (and an (N, 3) guess) still holds all N rows of the
+        observer's batch, the rows where the mask is True get exactly the state a freshly built observer
+        reset on those rows' measurements (and guesses) would have -- only their measurement is read, the
+        other rows' may be anything, e.g. non-finite -- and the rows where it is False keep their state
+        bitwise.  An all-False mask changes nothing; an all-True mask is a full reset.  At N = 1 a mask
+        is all or nothing, so it never reaches a float fast path half-way.
+
+        Raises ValueError (one line; the same text at every N apart from the sizes it names) when
+        ``rows`` is given before any full reset, is not a bool array of shape (N,), or ``measurement``
+        (or a guess) does not hold N rows; the state is then unchanged.  ``options`` are observer-specific
+        reset options (e.g. ``thrust`` of the QB observer).
+        """
+        if rows is None:
+            self._n_rows = self._reset(measurement, force, torque, None, **options)
+            return
+        who = self.name or type(self).__name__
+        if self._n_rows is None:
+            raise ValueError(f"{who}: reset(measurement, rows=mask) selects rows of the batch set by a full "
+                             "reset; call reset(measurement) once first")
+        n = self._n_rows
+        mask = check_row_mask(rows, n, who)
+        meas = batch_measurement(measurement)
+        for key, value in meas.items():
+            if key in TRAILING_SHAPES and value.shape[0] != n:
+                raise ValueError(f"{who}: reset(rows=mask) needs the measurement of all {n} rows of the batch (the "
+                                 f"mask selects among them); measurement[{key!r}] has {value.shape[0]} rows")
+        force_rows = _guess_rows(force, n, mask, "force", who)
+        torque_rows = _guess_rows(torque, n, mask, "torque", who)
+        if not mask.any():
+            return
+        if mask.all():
+            self.reset(measurement, force, torque, **options)
+            return
+        sub = {k: (v[mask] if k in TRAILING_SHAPES else v) for k, v in meas.items()}
+        self._reset(sub, force_rows, torque_rows, mask, **options)
+
+    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
+               rows: NDArray[np.bool_] | None, **options: Any) -> int:
+        """Build the fresh state of the rows of ``measurement`` (and the guesses) and store it.
+
+        ``rows`` None: a full reset, the fresh state replaces the state.  Else ``rows`` is the observer's
+        bool mask (N,) with both values present, ``measurement`` holds only the masked rows (already
+        checked to be rows of this batch) and ``force`` / ``torque`` are None, (3,) or one row per masked
+        row; store ``write_rows(state, fresh, rows)``, after bringing any float cache of the state up to
+        date, and build the fresh state completely before writing it (an error leaves the state as it
+        was).  Returns the number of rows of ``measurement``.
+        """
+        raise NotImplementedError(f"{type(self).__name__} must implement _reset (or override reset)")
 
     @abc.abstractmethod
     def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
@@ -86,6 +154,51 @@ class Observer(abc.ABC):
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"{label} contains non-finite values: {arr}")
         return meas, f, tau
+
+
+def check_row_mask(rows: ArrayLike, n: int, who: str) -> NDArray[np.bool_]:
+    """``rows`` as a bool mask of shape (n,); ValueError (one line, naming what was got) otherwise."""
+    try:
+        mask = np.asarray(rows)
+    except ValueError:                      # ragged nested sequences
+        mask = np.asarray(rows, dtype=object)
+    if mask.dtype != np.bool_ or mask.shape != (n,):
+        raise ValueError(f"{who}: rows must be None (all rows) or a bool array of shape ({n},), one entry per row "
+                         f"of the batch; got dtype {mask.dtype} with shape {mask.shape}")
+    return mask
+
+
+def _guess_rows(guess: ArrayLike | None, n: int, rows: NDArray[np.bool_], label: str,
+                who: str) -> NDArray[np.float64] | None:
+    """An initial guess of a per-row reset: None, (3,) as is, or (n, 3) -> its masked rows."""
+    if guess is None:
+        return None
+    g = np.asarray(guess, dtype=float)
+    if g.shape not in ((3,), (n, 3)) or not np.all(np.isfinite(g)):
+        raise ValueError(f"{who}: initial {label} guess must be finite with shape (3,) (every row) or ({n}, 3) (one "
+                         f"per row of the batch), got shape {g.shape}")
+    return g if g.ndim == 1 else g[rows]
+
+
+def write_rows(state: Any, fresh: Any, rows: NDArray[np.bool_] | None) -> Any:
+    """The masked write of a per-row reset: ``state`` with its rows where ``rows`` is True replaced by ``fresh``.
+
+    ``state`` is an array with a leading row axis N, or a dict / tuple of them (of the same keys / length as
+    ``fresh``); ``fresh`` holds one row per True entry of ``rows`` (N,), in order.  Returns new arrays (the
+    rows where ``rows`` is False are copied bitwise; ``state`` itself is not modified, so arrays an estimate
+    returned or a float cache refers to keep their values).  ``rows`` None returns ``fresh`` (a full reset).
+    """
+    if rows is None:
+        return fresh
+    if isinstance(fresh, Mapping):
+        if not isinstance(state, Mapping) or set(state) != set(fresh):
+            raise TypeError(f"write_rows: state keys {sorted(state)} differ from fresh keys {sorted(fresh)}")
+        return {k: write_rows(state[k], v, rows) for k, v in fresh.items()}
+    if isinstance(fresh, tuple):
+        return tuple(write_rows(s, f, rows) for s, f in zip(state, fresh, strict=True))
+    out = np.array(state, copy=True)
+    out[rows] = fresh
+    return out
 
 
 _REGISTRY: dict[str, type[Observer]] = {}

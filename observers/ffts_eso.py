@@ -56,7 +56,7 @@ from fawtgym.observers._obs_common import (
     require,
     step_inputs,
 )
-from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
+from fawtgym.observers.base import Observer, ObserverEstimate, register_observer, write_rows
 from fawtgym.observers.hc_ffts import DEFAULT_EPS, check_p, hurwitz_matrix
 from fawtgym.observers.lie import integrate_rotation, project_so3, vee
 
@@ -142,17 +142,23 @@ class FFTSESO(Observer):
         self._kv = tuple(self.morse_k.tolist())
 
     # ---- interface -------------------------------------------------------------------------
-    def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
-              torque: ArrayLike | None = None) -> None:
-        """b_hat, v_hat, R_hat, Omega_hat := measured values; phi_hat, tau_hat := given guesses (default 0)."""
+    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
+               rows: NDArray[np.bool_] | None) -> int:
+        """b_hat, v_hat, R_hat, Omega_hat := measured values; phi_hat, tau_hat := given guesses (default 0).
+
+        State: the dict ``_state`` of (N, 3) / (N, 3, 3) arrays, behind the N = 1 float state ``_single_flat``
+        when ``_dirty`` (synced before a masked write)."""
         m = require(measurement, _KEYS, "ffts_eso")
         n = m["position"].shape[0]
-        self._single_flat, self._dirty = None, False
-        self._state = {
+        fresh = {
             "b": m["position"].copy(), "v": m["velocity"].copy(), "phi": batch_vec(force, n, "force", "ffts_eso"),
             "R": project_so3(m["attitude"]), "w": m["angular_velocity"].copy(),
             "tau": batch_vec(torque, n, "torque", "ffts_eso"),
         }
+        self._sync_single()
+        self._state = write_rows(self._state, fresh, rows)
+        self._single_flat, self._dirty = None, False
+        return n
 
     def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
                dt: float) -> ObserverEstimate:

@@ -37,7 +37,7 @@ from fawtgym.observers._obs_common import (
     step_inputs,
     store_single_state,
 )
-from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
+from fawtgym.observers.base import Observer, ObserverEstimate, register_observer, write_rows
 
 _E3 = np.array([0.0, 0.0, 1.0])
 _KEYS = ("velocity", "attitude", "angular_velocity")
@@ -59,13 +59,18 @@ class FxTSDO(Observer):
         self._single: tuple | None = None       # (state dict, its 12 floats) after an N = 1 fast step
         self._jl, self._jil = self.inertia.tolist(), self.inertia_inv.tolist()
 
-    def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
-              torque: ArrayLike | None = None) -> None:
+    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
+               rows: NDArray[np.bool_] | None) -> int:
+        """Previous velocities := measured; d_hat := the given guesses (as accelerations).  State: the dict ``_s``
+        of (N, 3) arrays (:data:`_STATE`); the N = 1 cache ``_single`` is keyed by that dict's identity."""
         m = require(measurement, _KEYS, "fxtsdo")
         n = m["velocity"].shape[0]
-        self._s = {"v_prev": m["velocity"].copy(), "w_prev": m["angular_velocity"].copy(),
-                   "dt_": batch_vec(force, n, "force", "fxtsdo") / self.mass,
-                   "da": batch_vec(torque, n, "torque", "fxtsdo") @ self.inertia_inv.T}
+        fresh = {"v_prev": m["velocity"].copy(), "w_prev": m["angular_velocity"].copy(),
+                 "dt_": batch_vec(force, n, "force", "fxtsdo") / self.mass,
+                 "da": batch_vec(torque, n, "torque", "fxtsdo") @ self.inertia_inv.T}
+        self._s = write_rows(self._s, fresh, rows)
+        self._single = None
+        return n
 
     def _law(self, e: NDArray[np.float64]) -> NDArray[np.float64]:
         return self.k1 * sig(e, self.a1) + self.k2 * sig(e, self.a2)

@@ -47,7 +47,7 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.envs import measurement as M
 
 from ._obs_common import floats
-from .base import Observer, ObserverEstimate, register_observer
+from .base import Observer, ObserverEstimate, register_observer, write_rows
 
 #: orders the module supports (eqs. 18-23 for n = 1..4, as issue 5 asks)
 ORDERS = (1, 2, 3, 4)
@@ -314,7 +314,7 @@ class GESO(Observer):
                 raise ValueError(f"measurement[{key!r}] contains non-finite values")
         if chan == "force":
             y = self.mass * meas[M.VELOCITY]
-            re3 = meas[M.ATTITUDE][..., :, 2]  # R e3, (N, 3)
+            re3 = meas[M.ATTITUDE][..., :, 2].copy()  # R e3, (N, 3); kept in _prev: a copy, not a caller's view
             return y, re3
         omega = meas[self.rate_key]
         jw = omega @ self.inertia.T
@@ -326,11 +326,16 @@ class GESO(Observer):
             return self.mass * self.gravity * _E3 - thrust[:, None] * aux
         return torque + aux
 
-    def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
-              torque: ArrayLike | None = None) -> None:
-        """Start at x0_hat = y, d_hat = the given guess (default 0), higher derivatives 0."""
+    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
+               rows: NDArray[np.bool_] | None) -> int:
+        """Start at x0_hat = y, d_hat = the given guess (default 0), higher derivatives 0.
+
+        State per channel: ``_x[chan]`` (N, 3, n+1) and the previous signals ``_prev[chan]`` = (y, aux), (N, 3)
+        each, behind the N = 1 float state ``_single`` when it is set (synced before a masked write).  The
+        per-dt step matrices (``_single_mats``, :meth:`GesoFilter.discretize`) are constants, not state."""
         meas = M.batch_measurement(measurement)
-        self._x, self._prev, self._single = {}, {}, None
+        x_new: dict[str, NDArray[np.float64]] = {}
+        prev_new: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
         for chan, filt in self.filters.items():
             y, aux = self._signals(chan, meas)
             x = np.zeros(y.shape + (filt.order + 1,))
@@ -342,8 +347,13 @@ class GESO(Observer):
                     raise ValueError(f"initial {chan} guess must be finite with shape (3,) or (N, 3), "
                                      f"got {g.shape}")
                 x[..., 1] = np.broadcast_to(g, y.shape)
-            self._x[chan] = x
-            self._prev[chan] = (y, aux)
+            x_new[chan] = x
+            prev_new[chan] = (y, aux)
+        self._sync_single()
+        self._x = write_rows(self._x, x_new, rows)
+        self._prev = write_rows(self._prev, prev_new, rows)
+        self._single = None
+        return next(iter(x_new.values())).shape[0]
 
     def _single_matrix(self, dt: float) -> NDArray[np.float64]:
         """Block-diagonal step matrix of all channels for N = 1: rows [x, u*, y_k (, y_k+1 - y_k)] per channel."""

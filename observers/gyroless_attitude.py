@@ -49,7 +49,7 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.envs.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FORCE
 
 from ._obs_common import single_inputs
-from .base import Observer, ObserverEstimate, register_observer
+from .base import Observer, ObserverEstimate, check_row_mask, register_observer, write_rows
 from .lie import hat, matmul33_floats, vee
 from .pdt_sta import check_params, switch_and_gain_times
 from .quest import _cross as _cross_any
@@ -255,14 +255,23 @@ class GibbsSTSMO:
             return self._floats
         return self._x1[0].tolist(), self._x2[0].tolist(), float(self._t[0])
 
-    def reset(self, x1: ArrayLike, x2: ArrayLike | None = None) -> None:
-        """Initial estimates g_hat(0) (N, 3) and g_hat'(0) (default 0); t = 0."""
+    def reset(self, x1: ArrayLike, x2: ArrayLike | None = None, rows: ArrayLike | None = None) -> None:
+        """Initial estimates g_hat(0) (N, 3) and g_hat'(0) (default 0); t = 0.
+
+        ``rows``: None resets every row (N := the rows of ``x1``); a bool mask (N,) of the current batch resets
+        the rows where it is True, ``x1`` / ``x2`` then giving one row per True entry (a masked write, the
+        other rows keep their state and clock)."""
         x1 = np.atleast_2d(np.asarray(x1, dtype=float))
         x2 = np.zeros_like(x1) if x2 is None else np.broadcast_to(np.asarray(x2, dtype=float), x1.shape).copy()
         if x1.shape[-1] != 3 or not (np.all(np.isfinite(x1)) and np.all(np.isfinite(x2))):
             raise ValueError(f"initial estimates must be finite with shape (N, 3), got {x1.shape}")
-        self.x1, self.x2 = x1.copy(), x2
-        self.t = np.zeros(x1.shape[0])
+        if rows is not None:
+            rows = check_row_mask(rows, self.n, "GibbsSTSMO")
+            if x1.shape[0] != int(rows.sum()):
+                raise ValueError(f"GibbsSTSMO: reset(rows=mask) needs one initial estimate per True row of the "
+                                 f"mask ({int(rows.sum())}), got {x1.shape[0]}")
+        self.x1, self.x2 = write_rows(self.x1, x1.copy(), rows), write_rows(self.x2, x2, rows)
+        self.t = write_rows(self.t, np.zeros(x1.shape[0]), rows)
 
     @property
     def omega(self) -> NDArray[np.float64]:
@@ -496,13 +505,18 @@ class PdtStaAttitudeObserver(Observer):
         body /= norms[:, :, None]
         return quest_unit(body, self._ref_unit, self._weights_row).R, valid
 
-    def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
-              torque: ArrayLike | None = None) -> None:
+    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
+               rows: NDArray[np.bool_] | None) -> int:
+        """Anchor R_a := the QUEST attitude, g_hat = g_hat' = 0, clock t = 0 (force/torque guesses unused).
+
+        State: ``anchor`` (N, 3, 3) and the core's x1, x2 (N, 3) and t (N,) (:meth:`GibbsSTSMO.reset`, which
+        syncs its N = 1 float state first); a new ``anchor`` array refreshes the N = 1 path's float copy of it."""
         from fawtgym.envs.measurement import batch_measurement
 
         R_q, _ = self._quest(batch_measurement(measurement))
-        self.anchor = R_q
-        self.core.reset(np.zeros((R_q.shape[0], 3)))
+        self.core.reset(np.zeros((R_q.shape[0], 3)), rows=rows)
+        self.anchor = write_rows(self.anchor, R_q, rows)
+        return R_q.shape[0]
 
     def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
                dt: float) -> ObserverEstimate:

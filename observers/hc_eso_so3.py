@@ -42,7 +42,7 @@ from fawtgym.envs.measurement import TRAILING_SHAPES as _MEAS_TRAILING
 
 from . import vector_attitude as va
 from ._obs_common import single_inputs
-from .base import Observer, ObserverEstimate, register_observer
+from .base import Observer, ObserverEstimate, register_observer, write_rows
 from .lie import _SMALL as _LIE_SMALL
 from .lie import exp_so3, exp_so3_floats, matmul33_floats
 
@@ -306,9 +306,13 @@ class HcEsoSO3(Observer):
             u_m = va.imu_body_vectors(meas[M.SPECIFIC_FORCE], meas[M.MAGNETOMETER])
         return self._ew @ np.swapaxes(u_m, -1, -2), meas[self.rate_key]  # L = (E W) (U^m)^T (va.gain_matrix)
 
-    def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
-              torque: ArrayLike | None = None) -> None:
-        """R_hat from the static Wahba solution of the vectors, Omega_hat = Omega^m, sigma_hat = J^-1 torque guess."""
+    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
+               rows: NDArray[np.bool_] | None) -> int:
+        """R_hat from the static Wahba solution of the vectors, Omega_hat = Omega^m, sigma_hat = J^-1 torque guess.
+
+        State: the tuples ``_state`` (R_hat (N, 3, 3), Omega_hat (N, 3), sigma_hat (N, 3)) and ``_held``
+        (L (N, 3, 3), Omega^m (N, 3)), behind the N = 1 float state ``_single`` when it is set (synced before a
+        masked write)."""
         meas = M.batch_measurement(measurement)
         l, omega_m = self._measured(meas)
         sigma = np.zeros_like(omega_m)
@@ -317,9 +321,13 @@ class HcEsoSO3(Observer):
             if t.shape[-1:] != (3,) or not np.all(np.isfinite(t)):
                 raise ValueError(f"initial torque guess must be finite with shape (3,) or (N, 3), got {t.shape}")
             sigma = np.broadcast_to(t @ self.inertia_inv.T, omega_m.shape).copy()
-        self._state = (va.solve_wahba(l), omega_m.copy(), sigma)
-        self._held = (l, omega_m)
+        fresh_state = (va.solve_wahba(l), omega_m.copy(), sigma)
+        fresh_held = (l, omega_m.copy())  # a copy: omega_m may be the caller's array
+        self._sync_single()
+        self._state = write_rows(self._state, fresh_state, rows)
+        self._held = write_rows(self._held, fresh_held, rows)
         self._single = None
+        return omega_m.shape[0]
 
     def _gain_matrix_single(self, values: list[list[float]]) -> list[float] | None:
         """L = (E W) (U^m)^T for one vehicle (as :meth:`_measured`), row-major 9 floats; None where

@@ -44,7 +44,7 @@ from fawtgym.observers._obs_common import (
     step_inputs,
     store_single_state,
 )
-from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
+from fawtgym.observers.base import Observer, ObserverEstimate, register_observer, write_rows
 
 _E3 = np.array([0.0, 0.0, 1.0])
 _KEYS = ("position", "velocity", "attitude", "angular_velocity")
@@ -71,15 +71,21 @@ class LESO(Observer):
         self._s: dict[str, NDArray[np.float64]] | None = None
         self._single: tuple | None = None       # (state dict, its 18 floats) after an N = 1 fast step
 
-    def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
-              torque: ArrayLike | None = None) -> None:
-        """z1 := measured b / eta, z2 := measured v / Omega (as Euler rates), z3 := given disturbance guess."""
+    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
+               rows: NDArray[np.bool_] | None) -> int:
+        """z1 := measured b / eta, z2 := measured v / Omega (as Euler rates), z3 := given disturbance guess.
+
+        State: the dict ``_s`` of (N, 3) arrays (:data:`_STATE`); the N = 1 float cache ``_single`` is keyed by
+        that dict's identity, so the new dict invalidates it."""
         m = require(measurement, _KEYS, "leso")
         n = m["position"].shape[0]
-        self._s = {"p1": m["position"].copy(), "p2": m["velocity"].copy(),
-                   "p3": batch_vec(force, n, "force", "leso") / self.mass,
-                   "a1": rot_to_euler(m["attitude"]), "a2": m["angular_velocity"].copy(),
-                   "a3": batch_vec(torque, n, "torque", "leso") / self.jd}
+        fresh = {"p1": m["position"].copy(), "p2": m["velocity"].copy(),
+                 "p3": batch_vec(force, n, "force", "leso") / self.mass,
+                 "a1": rot_to_euler(m["attitude"]), "a2": m["angular_velocity"].copy(),
+                 "a3": batch_vec(torque, n, "torque", "leso") / self.jd}
+        self._s = write_rows(self._s, fresh, rows)
+        self._single = None
+        return n
 
     def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
                dt: float) -> ObserverEstimate:

@@ -54,7 +54,7 @@ from scipy.linalg import expm
 from fawtgym.envs import measurement as M
 
 from ._obs_common import floats
-from .base import Observer, ObserverEstimate, register_observer
+from .base import Observer, ObserverEstimate, register_observer, write_rows
 from .qb_uav_model import momentum_input, momentum_output
 
 GAIN_DIR = Path(__file__).resolve().parent
@@ -208,9 +208,21 @@ class QBObserver(Observer):
                                meas[M.ANGULAR_VELOCITY], meas[M.SPECIFIC_FORCE], thrust)
 
     def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
-              torque: ArrayLike | None = None, thrust: ArrayLike | None = None) -> None:
+              torque: ArrayLike | None = None, thrust: ArrayLike | None = None, *,
+              rows: ArrayLike | None = None) -> None:
         """Start from the measured momenta; d from ``force``/``torque`` if given, else force from the
-        accelerometer (needs ``thrust``, default m g) and zero torque; derivatives zero."""
+        accelerometer (needs ``thrust``, default m g) and zero torque; derivatives zero.
+
+        ``thrust``: the collective thrust [N] the accelerometer term of y uses, a number or one per row (N,);
+        ``rows``: as :meth:`Observer.reset` (with a mask, a (N,) ``thrust`` still gives all N rows)."""
+        super().reset(measurement, force, torque, rows=rows, thrust=thrust)
+
+    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
+               rows: NDArray[np.bool_] | None, thrust: ArrayLike | None = None) -> int:
+        """State: ``_x`` (N, n_x), the previous output ``_y`` (N, 9) and attitude ``_R`` (N, 3, 3), behind the
+        N = 1 float state ``_single`` when not ``_synced`` (synced before a masked write)."""
+        if rows is not None and thrust is not None and np.shape(thrust) == rows.shape:
+            thrust = np.asarray(thrust, dtype=float)[rows]
         meas = M.batch_measurement(measurement)
         R = meas.get(M.ATTITUDE)
         if R is None:
@@ -227,8 +239,10 @@ class QBObserver(Observer):
             x[:, 9:12] = np.einsum("nij,nj->ni", R, np.broadcast_to(np.asarray(torque, dtype=float), (n_b, 3)))
         if not np.all(np.isfinite(x)):
             raise ValueError("QB observer reset: non-finite initial force/torque")
-        self._x, self._y, self._R = x, y, R.copy()
+        self._sync_single()
+        self._x, self._y, self._R = write_rows((self._x, self._y, self._R), (x, y, R.copy()), rows)
         self._single, self._synced = None, True
+        return n_b
 
     def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
                dt: float) -> ObserverEstimate:
