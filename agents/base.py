@@ -5,6 +5,7 @@ An agent turns what the env reports into an action, with the same two calls for 
 
     agent.reset(info, seed=None)              # after env.reset(): info = the reset info
     action = agent.act(observation, info)     # after every env.step(): info = that step's info
+    agent.reset(info, rows=mask)              # rows of a batched env that started a new episode (bool (N,))
 
 ``info`` is the env's info dict; agents read only the *sensor* side of it:
 ``info["measurement"]`` (keys in :mod:`fawtgym.envs.measurement`), ``info["applied"]`` (the
@@ -14,7 +15,12 @@ metrics only and agents must not read it.
 
 Batch-first: every array in ``info`` may carry a leading batch axis N (a vector of vehicles) or not
 (a single env).  ``act`` returns actions of matching shape: ``(N, A)`` for batched input, ``(A,)`` for
-a single env.  The helpers below do that bookkeeping.
+a single env.  The helpers below do that bookkeeping.  Rows of a batched env end at different times
+(``HoverBatchEnv`` resets a finished row on the next step): ``reset(info, rows=mask)`` must then give
+the rows of ``mask`` exactly a fresh agent's state and leave the other rows untouched.
+
+Agents are named by the grammar of :mod:`fawtgym.agents.spec` (``px4``, ``px4+ffts_eso``, a user's
+``module:Class``) and built for an env by ``Class.for_env(env, **kwargs)``.
 """
 
 from __future__ import annotations
@@ -24,7 +30,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.envs.measurement import batch_measurement
 
@@ -35,13 +41,27 @@ class Agent(abc.ABC):
     #: the env action type this agent emits (``"motors"`` or ``"ctbr"``)
     action_type: str = "motors"
 
+    @classmethod
+    def for_env(cls, env: Any, **kwargs: Any) -> Agent:
+        """An agent matched to ``env`` (the plugin entry point of the agent grammar); default ``cls(**kwargs)``."""
+        return cls(**kwargs)
+
     @abc.abstractmethod
-    def reset(self, info: Mapping[str, Any], seed: int | None = None) -> None:
-        """Start an episode from the env's reset ``info`` (``seed`` for any internal randomness)."""
+    def reset(self, info: Mapping[str, Any], seed: int | None = None, rows: ArrayLike | None = None) -> None:
+        """Start an episode from the env's reset ``info`` (``seed`` for any internal randomness).
+
+        ``rows``: None for every row, or a bool mask (N,) of the rows that start a new episode (the others
+        keep their state); ``info`` then holds all N rows.
+        """
 
     @abc.abstractmethod
     def act(self, observation: Any, info: Mapping[str, Any]) -> NDArray[np.float64]:
         """The action for the current step: shape (A,) for a single env, (N, A) for N vehicles."""
+
+    def disturbance_estimate(self) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
+        """The latest (force (N, 3) world NED [N], torque (N, 3) body FRD [N m]) disturbance estimates of
+        the agent's observer, None for a channel it does not estimate (the default: no observer)."""
+        return None, None
 
     def __call__(self, observation: Any, info: Mapping[str, Any]) -> NDArray[np.float64]:
         return self.act(observation, info)

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.rows import check_rows, masked
 from fawtgym.envs.frames import FAWT_HOVER_POINT_NED
 from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
 
@@ -62,22 +63,28 @@ def _rate(name: str, value: float | None, default: float, control_rate: float) -
 
 
 class _Loop:
-    """Runs a loop when its period has elapsed (elapsed time is returned as its dt)."""
+    """Runs a loop on the rows whose period has elapsed (per row: rows reset at different times run at
+    different phases); the elapsed time is each row's dt, as PX4's modules run on their input topics."""
 
     def __init__(self, rate: float) -> None:
         self.period = 1.0 / rate
-        self.elapsed = math.inf
+        self.elapsed = np.full(1, math.inf)
 
-    def reset(self) -> None:
-        self.elapsed = math.inf
+    def reset(self, n: int, rows: NDArray[np.bool_] | None = None) -> None:
+        self.elapsed = np.full(n, math.inf) if rows is None else np.where(rows, math.inf, self.elapsed)
 
-    def tick(self, dt: float) -> float | None:
-        self.elapsed += dt
-        if self.elapsed >= self.period - 1e-9:
-            run_dt = self.elapsed if math.isfinite(self.elapsed) else self.period
-            self.elapsed = 0.0
-            return run_dt
-        return None
+    def tick(self, dt: float) -> tuple[NDArray[np.bool_] | None, NDArray[np.float64]] | None:
+        """Advance by ``dt``; None if no row is due, else (due rows or None for all, each row's dt (N,))."""
+        self.elapsed = self.elapsed + dt
+        due = self.elapsed >= self.period - 1e-9
+        if not due.any():
+            return None
+        run_dt = np.where(np.isfinite(self.elapsed), self.elapsed, self.period)
+        if due.all():
+            self.elapsed = np.zeros_like(self.elapsed)
+            return None, run_dt
+        self.elapsed = np.where(due, 0.0, self.elapsed)
+        return due, run_dt
 
 
 class PX4Agent(Agent):
@@ -140,25 +147,42 @@ class PX4Agent(Agent):
                   dt: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
         return None, None
 
-    def _reset_estimator(self, meas: dict[str, NDArray[np.float64]], seed: int | None) -> None:
+    def _reset_estimator(self, meas: dict[str, NDArray[np.float64]], seed: int | None,
+                         rows: NDArray[np.bool_] | None) -> None:
         return None
 
     # ---- Agent API ------------------------------------------------------------------------------
-    def reset(self, info: Mapping[str, Any], seed: int | None = None) -> None:
+    def reset(self, info: Mapping[str, Any], seed: int | None = None, rows: ArrayLike | None = None) -> None:
+        """Start episodes from the env's reset ``info``: every row, or only the rows of ``rows`` (bool (N,)).
+
+        A reset row's state (integrators, filters, hover-thrust estimate, loop phases, setpoints, observer)
+        becomes exactly a fresh agent's; the other rows are untouched.  ``rows`` needs an earlier full reset
+        with the same number of vehicles N.
+        """
         meas, _ = measurement_from_info(info)
         n = meas["position"].shape[0]
+        if rows is not None and n != self._n:
+            raise ValueError(f"{type(self).__name__}.reset: rows needs an earlier full reset of the same batch; "
+                             f"the agent holds {self._n} rows, the info {n}")
+        mask = check_rows(rows, n, f"{type(self).__name__}.reset")
+        if mask is not None:
+            if mask.any():
+                self._reset_rows(info, meas, mask, seed)
+            return
         self._n = n
         self.position_control.reset(n)
         self.hover_thrust_estimator.reset(n)
-        self._thr0: NDArray[np.float64] | None = None
+        self._thr0 = np.zeros((n, 3))
+        self._has_thr0 = np.zeros(n, dtype=bool)
         self.rate_control.reset(n)
         fs = self.control_rate
         self._gyro_lpf = Butterworth2(fs, self.params["IMU_GYRO_CUTOFF"])
         self._dgyro_lpf = Butterworth2(fs, self.params["IMU_DGYRO_CUTOFF"])
         self._vel_deriv = FilteredDerivative(self.params["MPC_VELD_LP"])
         self._gyro_prev: NDArray[np.float64] | None = None
+        self._fresh = np.ones(n, dtype=bool)
         for loop in self._loops.values():
-            loop.reset()
+            loop.reset(n)
         sp = info.get("setpoint") if isinstance(info, Mapping) else None
         self._setpoint = np.broadcast_to(np.asarray(self.setpoint if sp is None else sp, dtype=float), (n, 3)).copy()
         self._setpoint_override = False
@@ -168,7 +192,31 @@ class PX4Agent(Agent):
         self._rate_sp = np.zeros((n, 3))
         self._torque = np.zeros((n, 3))
         self.last_estimate: tuple[NDArray[np.float64] | None, NDArray[np.float64] | None] = (None, None)
-        self._reset_estimator(meas, seed)
+        self._reset_estimator(meas, seed, None)
+
+    def _reset_rows(self, info: Mapping[str, Any], meas: dict[str, NDArray[np.float64]], rows: NDArray[np.bool_],
+                    seed: int | None) -> None:
+        """The full reset's state, written into ``rows`` only (masked writes)."""
+        n = self._n
+        self.position_control.reset(n, rows=rows)
+        self.hover_thrust_estimator.reset(n, rows=rows)
+        self._has_thr0 = self._has_thr0 & ~rows
+        self.rate_control.reset(n, rows=rows)
+        self._vel_deriv.reset(rows=rows)
+        self._fresh = self._fresh | rows  # gyro filters restart from the row's next gyro sample
+        for loop in self._loops.values():
+            loop.reset(n, rows=rows)
+        if not self._setpoint_override:
+            sp = info.get("setpoint") if isinstance(info, Mapping) else None
+            new_sp = np.broadcast_to(np.asarray(self.setpoint if sp is None else sp, dtype=float), (n, 3))
+            self._setpoint = masked(self._setpoint, new_sp, rows)
+        hover = np.zeros((n, 3))
+        hover[:, 2] = -self.position_control.hover_thrust
+        self._thr_sp = masked(self._thr_sp, hover, rows)
+        self._att_sp = masked(self._att_sp, np.broadcast_to(np.eye(3), (n, 3, 3)), rows)
+        self._rate_sp = masked(self._rate_sp, np.zeros((n, 3)), rows)
+        self._torque = masked(self._torque, np.zeros((n, 3)), rows)
+        self._reset_estimator(meas, seed, rows)
 
     def set_setpoint(self, position: ArrayLike, yaw: float | None = None) -> None:
         """Change the NED position setpoint (and heading) during an episode; overrides ``info["setpoint"]``."""
@@ -191,41 +239,56 @@ class PX4Agent(Agent):
             self._setpoint = np.broadcast_to(np.asarray(sp, dtype=float), (n, 3))
         force_hat, torque_hat = self._estimate(meas, info, dt)
         self.last_estimate = (force_hat, torque_hat)
+        # rows reset since the last act (not all: a full reset rebuilds the filters, which start at the first sample)
+        fresh = self._fresh if (self._fresh.any() and not self._fresh.all()) else None
 
         gyro = meas.get(self.gyro_key, meas["angular_velocity"])
         rate = self._gyro_lpf.update(gyro)
+        if fresh is not None:
+            self._gyro_lpf.reset(gyro, rows=fresh)
+            rate = masked(rate, gyro, fresh)
         if self._gyro_prev is None:
             self._dgyro_lpf.reset(np.zeros_like(gyro))
             ang_acc = np.zeros_like(gyro)
         else:
             ang_acc = self._dgyro_lpf.update((gyro - self._gyro_prev) / dt)
+            if fresh is not None:
+                self._dgyro_lpf.reset(np.zeros_like(gyro), rows=fresh)
+                ang_acc = masked(ang_acc, np.zeros_like(gyro), fresh)
         self._gyro_prev = gyro
+        self._fresh = np.zeros(n, dtype=bool)
 
-        pos_dt = self._loops["position"].tick(dt)
-        if pos_dt is not None:
+        due = self._loops["position"].tick(dt)
+        if due is not None:
+            rows, pos_dt = due
             vel = meas["velocity"]
-            if self.use_hte and "specific_force" in meas and self._thr0 is not None:
+            hte = self._has_thr0 if rows is None else self._has_thr0 & rows
+            if self.use_hte and "specific_force" in meas and hte.any():
                 # vertical acceleration (up positive) from the accelerometer: a = R f_sp + g e3
                 acc_up = -(np.einsum("nj,nj->n", meas["attitude"][:, 2, :], meas["specific_force"]) + GRAVITY)
-                th = self.hover_thrust_estimator.update(acc_up, -self._thr0[:, 2], vel, pos_dt)
-                self.position_control.update_hover_thrust(th)
-            vel_dot = self._vel_deriv.update(vel, pos_dt)
-            thr0 = self.position_control.update(meas["position"], vel, vel_dot, self._setpoint, pos_dt)
-            self._thr0 = thr0
+                hte_rows = None if hte.all() else hte
+                th = self.hover_thrust_estimator.update(acc_up, -self._thr0[:, 2], vel, pos_dt, rows=hte_rows)
+                self.position_control.update_hover_thrust(th, rows=hte_rows)
+            vel_dot = self._vel_deriv.update(vel, pos_dt, rows=rows)
+            thr0 = self.position_control.update(meas["position"], vel, vel_dot, self._setpoint, pos_dt, rows=rows)
+            self._thr0 = masked(self._thr0, thr0, rows)
+            self._has_thr0 = self._has_thr0 | (True if rows is None else rows)
             if force_hat is not None:
                 pc = self.position_control
                 thr0 = apply_force_feedforward(thr0, force_hat, self.allocation.thrust_scale, pc.lim_tilt,
                                                pc.lim_thr_min, pc.lim_thr_max)
-            self._thr_sp = thr0
+            self._thr_sp = masked(self._thr_sp, thr0, rows)
             self._att_sp, _ = thrust_to_attitude(self._thr_sp, np.full(n, self.yaw_setpoint))
-        if self._loops["attitude"].tick(dt) is not None:
-            self._rate_sp = self.attitude_control.update(meas["attitude"], self._att_sp)
-        rate_dt = self._loops["rate"].tick(dt)
-        if rate_dt is not None:
-            torque = self.rate_control.update(rate, self._rate_sp, ang_acc, rate_dt)
+        due = self._loops["attitude"].tick(dt)
+        if due is not None:
+            self._rate_sp = masked(self._rate_sp, self.attitude_control.update(meas["attitude"], self._att_sp), due[0])
+        due = self._loops["rate"].tick(dt)
+        if due is not None:
+            rows, rate_dt = due
+            torque = self.rate_control.update(rate, self._rate_sp, ang_acc, rate_dt, rows=rows)
             if torque_hat is not None:
                 torque = torque - self.allocation.torque_to_normalized(torque_hat)
-            self._torque = torque
+            self._torque = masked(self._torque, torque, rows)
         collective = np.sqrt(np.einsum("ni,ni->n", self._thr_sp, self._thr_sp))
         rotor, unallocated = self.allocation.allocate(self._torque, collective)
         missed = np.einsum("ni,ni->n", unallocated[:, :3], unallocated[:, :3]) >= _SAT_EPS
@@ -233,8 +296,9 @@ class PX4Agent(Agent):
                                          missed[:, None] & (unallocated[:, :3] < -_SAT_EPS))
         action = self.allocation.motor_commands(rotor)
         if not np.all(np.isfinite(action)):
-            raise FloatingPointError(f"PX4Agent produced a non-finite action {action}; measurement "
-                                     f"position {meas['position']}")
+            bad = np.flatnonzero(~np.isfinite(action).all(axis=1)).tolist()
+            raise FloatingPointError(f"PX4Agent produced a non-finite action for rows {bad}; measured position "
+                                     f"{meas['position'][bad[0]].tolist()}")
         return match_batch(action, batched)
 
     @property
@@ -271,8 +335,13 @@ class PX4ObserverAgent(PX4Agent):
         self.force_ff = bool(force_ff) and "force" in observer.channels
         self.torque_ff = bool(torque_ff) and "torque" in observer.channels
 
-    def _reset_estimator(self, meas: dict[str, NDArray[np.float64]], seed: int | None) -> None:
-        self.observer.reset(meas)
+    def _reset_estimator(self, meas: dict[str, NDArray[np.float64]], seed: int | None,
+                         rows: NDArray[np.bool_] | None) -> None:
+        if rows is None:
+            self.raw_estimate = None
+            self.observer.reset(meas)
+        else:
+            self.observer.reset(meas, rows=rows)
 
     def _estimate(self, meas: dict[str, NDArray[np.float64]], info: Mapping[str, Any],
                   dt: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
@@ -285,3 +354,11 @@ class PX4ObserverAgent(PX4Agent):
             raise FloatingPointError(f"observer {self.observer.name!r} returned a non-finite estimate")
         self.raw_estimate = (force, tau)
         return (force if self.force_ff else None), (tau if self.torque_ff else None)
+
+    def disturbance_estimate(self) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
+        """The observer's latest estimates (None for a channel it does not estimate, or before the first act)."""
+        est = getattr(self, "raw_estimate", None)
+        if est is None:
+            return None, None
+        return (est[0] if "force" in self.observer.channels else None,
+                est[1] if "torque" in self.observer.channels else None)

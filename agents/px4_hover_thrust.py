@@ -21,11 +21,10 @@ leaving a steady position offset.  PX4 avoids this by re-estimating ``Th`` (and 
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.rows import check_dt, masked
 from fawtgym.envs.vehicles import GRAVITY
 
 from .px4_params import PX4Params
@@ -47,20 +46,25 @@ class HoverThrustEstimator:
         self.initial = float(hover_thrust)
         self.reset(1)
 
-    def reset(self, n: int = 1, hover_thrust: float | None = None) -> None:
-        self.hover_thrust = np.full(n, self.initial if hover_thrust is None else float(hover_thrust))
-        self.var = np.full(n, self.init_var)
-        self.acc_var = np.full(n, _ACC_VAR_INIT)
+    def reset(self, n: int = 1, hover_thrust: float | None = None, rows: NDArray[np.bool_] | None = None) -> None:
+        """Initial estimate and variances for ``n`` vehicles (only the rows of ``rows`` (n,) if given)."""
+        th = np.full(n, self.initial if hover_thrust is None else float(hover_thrust))
+        var, acc_var = np.full(n, self.init_var), np.full(n, _ACC_VAR_INIT)
+        if rows is not None and self.hover_thrust.shape == (n,):
+            th, var = masked(self.hover_thrust, th, rows), masked(self.var, var, rows)
+            acc_var = masked(self.acc_var, acc_var, rows)
+        self.hover_thrust, self.var, self.acc_var = th, var, acc_var
 
     def update(self, acc_z_up: ArrayLike, thrust_z_up: ArrayLike, velocity: ArrayLike,
-               dt: float) -> NDArray[np.float64]:
+               dt: float | ArrayLike, rows: NDArray[np.bool_] | None = None) -> NDArray[np.float64]:
         """One predict + fuse step; returns the hover thrust estimate (N,).
 
         ``acc_z_up`` (N,) measured vertical acceleration [m/s^2] (up positive), ``thrust_z_up`` (N,) the
-        vertical normalized thrust setpoint that produced it (up positive), ``velocity`` (N, 3) NED.
+        vertical normalized thrust setpoint that produced it (up positive), ``velocity`` (N, 3) NED;
+        ``dt`` [s] scalar or per row (N,); ``rows`` (N,): only these rows advance.
         """
-        if not (math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
+        dt = check_dt(dt)
+        old = (self.hover_thrust, self.var, self.acc_var)
         acc = np.asarray(acc_z_up, dtype=float).reshape(-1)
         thr = np.asarray(thrust_z_up, dtype=float).reshape(-1)
         vel = np.asarray(velocity, dtype=float).reshape(-1, 3)
@@ -82,4 +86,8 @@ class HoverThrustEstimator:
         alpha = dt / (1.0 + dt)  # 1 s time constant on the residual variance
         adapted = np.maximum((1.0 - alpha) * self.acc_var + alpha * residual * residual, _ACC_VAR_MIN)
         self.acc_var = np.where(active, adapted, self.acc_var)
+        if rows is not None:
+            self.hover_thrust = masked(old[0], self.hover_thrust, rows)
+            self.var = masked(old[1], self.var, rows)
+            self.acc_var = masked(old[2], self.acc_var, rows)
         return self.hover_thrust

@@ -25,6 +25,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.rows import check_dt, masked, per_row
 from fawtgym.envs.vehicles import GRAVITY
 
 from .px4_attitude_control import _cross
@@ -129,30 +130,42 @@ class PositionControl:
         self.acc_sp = np.zeros((1, 3))
         self.thr_sp = np.zeros((1, 3))
 
-    def reset(self, n: int = 1) -> None:
-        """Zero the integrator and restore the initial hover thrust for ``n`` vehicles."""
+    def reset(self, n: int = 1, rows: NDArray[np.bool_] | None = None) -> None:
+        """Zero the integrator and restore the initial hover thrust for ``n`` vehicles (only ``rows`` (n,) if given)."""
+        if rows is not None and self.vel_int.shape[0] == n:
+            self.vel_int = masked(self.vel_int, 0.0 * self.vel_int, rows)
+            self.hover_thrust = masked(self.hover_thrust, np.full(n, self.initial_hover_thrust), rows)
+            self.acc_sp = masked(self.acc_sp, 0.0 * self.acc_sp, rows)
+            return
         self.vel_int = np.zeros((n, 3))
         self.hover_thrust = np.full(n, self.initial_hover_thrust)
         self.acc_sp = np.zeros((n, 3))
 
-    def update_hover_thrust(self, hover_thrust_new: ArrayLike) -> None:
+    def update_hover_thrust(self, hover_thrust_new: ArrayLike, rows: NDArray[np.bool_] | None = None) -> None:
         """PositionControl::updateHoverThrust: new hover thrust (N,), integrator shifted so the thrust is continuous.
 
         From ``T = a Th / g - Th``: ``a' = (a - g) Th / Th' + g``, and ``a' - a`` is added to the z integrator.
+        Only the rows of ``rows`` (N,) if given.
         """
         new = np.broadcast_to(np.asarray(hover_thrust_new, dtype=float), self.hover_thrust.shape)
         ok = np.isfinite(new) & (new > _EPS)
+        if rows is not None:
+            ok &= rows
         a_z = self.acc_sp[:, 2]
         shift = (a_z - GRAVITY) * self.hover_thrust / np.where(ok, new, 1.0) + GRAVITY - a_z
         self.vel_int[:, 2] += np.where(ok, shift, 0.0)
         self.hover_thrust = np.where(ok, new, self.hover_thrust)
 
     def update(self, position: ArrayLike, velocity: ArrayLike, velocity_dot: ArrayLike, position_sp: ArrayLike,
-               dt: float, velocity_ff: ArrayLike | None = None,
-               acceleration_ff: ArrayLike | None = None) -> NDArray[np.float64]:
-        """One position/velocity step; all vectors (N, 3) NED; returns the thrust vector setpoint (N, 3)."""
-        if not (math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
+               dt: float | ArrayLike, velocity_ff: ArrayLike | None = None,
+               acceleration_ff: ArrayLike | None = None, rows: NDArray[np.bool_] | None = None
+               ) -> NDArray[np.float64]:
+        """One position/velocity step; all vectors (N, 3) NED; returns the thrust vector setpoint (N, 3).
+
+        ``dt`` [s] scalar or one per row (N,); ``rows`` (N,): only these rows advance their state (the
+        returned setpoint is computed for every row).
+        """
+        dt = check_dt(dt)
         pos = np.atleast_2d(np.asarray(position, dtype=float))
         vel = np.atleast_2d(np.asarray(velocity, dtype=float))
         vel_dot = np.atleast_2d(np.asarray(velocity_dot, dtype=float))
@@ -198,10 +211,13 @@ class PositionControl:
         vel_err[:, :2] = vel_err[:, :2] - arw_gain * (acc_xy - acc_limited_xy)
 
         vel_err = np.where(np.isfinite(vel_err), vel_err, 0.0)
-        self.vel_int = self.vel_int + vel_err * self.gain_vel_i * dt
-        self.vel_int[:, 2] = np.clip(self.vel_int[:, 2], -GRAVITY, GRAVITY)
+        vel_int = self.vel_int + vel_err * self.gain_vel_i * per_row(dt, 2)
+        vel_int[:, 2] = np.clip(vel_int[:, 2], -GRAVITY, GRAVITY)
 
-        self.vel_sp, self.acc_sp, self.thr_sp = vel_sp, acc_sp, thr_sp
+        self.vel_int = masked(self.vel_int, vel_int, rows)
+        self.vel_sp = masked(self.vel_sp, vel_sp, rows) if self.vel_sp.shape == vel_sp.shape else vel_sp
+        self.acc_sp = masked(self.acc_sp, acc_sp, rows)
+        self.thr_sp = masked(self.thr_sp, thr_sp, rows) if self.thr_sp.shape == thr_sp.shape else thr_sp
         return thr_sp
 
     def _acceleration_control(self, acc_sp: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -23,6 +23,8 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.rows import check_dt, masked, per_row
+
 from .px4_params import PX4Params
 
 _EPS = 1.1920929e-07
@@ -43,8 +45,13 @@ class RateControl:
         self.sat_pos = np.zeros((1, 3), dtype=bool)
         self.sat_neg = np.zeros((1, 3), dtype=bool)
 
-    def reset(self, n: int = 1) -> None:
-        """Zero integrators and saturation flags for ``n`` vehicles."""
+    def reset(self, n: int = 1, rows: NDArray[np.bool_] | None = None) -> None:
+        """Zero integrators and saturation flags for ``n`` vehicles (only the rows of ``rows`` (n,) if given)."""
+        if rows is not None and self.rate_int.shape[0] == n:
+            self.rate_int = masked(self.rate_int, 0.0 * self.rate_int, rows)
+            self.sat_pos = self.sat_pos & ~rows[:, None]
+            self.sat_neg = self.sat_neg & ~rows[:, None]
+            return
         self.rate_int = np.zeros((n, 3))
         self.sat_pos = np.zeros((n, 3), dtype=bool)
         self.sat_neg = np.zeros((n, 3), dtype=bool)
@@ -54,11 +61,13 @@ class RateControl:
         self.sat_pos = np.asarray(positive, dtype=bool)
         self.sat_neg = np.asarray(negative, dtype=bool)
 
-    def update(self, rate: ArrayLike, rate_sp: ArrayLike, angular_accel: ArrayLike, dt: float,
-               landed: bool = False) -> NDArray[np.float64]:
-        """Normalized torque (N, 3) from rates (N, 3) [rad/s] and angular acceleration (N, 3) [rad/s^2]."""
-        if not (math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
+    def update(self, rate: ArrayLike, rate_sp: ArrayLike, angular_accel: ArrayLike, dt: float | ArrayLike,
+               landed: bool = False, rows: NDArray[np.bool_] | None = None) -> NDArray[np.float64]:
+        """Normalized torque (N, 3) from rates (N, 3) [rad/s] and angular acceleration (N, 3) [rad/s^2].
+
+        ``dt`` [s] scalar or per row (N,); ``rows`` (N,): only these rows advance the integrator.
+        """
+        dt = check_dt(dt)
         rate = np.atleast_2d(np.asarray(rate, dtype=float))
         n = rate.shape[0]
         if self.rate_int.shape[0] != n:
@@ -68,10 +77,12 @@ class RateControl:
         err = rate_sp - rate
         torque = self.gain_p * err + self.rate_int - self.gain_d * acc + self.gain_ff * rate_sp
         if not landed:
-            self._update_integral(err, dt)
+            old = self.rate_int
+            self._update_integral(err, per_row(dt, 2))
+            self.rate_int = masked(old, self.rate_int, rows)
         return torque
 
-    def _update_integral(self, err: NDArray[np.float64], dt: float) -> None:
+    def _update_integral(self, err: NDArray[np.float64], dt: float | NDArray[np.float64]) -> None:
         e = np.where(self.sat_pos, np.minimum(err, 0.0), err)
         e = np.where(self.sat_neg, np.maximum(e, 0.0), e)
         i_factor = e / math.radians(400.0)

@@ -40,7 +40,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "observers": ("fawtgym.eval.bench.observers:main", "per-update cost of every observer, single and N = 1024"),
     "closed-loop": ("fawtgym.eval.bench.closed_loop:main", "PX4 + FFTS-ESO in FAWT-50 wind: real-time factor"),
     "qb-sdp": ("fawtgym.eval.bench.qb_sdp:main", "one QB-observer SDP at fixed alpha"),
-    "eval": ("fawtgym.eval.bench.eval:main", "the quick leaderboard: cells/min and vehicle-s per wall-s vs the env alone"),
+    "eval": ("fawtgym.eval.bench.eval:main", "quick leaderboard: cells/min, vehicle-s per wall-s vs the env alone"),
 }
 
 
@@ -59,7 +59,8 @@ def _call(target: str, argv: Sequence[str]) -> int:
 def _dispatch(prog: str, table: dict[str, tuple[str, str]], argv: Sequence[str], what: str) -> int:
     parser = argparse.ArgumentParser(prog=prog, description=f"{what}. Names:\n" + "\n".join(
         f"  {k:14s} {h}" for k, (_, h) in table.items()), formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("name", choices=list(table) + (["all"] if prog.endswith("bench") and "all" not in table else []))
+    extra = ["all"] if prog.endswith("bench") and "all" not in table else []
+    parser.add_argument("name", choices=list(table) + extra)
     parser.add_argument("args", nargs=argparse.REMAINDER, help="passed to the named job (try: NAME --help)")
     ns = parser.parse_args(argv)
     if ns.name == "all":
