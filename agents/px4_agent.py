@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.rows import check_rows, masked
+from fawtgym.core.rows import check_row_mask, masked
 from fawtgym.envs.frames import FAWT_HOVER_POINT_NED
 from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
 
@@ -164,8 +164,8 @@ class PX4Agent(Agent):
         if rows is not None and n != self._n:
             raise ValueError(f"{type(self).__name__}.reset: rows needs an earlier full reset of the same batch; "
                              f"the agent holds {self._n} rows, the info {n}")
-        mask = check_rows(rows, n, f"{type(self).__name__}.reset")
-        if mask is not None:
+        mask = None if rows is None else check_row_mask(rows, n, f"{type(self).__name__}.reset")
+        if mask is not None and not mask.all():
             if mask.any():
                 self._reset_rows(info, meas, mask, seed)
             return

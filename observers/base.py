@@ -14,7 +14,7 @@ Per-row reset.  Rows of a batched env end at different times, so ``reset(measure
 re-initializes only the rows where the bool mask (N,) is True: they get exactly the state a freshly
 built observer reset on those rows' measurements would have, the other rows keep theirs bitwise.
 Every observer keeps its state in arrays with a leading row axis, so this is a masked write
-(:func:`write_rows`); :meth:`Observer.reset` validates the request once for every observer, and a
+(:func:`fawtgym.core.rows.write_rows`); :meth:`Observer.reset` validates the request once for every observer, and a
 subclass implements :meth:`Observer._reset`, which builds the fresh state of the rows it is given.
 """
 
@@ -28,6 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.rows import check_row_mask
 from fawtgym.envs.measurement import TRAILING_SHAPES, batch_measurement
 
 
@@ -156,18 +157,6 @@ class Observer(abc.ABC):
         return meas, f, tau
 
 
-def check_row_mask(rows: ArrayLike, n: int, who: str) -> NDArray[np.bool_]:
-    """``rows`` as a bool mask of shape (n,); ValueError (one line, naming what was got) otherwise."""
-    try:
-        mask = np.asarray(rows)
-    except ValueError:                      # ragged nested sequences
-        mask = np.asarray(rows, dtype=object)
-    if mask.dtype != np.bool_ or mask.shape != (n,):
-        raise ValueError(f"{who}: rows must be None (all rows) or a bool array of shape ({n},), one entry per row "
-                         f"of the batch; got dtype {mask.dtype} with shape {mask.shape}")
-    return mask
-
-
 def _guess_rows(guess: ArrayLike | None, n: int, rows: NDArray[np.bool_], label: str,
                 who: str) -> NDArray[np.float64] | None:
     """An initial guess of a per-row reset: None, (3,) as is, or (n, 3) -> its masked rows."""
@@ -178,27 +167,6 @@ def _guess_rows(guess: ArrayLike | None, n: int, rows: NDArray[np.bool_], label:
         raise ValueError(f"{who}: initial {label} guess must be finite with shape (3,) (every row) or ({n}, 3) (one "
                          f"per row of the batch), got shape {g.shape}")
     return g if g.ndim == 1 else g[rows]
-
-
-def write_rows(state: Any, fresh: Any, rows: NDArray[np.bool_] | None) -> Any:
-    """The masked write of a per-row reset: ``state`` with its rows where ``rows`` is True replaced by ``fresh``.
-
-    ``state`` is an array with a leading row axis N, or a dict / tuple of them (of the same keys / length as
-    ``fresh``); ``fresh`` holds one row per True entry of ``rows`` (N,), in order.  Returns new arrays (the
-    rows where ``rows`` is False are copied bitwise; ``state`` itself is not modified, so arrays an estimate
-    returned or a float cache refers to keep their values).  ``rows`` None returns ``fresh`` (a full reset).
-    """
-    if rows is None:
-        return fresh
-    if isinstance(fresh, Mapping):
-        if not isinstance(state, Mapping) or set(state) != set(fresh):
-            raise TypeError(f"write_rows: state keys {sorted(state)} differ from fresh keys {sorted(fresh)}")
-        return {k: write_rows(state[k], v, rows) for k, v in fresh.items()}
-    if isinstance(fresh, tuple):
-        return tuple(write_rows(s, f, rows) for s, f in zip(state, fresh, strict=True))
-    out = np.array(state, copy=True)
-    out[rows] = fresh
-    return out
 
 
 _REGISTRY: dict[str, type[Observer]] = {}

@@ -47,6 +47,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.rows import write_rows
 from fawtgym.observers._obs_common import (
     all_finite,
     batch_vec,
@@ -56,7 +57,7 @@ from fawtgym.observers._obs_common import (
     require,
     step_inputs,
 )
-from fawtgym.observers.base import Observer, ObserverEstimate, register_observer, write_rows
+from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 from fawtgym.observers.hc_ffts import DEFAULT_EPS, check_p, hurwitz_matrix
 from fawtgym.observers.lie import integrate_rotation, project_so3, vee
 

@@ -44,10 +44,11 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.rows import write_rows
 from fawtgym.envs import measurement as M
 
 from ._obs_common import floats
-from .base import Observer, ObserverEstimate, register_observer, write_rows
+from .base import Observer, ObserverEstimate, register_observer
 
 #: orders the module supports (eqs. 18-23 for n = 1..4, as issue 5 asks)
 ORDERS = (1, 2, 3, 4)

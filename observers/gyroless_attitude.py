@@ -46,10 +46,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.rows import check_row_mask, write_rows
 from fawtgym.envs.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FORCE
 
 from ._obs_common import single_inputs
-from .base import Observer, ObserverEstimate, check_row_mask, register_observer, write_rows
+from .base import Observer, ObserverEstimate, register_observer
 from .lie import hat, matmul33_floats, vee
 from .pdt_sta import check_params, switch_and_gain_times
 from .quest import _cross as _cross_any

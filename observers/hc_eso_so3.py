@@ -37,12 +37,13 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.rows import write_rows
 from fawtgym.envs import measurement as M
 from fawtgym.envs.measurement import TRAILING_SHAPES as _MEAS_TRAILING
 
 from . import vector_attitude as va
 from ._obs_common import single_inputs
-from .base import Observer, ObserverEstimate, register_observer, write_rows
+from .base import Observer, ObserverEstimate, register_observer
 from .lie import _SMALL as _LIE_SMALL
 from .lie import exp_so3, exp_so3_floats, matmul33_floats
 

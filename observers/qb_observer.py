@@ -51,10 +51,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import expm
 
+from fawtgym.core.rows import write_rows
 from fawtgym.envs import measurement as M
 
 from ._obs_common import floats
-from .base import Observer, ObserverEstimate, register_observer, write_rows
+from .base import Observer, ObserverEstimate, register_observer
 from .qb_uav_model import momentum_input, momentum_output
 
 GAIN_DIR = Path(__file__).resolve().parent

@@ -31,6 +31,7 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.rows import write_rows
 from fawtgym.observers._obs_common import (
     batch_vec,
     check_finite,
@@ -43,7 +44,7 @@ from fawtgym.observers._obs_common import (
     step_inputs,
     store_single_state,
 )
-from fawtgym.observers.base import Observer, ObserverEstimate, register_observer, write_rows
+from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 
 _E3 = np.array([0.0, 0.0, 1.0])
 _KEYS = ("velocity", "attitude", "angular_velocity")

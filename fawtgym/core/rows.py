@@ -9,24 +9,44 @@ loops that run at their own rate update only the rows that are due.  Both are a 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 
-def check_rows(rows: ArrayLike | None, n: int, who: str) -> NDArray[np.bool_] | None:
-    """``rows`` as a bool mask (n,), or None for "all rows" (None or an all-True mask).
+def check_row_mask(rows: ArrayLike, n: int, who: str) -> NDArray[np.bool_]:
+    """``rows`` as a bool mask of shape (n,); ValueError (one line, naming what was got) otherwise."""
+    try:
+        mask = np.asarray(rows)
+    except ValueError:                      # ragged nested sequences
+        mask = np.asarray(rows, dtype=object)
+    if mask.dtype != np.bool_ or mask.shape != (n,):
+        raise ValueError(f"{who}: rows must be None (all rows) or a bool array of shape ({n},), one entry per row "
+                         f"of the batch; got dtype {mask.dtype} with shape {mask.shape}")
+    return mask
 
-    Raises ValueError (one line, the same text at every n apart from the sizes) unless ``rows`` is
-    None or a bool array of shape (n,).
+
+def write_rows(state: Any, fresh: Any, rows: NDArray[np.bool_] | None) -> Any:
+    """The masked write of a per-row reset: ``state`` with its rows where ``rows`` is True replaced by ``fresh``.
+
+    ``state`` is an array with a leading row axis N, or a dict / tuple of them (of the same keys / length as
+    ``fresh``); ``fresh`` holds one row per True entry of ``rows`` (N,), in order.  Returns new arrays (the
+    rows where ``rows`` is False are copied bitwise; ``state`` itself is not modified, so arrays an estimate
+    returned or a float cache refers to keep their values).  ``rows`` None returns ``fresh`` (a full reset).
     """
     if rows is None:
-        return None
-    mask = np.asarray(rows)
-    if mask.dtype != np.bool_ or mask.shape != (n,):
-        raise ValueError(f"{who}: rows must be None (all rows) or a bool mask of shape ({n},) (one entry per "
-                         f"row of the batch), got dtype {mask.dtype} shape {mask.shape}")
-    return None if mask.all() else mask
+        return fresh
+    if isinstance(fresh, Mapping):
+        if not isinstance(state, Mapping) or set(state) != set(fresh):
+            raise TypeError(f"write_rows: state keys {sorted(state)} differ from fresh keys {sorted(fresh)}")
+        return {k: write_rows(state[k], v, rows) for k, v in fresh.items()}
+    if isinstance(fresh, tuple):
+        return tuple(write_rows(s, f, rows) for s, f in zip(state, fresh, strict=True))
+    out = np.array(state, copy=True)
+    out[rows] = fresh
+    return out
 
 
 def masked(old: NDArray, new: NDArray, rows: NDArray[np.bool_] | None) -> NDArray:
