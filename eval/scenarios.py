@@ -180,6 +180,10 @@ def load_scenarios(path: str | Path) -> list[Scenario]:
         raise ValueError(f"scenario file {p} must hold a mapping (one scenario's fields, or name -> fields)")
     if "wind" in data:
         return [scenario_from_mapping(str(data.get("name", p.stem)), data)]
+    for key, fields in data.items():
+        if isinstance(fields, Mapping) and "name" in fields and fields["name"] != key:
+            raise ValueError(f"scenario file {p}: entry {key!r} has name {fields['name']!r}; drop 'name' (the key "
+                             "names the scenario) or make them equal")
     return [scenario_from_mapping(str(k), v) for k, v in data.items()]
 
 
