@@ -118,7 +118,7 @@ def _table4_figure(board: Mapping[str, Any], path: Path) -> bool:
     ax.set_xticks(range(len(duties)), [f"{d} % duty" for d in duties])
     ax.set_ylim(0, top * 1.25 if top > 0 else 1)
     ax.set_ylabel("mean position error [m]")
-    ax.set_title("FAWT hover, Table 4 metric on the paper's 210 s schedule: ours (solid, 95 % CI) vs "
+    ax.set_title("FAWT hover, Table 4 metric on the paper's 210 s schedule:\nours (solid, 95 % CI) beside "
                  "Wang et al. (2024) (hatched)", fontsize=9)
     ax.grid(axis="y", alpha=0.3)
     ax.legend(fontsize=7, ncols=min(4, len(series)))

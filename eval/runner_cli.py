@@ -2,6 +2,8 @@
 
 Examples::
 
+    fawtgym eval                       # the quick leaderboard: 4 agents x 3 scenarios x 3 seeds, ~2 min on 2 cores
+    fawtgym eval --full                # every observer, every duty, 10 seeds (about an hour on 2 cores)
     fawtgym eval --agents px4,px4+ffts_eso,px4+geso --scenarios table4-50,fawt-50-steady --seeds 5 --out results/q
     fawtgym eval --agents px4,px4+leso --wind dryden-moderate --duration 20 --seeds 3 --out results/dryden
     fawtgym eval --agents px4,mypkg.agents:MyAgent --scenarios my_scenarios.yaml --out results/mine
@@ -22,8 +24,12 @@ from fawtgym.cli_parser import ArgumentParser
 
 from .runner import DEFAULT_RECORD_HZ
 
-DEFAULT_AGENTS = "px4,px4+ffts_eso"
-DEFAULT_SCENARIOS = "table4-50"
+#: the quick leaderboard (the README's main command): (agents, scenarios, seeds); ranked on the first scenario
+QUICK = ("px4,px4+ffts_eso,px4+leso,px4+geso", "table4-50,fawt-50-steady,dryden-moderate", 3)
+#: ``--full``: PX4 alone and with every observer that estimates a disturbance, every Table 4 duty, steady and outdoor
+FULL = ("px4,px4+ffts_eso,px4+leso,px4+fxtsdo,px4+sto,px4+geso,px4+qb,px4+hc_eso",
+        "table4-50,table4-30,table4-40,table4-60,table4-70,fawt-30-steady,fawt-50-steady,fawt-70-steady,"
+        "dryden-moderate,gust-1cos", 10)
 
 
 def _positive_int(text: str) -> int:
@@ -72,14 +78,17 @@ def build_parser() -> argparse.ArgumentParser:
     p = ArgumentParser(prog="fawtgym eval", description=__doc__.split("\n\n")[0],
                                 epilog=f"agents: {GRAMMAR}. scenarios: {', '.join(scenario_names())} "
                                        "(fawt-<duty>-steady: any duty 30-70), or .yaml/.json files.")
-    p.add_argument("--agents", default=DEFAULT_AGENTS, help=f"comma list of agents (default {DEFAULT_AGENTS})")
-    p.add_argument("--scenarios", default=None, help=f"comma list of scenario names or files (default "
-                                                     f"{DEFAULT_SCENARIOS})")
+    p.add_argument("--full", action="store_true", help="the full study's defaults (every observer, every Table 4 "
+                                                       "duty, 10 seeds) instead of the quick leaderboard's")
+    p.add_argument("--agents", default=None, help=f"comma list of agents (default {QUICK[0]})")
+    p.add_argument("--scenarios", default=None, help=f"comma list of scenario names or files (default {QUICK[1]}); "
+                                                     "the leaderboard ranks on the first")
     p.add_argument("--wind", default=None, help="shorthand for one ad hoc scenario: this wind (e.g. fawt-50) ...")
     p.add_argument("--duration", type=_positive_float, default=None, help="... flown for this many seconds")
-    p.add_argument("--seeds", type=_seeds, default=list(range(5)), help="seed count (5 = seeds 0-4, default), "
-                                                                        "a range 10:15, or a list 1,4,9")
-    p.add_argument("--out", type=Path, default=Path("results/eval"), help="results folder (default results/eval)")
+    p.add_argument("--seeds", type=_seeds, default=None, help=f"seed count ({QUICK[2]} = seeds 0-{QUICK[2] - 1}, the "
+                                                              "default), a range 10:15, or a list 1,4,9")
+    p.add_argument("--out", type=Path, default=None, help="results folder (default results/quick, results/full "
+                                                          "with --full, results/eval otherwise)")
     p.add_argument("--baseline", default="px4", help="agent the others are compared with, paired (default px4)")
     p.add_argument("--rank-on", default=None, help="scenario the printed leaderboard ranks on (default: the first)")
     p.add_argument("--workers", type=_positive_int, default=2, help="local worker processes (default 2)")
@@ -106,9 +115,14 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     if (ns.wind is None) != (ns.duration is None):
         parser.error("--wind and --duration go together (one ad hoc scenario)")
+    preset = FULL if ns.full else QUICK
+    if ns.out is None:
+        custom = ns.agents is not None or ns.scenarios is not None or ns.wind is not None
+        ns.out = Path("results/eval" if custom else ("results/full" if ns.full else "results/quick"))
+    ns.seeds = ns.seeds if ns.seeds is not None else list(range(preset[2]))
     try:
-        agents = [s.name for s in parse_agents(ns.agents)]
-        items = [] if ns.scenarios is None and ns.wind else (ns.scenarios or DEFAULT_SCENARIOS).split(",")
+        agents = [s.name for s in parse_agents(ns.agents or preset[0])]
+        items = [] if ns.scenarios is None and ns.wind else (ns.scenarios or preset[1]).split(",")
         scenarios = resolve_scenarios(items)
         if ns.wind is not None:
             scenarios.append(adhoc_scenario(ns.wind, ns.duration))

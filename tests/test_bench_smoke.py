@@ -31,3 +31,14 @@ def test_bench_observers_and_closed_loop_run(capsys):
                              "--vehicle-steps", "20"]) == 0
     out = capsys.readouterr().out
     assert "ffts_eso" in out and "AGGREGATE" in out
+
+
+def test_bench_eval_prints_throughput_and_ratio(capsys, monkeypatch):
+    from fawtgym.eval import runner_cli
+    from fawtgym.eval.bench import eval as bench_eval
+
+    tiny = ("px4,px4+ffts_eso", "calm", 1)
+    monkeypatch.setattr(runner_cli, "QUICK", tiny)
+    assert bench_eval.main(["--workers", "1", "--seeds", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "cells/min" in out and "vehicle-s per wall-s" in out and "ratio eval / env alone" in out
