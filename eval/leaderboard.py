@@ -187,8 +187,9 @@ def scenario_rows(board: Mapping[str, Any], scenario: str) -> tuple[list[str], l
 def table4_rows(board: Mapping[str, Any]) -> tuple[list[str], list[list[str]]] | None:
     """Our table4-<duty> means beside Wang et al. (2024) Table 4 (None if the run has no table4 scenario)."""
     from .reproduce.table4 import PAPER_TABLE4
+    from .scenarios import table4_duty
 
-    duties = [int(s["name"].split("-")[1]) for s in board["scenarios"] if s["name"].startswith("table4-")]
+    duties = [d for d in (table4_duty(s) for s in board["scenarios"]) if d is not None]
     if not duties:
         return None
     agents = board["agents"]

@@ -78,8 +78,9 @@ def _ranking_figure(board: Mapping[str, Any], path: Path) -> None:
 
 def _table4_figure(board: Mapping[str, Any], path: Path) -> bool:
     from .reproduce.table4 import PAPER_TABLE4
+    from .scenarios import table4_duty
 
-    duties = sorted(int(s["name"].split("-")[1]) for s in board["scenarios"] if s["name"].startswith("table4-"))
+    duties = sorted(d for d in (table4_duty(s) for s in board["scenarios"]) if d is not None)
     if not duties:
         return False
     plt = _plt()

@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from .scenarios import Scenario, scenario_from_mapping
+from .scenarios import Scenario, scenario_from_mapping, table4_duty
 
 FORMAT = 1
 DEFAULT_RECORD_HZ = 20.0
@@ -123,8 +123,7 @@ def fly_cell(agent_name: str, scenario: Mapping[str, Any], seeds: Sequence[int],
             ended_last = terminated | truncated
             w_prev, w_cur = w_cur, _wrench(info)
         on, off = sc.fan_schedule
-        schedule = (sc.seconds, on, off) if (on is not None and off is not None and sc.name.startswith("table4-")) \
-            else None
+        schedule = (sc.seconds, on, off) if table4_duty(sc) is not None else None
         episodes, traces = rec.finish(schedule)
     except CellError:
         raise

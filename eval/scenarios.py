@@ -236,6 +236,17 @@ def check_scenario(sc: Scenario) -> None:
         raise ValueError(f"scenario {sc.name!r}: {exc}") from exc
 
 
+def table4_duty(scenario: Scenario | Mapping[str, Any]) -> int | None:
+    """The duty [%] of a built-in ``table4-<duty>`` scenario (the one Wang et al. (2024) Table 4 compares with),
+    None for any other scenario, including a user's scenario that only shares the name pattern."""
+    d = scenario.to_dict() if isinstance(scenario, Scenario) else dict(scenario)
+    m = _TABLE4.fullmatch(str(d.get("name", "")))
+    if m is None:
+        return None
+    builtin = _builtin(d["name"])
+    return int(m.group(1)) if builtin is not None and builtin.to_dict() == d else None
+
+
 def wind_axis(mean_wind: np.ndarray) -> np.ndarray:
     """Unit vector of a mean wind (3,) NED; +x (north) in still air."""
     n = float(np.linalg.norm(mean_wind))

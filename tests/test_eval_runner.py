@@ -165,6 +165,23 @@ def test_leaderboard_outputs_and_best(tmp_path: Path, capsys: pytest.CaptureFixt
     assert data["baseline"] == "px4" and data["summaries"]["short-fawt"]["px4+ffts_eso"]["vs_baseline"]
 
 
+def test_leaderboard_html_is_self_contained(tmp_path: Path) -> None:
+    import re
+
+    scen = {**SHORT, "name": "table4-like", "wind": {"name": "fawt-50", "on_time": 0.3, "off_time": 1.2},
+            "seconds": 2.0}
+    steady = {"name": "steady", "wind": "fawt-50", "seconds": 1.5}
+    _cells(tmp_path, ["px4", "px4+ffts_eso"], [scen, steady], [0, 1], workers=1)
+    assert lb.main([str(tmp_path), "--html", "--quiet"]) == 0
+    page = (tmp_path / "html" / "index.html").read_text()
+    assert "http://" not in page and "https://" not in page and "<script" not in page
+    images = re.findall(r'<img src="([^"]+)"', page)
+    assert {"ranking.png", "traces_table4-like.png", "estimation_table4-like.png", "wind_psd.png"} <= set(images)
+    for img in images:
+        assert (tmp_path / "html" / img).stat().st_size > 1000
+    assert "px4+ffts_eso" in page and "95 %" in page
+
+
 @pytest.mark.parametrize("argv, match", [
     (["--agents", "px4,foo"], "unknown agent 'foo'"),
     (["--scenarios", "table4-55"], "unknown scenario 'table4-55'"),
