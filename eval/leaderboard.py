@@ -101,7 +101,8 @@ def build(run: Mapping[str, Any], cells: Mapping[tuple[str, str], Mapping[str, A
             beats[a] = None if diff.high is None else bool(diff.high < 0)
     return {"scenario": scenario, "baseline": baseline, "seeds": run["seeds"], "ranking": order, "beats_next": beats,
             "summaries": per, "scenarios": run["scenarios"], "agents": agents,
-            "missing": [list(p) for p in iter_missing(run, cells)], "rule": __doc__.split("\n\n")[1]}
+            "missing": [list(p) for p in iter_missing(run, cells)],
+            "rule": " ".join(__doc__.split("\n\n")[1].replace("``", "`").split())}
 
 
 def _num(v: float | None, digits: int = 4) -> str:
@@ -216,7 +217,7 @@ def to_markdown(board: Mapping[str, Any]) -> str:
     seeds = board["seeds"]
     lines = [f"# Leaderboard: {board['scenario']}", "",
              f"{len(seeds)} seeds ({seeds[0]}..{seeds[-1]}) per cell, the same wind and sensor noise for every agent "
-             "(paired).", "", markdown_table(head, rows), "", "Ranking rule: " + " ".join(board["rule"].split()), ""]
+             "(paired).", "", markdown_table(head, rows), "", board["rule"], ""]
     t4 = table4_rows(board)
     if t4 is not None:
         lines += ["## Beside Wang et al. (2024), Table 4", "",

@@ -307,7 +307,7 @@ def write_html(board: Mapping[str, Any], results: Path, folder: Path) -> Path:
         row[5] = "good" if b else ("muted" if b is None else "partial")
         classes.append(row)
     page.table(head, rows, caption=f"Ranked on {sc_name}", cell_classes=classes)
-    page.paragraph("Ranking rule: " + " ".join(board["rule"].split()))
+    page.paragraph(board["rule"])
     _ranking_figure(board, folder / "ranking.png")
     page.figure("ranking.png", "Mean position error per scenario, 95 % CI")
     t4 = table4_rows(board)
