@@ -1,4 +1,4 @@
-"""Reproduce the GESO attitude-control simulations (``geso_quadrotor_shi2018.txt``, Sec. VI-A).
+"""Reproduce the GESO attitude-control simulations of Shi, Wu and Chou 2018 (Sec. VI-A) and its Fig. 3.
 
 Setup as in the paper: Table 1 vehicle (J = diag(1.335, 1.335, 2.465)e-2 kg m^2), wind torque
 ``d_w`` of eq. 48 on all three axes, inertia error 30 % (the plant has ``J + 0.3 J``, controller and
@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
+import math
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -39,8 +41,9 @@ from fawtgym.agents.backstepping_quat import (
     quat_derivative,
 )
 from fawtgym.envs.frames import quat_to_rot, rot_to_euler
+from fawtgym.eval.reproduce import claims as C
 from fawtgym.observers import make_observer
-from fawtgym.observers.geso import error_magnitude
+from fawtgym.observers.geso import error_magnitude, error_magnitude_lowfreq, geso_gains
 
 #: Table 1 (Sec. VI-A)
 MASS = 1.79
@@ -180,28 +183,177 @@ def rms_table(sim: dict[str, object], t_from: float = 0.0) -> list[dict[str, obj
     return rows
 
 
-def check_claims(rows: list[dict[str, object]]) -> list[tuple[str, bool, str]]:
-    """The paper's qualitative claims (Sec. VI-A) tested on an RMS table: (claim, holds, numbers)."""
+#: Table 2 of Shi, Wu and Chou 2018 (the paper's numbers): order -> observer gains l_0..l_n at w_b = 20 rad/s
+PAPER_TABLE2: dict[int, tuple[float, ...]] = {1: (40.0, 400.0), 2: (60.0, 1200.0, 8000.0),
+                                              3: (80.0, 2400.0, 32000.0, 160000.0)}
+#: settling band of the attitude error norm [deg] for "speed of convergence" (Case 2)
+SETTLE_BAND_DEG = 1.0
+#: eq. 38 agrees with eq. 37 to this relative error for w <= LOWFREQ_KAPPA w_b
+LOWFREQ_TOL, LOWFREQ_KAPPA = 0.01, 0.05
+_FIGS = {1: ("Figs. 5-7", "Fig. 8"), 2: ("Figs. 9-11", "Fig. 12")}
+
+
+def settling_times(sim: dict[str, object], band_deg: float = SETTLE_BAND_DEG) -> dict[tuple[str, int], float]:
+    """Per (variant, case): the time after which the attitude error norm stays below ``band_deg`` [s]
+    (``inf`` if it is outside the band at the end of the run)."""
+    t = np.asarray(sim["t"])
+    out: dict[tuple[str, int], float] = {}
+    for i, (v, c) in enumerate(sim["pairs"]):  # type: ignore[arg-type]
+        ang = np.degrees(_wrap(np.asarray(sim["euler"])[:, i] - np.asarray(sim["euler_d"])[:, i]))
+        outside = np.flatnonzero(np.linalg.norm(ang, axis=1) >= band_deg)
+        if outside.size == 0:
+            out[(v, int(c))] = float(t[0])
+        elif outside[-1] + 1 < t.size:
+            out[(v, int(c))] = float(t[outside[-1] + 1])
+        else:
+            out[(v, int(c))] = math.inf
+    return out
+
+
+def window_claims(rows: list[dict[str, object]], window: str = "") -> list[C.Claim]:
+    """Sec. VI-A's orderings on one RMS table (one time window): per case, estimation error and tracking
+    error fall as the GESO order rises, and every GESO improves on the controller alone."""
+    P = C.SHI2018
     out = []
+    tag = f" [{window}]" if window else ""
     for c in sorted({int(r["case"]) for r in rows}):  # type: ignore[call-overload]
         by = {r["variant"]: r for r in rows if r["case"] == c}
         gesos = [v for v in VARIANTS[1:] if v in by]
         est = [float(by[v]["rms_est_err"]) for v in gesos]  # type: ignore[arg-type]
         att = [float(by[v]["rms_att_deg"]) for v in gesos]  # type: ignore[arg-type]
+        figs_att, fig_est = _FIGS.get(c, ("", ""))
         if len(gesos) >= 2:
-            nums = ", ".join(f"{v}: {e:.4g} N m" for v, e in zip(gesos, est, strict=True))
-            out.append((f"Case {c}: estimation error falls as the order rises (Fig. {8 if c == 1 else 12})",
-                        bool(np.all(np.diff(est) < 0)), nums))
-            nums = ", ".join(f"{v}: {a:.4g} deg" for v, a in zip(gesos, att, strict=True))
-            out.append((f"Case {c}: tracking error falls as the order rises", bool(np.all(np.diff(att) < 0)), nums))
+            verdict, reason = C.decreasing_verdict(est, gesos)
+            out.append(C.Claim(P, fig_est, f"Case {c}: estimation error falls as the order rises{tag}",
+                               "falls", ", ".join(f"{v}: {e:.4g} N m" for v, e in zip(gesos, est, strict=True)),
+                               "RMS of |d - d_hat| strictly falls GESO-1 > GESO-2 > GESO-3", verdict, reason))
+            verdict, reason = C.decreasing_verdict(att, gesos)
+            out.append(C.Claim(P, figs_att, f"Case {c}: tracking error falls as the order rises{tag}", "falls",
+                               ", ".join(f"{v}: {a:.4g} deg" for v, a in zip(gesos, att, strict=True)),
+                               "RMS attitude error strictly falls GESO-1 > GESO-2 > GESO-3", verdict, reason))
         if "none" in by and gesos:
             base = float(by["none"]["rms_att_deg"])  # type: ignore[arg-type]
-            out.append((f"Case {c}: every GESO improves on the controller without GESO",
-                        bool(all(a < base for a in att)), f"without: {base:.4g} deg"))
+            verdict, reason = C.count_verdict([a < base for a in att], gesos)
+            out.append(C.Claim(P, figs_att, f"Case {c}: every GESO improves on the controller without GESO{tag}",
+                               "yes", f"without: {base:.4g} deg", "RMS attitude error of each GESO below the "
+                               "controller alone", verdict, reason))
     return out
 
 
-def _figures(sim: dict[str, object], out: Path) -> None:
+def check_claims(rows: list[dict[str, object]]) -> list[tuple[str, bool, str]]:
+    """The paper's qualitative claims (Sec. VI-A) tested on an RMS table: (claim, holds, numbers).
+
+    The yes/no form of :func:`window_claims` (holds = verdict ``reproduced``).
+    """
+    return [(c.statement, c.holds, c.our_value) for c in window_claims(rows)]
+
+
+def _both_windows(steady: C.Claim, whole: C.Claim, steady_from: float) -> C.Claim:
+    """One claim judged on the post-transient window and on the whole run: both reproduced -> reproduced,
+    one -> partly, none -> not."""
+    n = steady.holds + whole.holds
+    verdict = C.REPRODUCED if n == 2 else C.PARTLY if n == 1 else C.NOT
+    reason = f"t >= {steady_from:g} s: {steady.verdict} ({steady.reason}); whole run: {whole.verdict} ({whole.reason})"
+    return dataclasses.replace(
+        steady, statement=steady.statement.split(" [")[0],
+        our_value=f"t >= {steady_from:g} s: {steady.our_value}; whole run: {whole.our_value}",
+        criterion=steady.criterion + f", after the transient (t >= {steady_from:g} s) and over the whole run",
+        verdict=verdict, reason=reason)
+
+
+def bode_claims(omegas: Sequence[float] | None = None) -> list[C.Claim]:
+    """Sec. IV-C, Fig. 3 and eqs. 36-38 on |G(jw)|, computed from eq. 37 at the frequencies of eq. 48."""
+    P = C.SHI2018
+    w = np.array(omegas if omegas is not None else sorted({term[1] for term in _DW_TERMS}), dtype=float)
+    wtxt = f"{w.min():.2f}-{w.max():.2f} rad/s"
+    out = []
+    # Table 2: the bandwidth rule gives the paper's gains
+    for n, paper in PAPER_TABLE2.items():
+        ours = geso_gains(n, BANDWIDTH)
+        same = ours.shape == (len(paper),) and bool(np.allclose(ours, paper, rtol=1e-12, atol=0))
+        out.append(C.Claim(P, "Table 2, eqs. 34-35", f"GESO-{n} gains at w_b = {BANDWIDTH:g} rad/s",
+                           ", ".join(f"{g:g}" for g in paper), ", ".join(f"{g:g}" for g in ours),
+                           "equal to 12 digits", C.REPRODUCED if same else C.NOT,
+                           "the bandwidth rule l_i = C(n+1, i+1) w_b^(i+1) gives Table 2" if same
+                           else "the bandwidth rule does not give Table 2"))
+    # Fig. 3(a): attenuation improves with the order
+    mags = {n: error_magnitude(w, n, BANDWIDTH) for n in ORDERS}
+    flags = [bool(mags[1][k] > mags[2][k] > mags[3][k]) for k in range(w.size)]
+    verdict, reason = C.count_verdict(flags, [f"{x:.2f} rad/s" for x in w])
+    fig3a = C.Claim(P, "Fig. 3(a), eq. 37", "at w_b = 20 rad/s, |G(jw)| at low frequency falls as the order rises",
+                    "falls", "; ".join(f"n={n}: {mags[n].max():.2g}" for n in ORDERS) + f" (max over {wtxt})",
+                    f"|G| of n = 1 > 2 > 3 at every frequency of the eq. 48 wind ({wtxt})", verdict, reason)
+    out.append(fig3a)
+    # Fig. 3(b): attenuation improves with the bandwidth
+    mb = {wb: error_magnitude(w, 3, wb) for wb in (10.0, 20.0, 40.0)}
+    flags = [bool(mb[10.0][k] > mb[20.0][k] > mb[40.0][k]) for k in range(w.size)]
+    verdict, reason = C.count_verdict(flags, [f"{x:.2f} rad/s" for x in w])
+    fig3b = C.Claim(P, "Fig. 3(b), eq. 37", "for n = 3, |G(jw)| at low frequency falls as w_b rises (10, 20, 40)",
+                    "falls", "; ".join(f"w_b={wb:g}: {m.max():.2g}" for wb, m in mb.items()) + f" (max over {wtxt})",
+                    f"|G| of w_b = 10 > 20 > 40 at every frequency of the eq. 48 wind ({wtxt})", verdict, reason)
+    out.append(fig3b)
+    # eq. 38: the low-frequency asymptote
+    k = np.geomspace(1e-3, LOWFREQ_KAPPA, 50) * BANDWIDTH
+    rel = max(float(np.max(np.abs(error_magnitude_lowfreq(k, n, BANDWIDTH) / error_magnitude(k, n, BANDWIDTH) - 1)))
+              for n in ORDERS)
+    out.append(C.Claim(P, "eq. 38", "for w << w_b, |G(jw)| ~ (n+1) (w/w_b)^n", "approximation",
+                       f"max relative error {rel:.2g} for w <= {LOWFREQ_KAPPA:g} w_b",
+                       f"relative error < {LOWFREQ_TOL:g} for w <= {LOWFREQ_KAPPA:g} w_b, n = 1-3",
+                       C.REPRODUCED if rel < LOWFREQ_TOL else C.NOT, f"max relative error {rel:.2g}"))
+    # Sec. IV-C: "as n and w_b increase, the peak magnitudes of G(s) decrease"
+    grid = np.geomspace(1e-2, 1e4, 20001)
+    peak_n = [float(error_magnitude(grid, n, BANDWIDTH).max()) for n in ORDERS]
+    peak_b = [float(error_magnitude(grid, 3, wb).max()) for wb in (10.0, 20.0, 40.0)]
+    low_falls = fig3a.holds and fig3b.holds
+    peak_falls = all(b < a for a, b in zip(peak_n, peak_n[1:], strict=False)) and \
+        all(b < a * (1 - 1e-6) for a, b in zip(peak_b, peak_b[1:], strict=False))
+    if peak_falls:
+        verdict, reason = C.REPRODUCED, "the supremum of |G(jw)| falls with n and w_b"
+    elif low_falls:
+        verdict, reason = C.PARTLY, ("true of the low-frequency magnitude (eq. 38, Fig. 3) only: the peak of "
+                                     "|G(jw)| above 1 near w_b rises with n and does not depend on w_b "
+                                     "(|G| depends on w/w_b only)")
+    else:
+        verdict, reason = C.NOT, "neither the peak nor the low-frequency magnitude falls"
+    out.append(C.Claim(P, "Sec. IV-C, eq. 38", "as n and w_b increase, the peak magnitudes of G(s) decrease",
+                       "decrease", f"sup |G|: n = 1, 2, 3: {', '.join(f'{p:.3f}' for p in peak_n)}; w_b = 10, 20, 40 "
+                       f"(n = 3): {', '.join(f'{p:.3f}' for p in peak_b)}",
+                       "the supremum over w of |G(jw)| (eq. 37) falls with n and with w_b", verdict, reason))
+    return out
+
+
+def paper_claims(steady_rows: list[dict[str, object]], full_rows: list[dict[str, object]],
+                 settle: dict[tuple[str, int], float] | None, steady_from: float, t_end: float) -> list[C.Claim]:
+    """Shi, Wu and Chou 2018, Sec. IV-C (Table 2, Fig. 3, eqs. 37-38) and Sec. VI-A (Figs. 5-12), with verdicts.
+
+    The orderings of Sec. VI-A are judged after the transient and over the whole run (both hold ->
+    reproduced, one -> partly); Case 2's "speed of convergence improves with the order" on the
+    settling time into a :data:`SETTLE_BAND_DEG` band.  The flight experiment (Sec. VI-B, Table 3) is not
+    simulated by this study.
+    """
+    out = bode_claims()
+    steady = window_claims(steady_rows, "steady")
+    whole = {c.statement.split(" [")[0]: c for c in window_claims(full_rows, "whole")}
+    for c in steady:
+        key = c.statement.split(" [")[0]
+        out.append(_both_windows(c, whole[key], steady_from) if key in whole else c)
+    if settle is not None:
+        gesos = [v for v in VARIANTS[1:] if (v, 2) in settle]
+        statement = "Case 2: the speed of convergence improves as the order rises"
+        crit = (f"time after which the attitude error norm stays below {SETTLE_BAND_DEG:g} deg strictly falls "
+                f"GESO-1 > GESO-2 > GESO-3 (inf: outside the band at the end of the {t_end:g} s run)")
+        if len(gesos) < 2:
+            out.append(C.unchecked(C.SHI2018, "Figs. 9-11", statement, "improves", crit, "fewer than two GESOs run"))
+        else:
+            vals = [settle[(v, 2)] for v in gesos]
+            verdict, reason = C.decreasing_verdict(vals, gesos)
+            out.append(C.Claim(C.SHI2018, "Figs. 9-11", statement, "improves",
+                               ", ".join(f"{v}: {C.fmt(x)} s" for v, x in zip(gesos, vals, strict=True)),
+                               crit, verdict, reason))
+    return out
+
+
+def _figures(sim: dict[str, object], out: Path) -> list[Path]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -253,6 +405,8 @@ def _figures(sim: dict[str, object], out: Path) -> None:
     fig.tight_layout()
     fig.savefig(out / "geso_bode.png", dpi=100)
     plt.close(fig)
+    return [out / f"geso_case{c}_{kind}.png" for c in sorted({p[1] for p in pairs})  # type: ignore[union-attr]
+            for kind in ("attitude", "estimation")] + [out / "geso_bode.png"]
 
 
 def _md_table(rows: list[dict[str, object]]) -> list[str]:
@@ -265,7 +419,7 @@ def _md_table(rows: list[dict[str, object]]) -> list[str]:
     return lines
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def _run(argv: Sequence[str] | None) -> tuple[C.StudyOutcome, list[str]]:
     parser = argparse.ArgumentParser(prog="fawtgym reproduce geso", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("results/geso"), help="output folder")
     parser.add_argument("--quick", action="store_true", help="6 s instead of 20 s")
@@ -275,6 +429,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--no-figures", action="store_true")
     ns = parser.parse_args(list(argv) if argv is not None else None)
     t_end = ns.t_end if ns.t_end is not None else (6.0 if ns.quick else 20.0)
+    if not 0 <= ns.steady_from < t_end:
+        parser.error(f"need 0 <= --steady-from < the horizon {t_end:g} s, got {ns.steady_from:g}")
     ns.out.mkdir(parents=True, exist_ok=True)
     sim = simulate(t_end=t_end, dt=ns.dt)
     full = rms_table(sim, 0.0)
@@ -287,6 +443,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             wr.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
     claims = [(f"{c} [t >= {ns.steady_from:g} s]", ok, n) for c, ok, n in check_claims(steady)]
     claims += [(f"{c} [whole run]", ok, n) for c, ok, n in check_claims(full)]
+    verdicts = paper_claims(steady, full, settling_times(sim), ns.steady_from, t_end)
     lines = ["# GESO attitude control: reproduction of Shi, Wu & Chou 2018, Sec. VI-A", "",
              f"Horizon {t_end:g} s, control/observer period {ns.dt * 1e3:g} ms, w_b = {BANDWIDTH:g} rad/s, "
              f"inertia error {INERTIA_ERROR:.0%}, K1 = {K1} I, K2 = {K2} I.", "",
@@ -295,6 +452,8 @@ def main(argv: Sequence[str] | None = None) -> int:
              "## Claims vs ours", "", "| claim (paper) | holds here | numbers |",
              "| --- | --- | --- |"]
     lines += [f"| {c} | {'yes' if ok else 'NO'} | {nums} |" for c, ok, nums in claims]
+    lines += ["", "## The paper's claims with verdicts (as in `fawtgym reproduce all`)", "",
+              *C.markdown_table(verdicts)]
     lines += ["", "Notes: the whole-run RMS includes the transient from level flight to the first",
               "set-point, where every observer starts from d_hat = 0 against a ~4 N m bias; higher-order",
               "observers overshoot more in that transient (G(s) peaks above 1 near w_b), so the whole-run",
@@ -302,9 +461,18 @@ def main(argv: Sequence[str] | None = None) -> int:
               "post-transient tracking error do.  The paper's simulation step, horizon and initial state",
               "are not stated; ours are in the header of eval/reproduce/geso.py."]
     (ns.out / "geso_summary.md").write_text("\n".join(lines) + "\n")
-    if not ns.no_figures:
-        _figures(sim, ns.out)
-    print("\n".join(lines))
+    figs = [] if ns.no_figures else _figures(sim, ns.out)
+    settings = f"horizon {t_end:g} s, step {ns.dt * 1e3:g} ms, steady window t >= {ns.steady_from:g} s"
+    return C.StudyOutcome(verdicts, figs, ns.out / "geso_summary.md", settings), lines
+
+
+def reproduce(argv: Sequence[str] | None = None) -> C.StudyOutcome:
+    """Parse ``argv`` as the command line, run the study, write its files; returns its claims and figures."""
+    return _run(argv)[0]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    print("\n".join(_run(argv)[1]))
     return 0
 
 
