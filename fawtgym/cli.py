@@ -15,7 +15,7 @@ from collections.abc import Sequence
 COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("fawtgym.eval.demo:main", "fly a short episode (PX4-style hover) and print what happened"),
     "list": ("fawtgym.cli:list_main", "list vehicles, wind presets, observers, env ids"),
-    "wind": ("fawtgym.envs.wind.cli:main", "generate FAWT/Dryden wind, plot it and compare to seed-000 Table 3"),
+    "wind": ("fawtgym.envs.wind.cli:main", "FAWT/Dryden wind, plotted and compared to Wang et al. (2024) Table 3"),
     "eval": ("fawtgym.eval.runner_cli:main", "fly agents x scenarios x seeds on the same wind; resumable result cells"),
     "leaderboard": ("fawtgym.eval.leaderboard:main", "rank the agents of an eval run (Markdown, CSV, JSON, HTML)"),
     "reproduce": ("fawtgym.cli:reproduce_main", "reproduce a seed paper's numerical study (see: reproduce --help)"),
@@ -24,12 +24,12 @@ COMMANDS: dict[str, tuple[str, str]] = {
 
 #: reproduce <name> -> module:function
 REPRODUCTIONS: dict[str, tuple[str, str]] = {
-    "seed000-sim": ("fawtgym.eval.reproduce.seed000_sim:main", "FFTS-ESO vs LESO/FxTSDO/STO, seed-000 Sec. 6"),
-    "table4": ("fawtgym.eval.reproduce.table4:main", "PX4 vs PX4+ESO hover in FAWT wind, seed-000 Table 4"),
-    "geso": ("fawtgym.eval.reproduce.geso:main", "GESO orders 1-3 with backstepping, seed-004 Sec. VI-A"),
-    "hc-eso": ("fawtgym.eval.reproduce.hc_eso:main", "HC-ESO on SO(3), seed-002 Sec. 6"),
-    "qb": ("fawtgym.eval.reproduce.qb_observer:main", "QB observer by SDP, seed-001 Figs. 4-7"),
-    "pdt-sta": ("fawtgym.eval.reproduce.pdt_sta:main", "predefined-time STA + QUEST, seed-003 Example 1 and Figs. 5-9"),
+    "seed000-sim": ("fawtgym.eval.reproduce.seed000_sim:main", "FFTS-ESO vs LESO/FxTSDO/STO, Wang et al. 2024 Sec. 6"),
+    "table4": ("fawtgym.eval.reproduce.table4:main", "PX4 vs PX4+ESO hover in FAWT wind, Wang et al. (2024) Table 4"),
+    "geso": ("fawtgym.eval.reproduce.geso:main", "GESO orders 1-3 with backstepping, Shi et al. (2018) Sec. VI-A"),
+    "hc-eso": ("fawtgym.eval.reproduce.hc_eso:main", "HC-ESO on SO(3), Wang & Sanyal (2022) Sec. 6"),
+    "qb": ("fawtgym.eval.reproduce.qb_observer:main", "QB observer by SDP, Cayero et al. (2019) Figs. 4-7"),
+    "pdt-sta": ("fawtgym.eval.reproduce.pdt_sta:main", "predefined-time STA + QUEST, Silva & Santos 2023, Figs. 5-9"),
     "all": ("fawtgym.eval.reproduce.report:main", "every study above, one report with a verdict per paper claim"),
 }
 
@@ -63,7 +63,7 @@ def _dispatch(prog: str, table: dict[str, tuple[str, str]], argv: Sequence[str],
     parser.add_argument("name", choices=list(table) + extra)
     parser.add_argument("args", nargs=argparse.REMAINDER, help="passed to the named job (try: NAME --help)")
     ns = parser.parse_args(argv)
-    if ns.name == "all":
+    if ns.name == "all" and "all" not in table:
         return max(_call(target, ns.args) for target, _ in table.values())
     return _call(table[ns.name][0], ns.args)
 
