@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from _tolerance import assert_same_law
 
 from fawtgym.envs import frames
 from fawtgym.observers.lie import exp_so3
@@ -34,7 +35,7 @@ def test_quat_matches_scipy_convention():
     q = RNG.normal(size=(20, 4))
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     ref = Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_matrix()  # scipy is (x, y, z, w)
-    assert np.allclose(frames.quat_to_rot(q), ref, atol=1e-12)
+    assert_same_law(frames.quat_to_rot(q), ref, scale=1.0, what="quat_to_rot vs scipy")  # tests/_tolerance.py
 
 
 def test_zero_quaternion_rejected():

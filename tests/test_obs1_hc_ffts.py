@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 import scipy.integrate
+from _tolerance import assert_same_law
 
 from fawtgym.observers.hc_ffts import (
     HCFFTSD,
@@ -34,14 +35,17 @@ def test_phi2_equals_jacobian_of_phi1_times_phi1(k1, k2, k3, p, n):
         jac_num = _num_jac(lambda x: phi1(x, k3, p), e, h=1e-6 * max(np.linalg.norm(e), 1e-3))
         jac = phi1_jacobian(e, k3, p)
         np.testing.assert_allclose(jac, jac_num, rtol=1e-5, atol=1e-6)
-        np.testing.assert_allclose(phi2(e, k3, p), jac @ phi1(e, k3, p), rtol=1e-12, atol=1e-13)
+        # eq. (9) and phi_1' phi_1: two implementations of one function (tests/_tolerance.py)
+        assert_same_law(phi2(e, k3, p), jac @ phi1(e, k3, p), what="phi_2")
         np.testing.assert_allclose(phi2(e, k3, p), jac_num @ phi1(e, k3, p), rtol=1e-5)
         # eqs. (15)-(16): extreme eigenvalues of phi_1'
         lam = np.linalg.eigvalsh(jac)
         r = (e @ e) ** ((1 - p) / (3 * p - 2))
+        # closed forms vs eigvalsh: eigenvalues of an n x n symmetric matrix to n |lambda|_max eps (tests/_tolerance.py)
+        law = dict(scale=np.abs(lam).max(), cond=n)
         if n > 1:  # eq. (15): directions orthogonal to e (none when n = 1)
-            assert np.isclose(lam[-1], k3 + r, rtol=1e-10)
-        assert np.isclose(lam[0], k3 + r * p / (3 * p - 2), rtol=1e-10)
+            assert_same_law(lam[-1], k3 + r, what="eq. 15", **law)
+        assert_same_law(lam[0], k3 + r * p / (3 * p - 2), what="eq. 16", **law)
 
 
 def test_zero_error_is_safe():
@@ -74,7 +78,8 @@ def test_frac_power_rate_is_the_derivative_and_matches_h_matrix_form():
         if scale > 1e-5:
             r2 = np.sum(e * e, -1)[:, None]
             form = (r2 ** ((1 - p) / p))[..., None] * h_matrix(e, (p - 1) / p)
-            np.testing.assert_allclose(frac_power_rate(e, ed, p, eps), np.einsum("nij,nj->ni", form, ed), rtol=1e-12)
+            # the fused rate and the H-matrix form: two implementations of one law (tests/_tolerance.py)
+            assert_same_law(frac_power_rate(e, ed, p, eps), np.einsum("nij,nj->ni", form, ed), what="H form")
 
 
 @pytest.mark.parametrize("k1,k2,k3,p", GAINS)
@@ -87,7 +92,9 @@ def test_lyapunov_p_solves_eq17_and_augmented_eq18(k1, k2, k3, p):
     n = 3
     aa, pa, qa = (np.kron(x, np.eye(n)) for x in (a, pm, q))
     np.testing.assert_allclose(aa.T @ pa + pa @ aa, -qa, atol=1e-12)
-    np.testing.assert_allclose(np.linalg.eigvalsh(pa)[[0, -1]], np.linalg.eigvalsh(pm)[[0, -1]], rtol=1e-12)
+    # the same eigenvalues from the 6 x 6 Kronecker form and from the 2 x 2 P: two computations (tests/_tolerance.py)
+    lam = np.linalg.eigvalsh(pm)[[0, -1]]
+    assert_same_law(np.linalg.eigvalsh(pa)[[0, -1]], lam, cond=2 * n, what="eigenvalues of P")
 
 
 @pytest.mark.parametrize("k1,k2,k3,p", GAINS)

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 import scipy.linalg
+from _tolerance import assert_same_law
 
 from fawtgym.observers.lie import exp_so3, hat, integrate_rotation, log_so3, orthogonality_error, project_so3, vee
 
@@ -11,7 +12,9 @@ RNG = np.random.default_rng(7)
 
 def test_hat_vee_cross_product_and_inverse():
     a, b = RNG.standard_normal((2, 50, 3))
-    np.testing.assert_allclose(np.einsum("nij,nj->ni", hat(a), b), np.cross(a, b), atol=1e-14)
+    # hat(a) b and numpy's cross product: two implementations of one law (tests/_tolerance.py)
+    scale = (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1)).max()
+    assert_same_law(np.einsum("nij,nj->ni", hat(a), b), np.cross(a, b), scale=scale, what="a x b")
     np.testing.assert_allclose(vee(hat(a)), a, atol=0)
     np.testing.assert_allclose(hat(a) + np.swapaxes(hat(a), -1, -2), 0.0, atol=0)
 
@@ -21,7 +24,10 @@ def test_exp_matches_scipy_expm_and_is_a_rotation():
     w = np.concatenate([w, [[0, 0, 0], [1e-9, 0, 0], [0, 1e-5, 1e-5]]])
     r = exp_so3(w)
     for wi, ri in zip(w, r, strict=True):
-        np.testing.assert_allclose(ri, scipy.linalg.expm(hat(wi)), atol=1e-13)
+        # Rodrigues' formula and scipy's Pade expm: two implementations of one law (tests/_tolerance.py), at the
+        # scale of the exponential series' terms (their magnitudes sum to e^|w|)
+        theta = np.linalg.norm(wi)
+        assert_same_law(ri, scipy.linalg.expm(hat(wi)), scale=np.exp(theta), what=f"|w| = {theta:.3g}")
     assert np.max(orthogonality_error(r)) < 1e-14
     np.testing.assert_allclose(np.linalg.det(r), 1.0, atol=1e-14)
 
@@ -49,12 +55,14 @@ def test_integrate_rotation_is_exact_for_constant_rate():
     r = r0.copy()
     for _ in range(100):
         r = integrate_rotation(r, w, 0.01)
-    np.testing.assert_allclose(r, r0 @ scipy.linalg.expm(hat(w)), atol=1e-13)
+    # 100 exact steps and one expm: two implementations of one law (tests/_tolerance.py)
+    assert_same_law(r, r0 @ scipy.linalg.expm(hat(w)), scale=1.0, steps=100, what="R(1 s)")
 
 
 def test_project_so3():
     r = exp_so3(RNG.standard_normal((10, 3)))
-    np.testing.assert_allclose(project_so3(r), r, atol=1e-14)
+    # a rotation is its own projection (the SVD route and the identity; tests/_tolerance.py, 3 x 3 SVD: cond 3)
+    assert_same_law(project_so3(r), r, scale=1.0, cond=3, what="projection of a rotation")
     noisy = r + 1e-3 * RNG.standard_normal(r.shape)
     assert np.max(orthogonality_error(project_so3(noisy))) < 1e-14
     np.testing.assert_allclose(np.linalg.det(project_so3(noisy)), 1.0, atol=1e-14)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _tolerance import assert_same_law
 
 from fawtgym.agents.backstepping_quat import (
     QuaternionBackstepping,
@@ -24,12 +25,14 @@ def test_quaternion_helpers_agree_with_rotation_matrices():
     rng = np.random.default_rng(0)
     ra, rb = exp_so3(rng.normal(size=(6, 3))), exp_so3(rng.normal(size=(6, 3)))
     qa, qb = rot_to_quat(ra), rot_to_quat(rb)
-    np.testing.assert_allclose(quat_to_rot(quat_multiply(qa, qb)), ra @ rb, atol=1e-12)
-    np.testing.assert_allclose(quat_to_rot(quat_conjugate(qa)), np.swapaxes(ra, -1, -2), atol=1e-12)
+    # quaternion and matrix forms: two implementations of one rotation law (tests/_tolerance.py), unit scale
+    assert_same_law(quat_to_rot(quat_multiply(qa, qb)), ra @ rb, scale=1.0, what="product")
+    assert_same_law(quat_to_rot(quat_conjugate(qa)), np.swapaxes(ra, -1, -2), scale=1.0, what="conjugate")
     e = rng.uniform(-1.2, 1.2, size=(6, 3))
-    np.testing.assert_allclose(quat_to_rot(euler_to_quat(e)), euler_to_rot(e[:, 0], e[:, 1], e[:, 2]), atol=1e-12)
+    assert_same_law(quat_to_rot(euler_to_quat(e)), euler_to_rot(e[:, 0], e[:, 1], e[:, 2]), scale=1.0, what="euler")
     a, b = rng.normal(size=(6, 3)), rng.normal(size=(6, 3))
-    np.testing.assert_allclose(cross3(a, b), np.cross(a, b), atol=1e-14)
+    scale = (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1)).max()
+    assert_same_law(cross3(a, b), np.cross(a, b), scale=scale, what="cross3")
     # eq. 5: q' = 1/2 q (x) [0, w] is the body-rate kinematics R' = R w^
     w = rng.normal(size=(6, 3))
     h = 1e-6

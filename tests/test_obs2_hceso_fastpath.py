@@ -1,8 +1,9 @@
 """HC-ESO on SO(3): the N = 1 fast path (Python floats) equals the batched numpy path, the reference.
 
 ``HcEsoSO3._fast_path = False`` (test-only switch) sends every update through the batched path; both
-observers are fed the same sequence and must agree at every step to TOL (relative to each quantity's
-scale; the two paths differ only in the order of floating-point sums).
+observers are fed the same sequence and must agree at every step as two implementations of one law
+(tests/_tolerance.py: the two paths differ in the order of floating-point sums and in BLAS kernels, and
+the Hölder terms of eq. 30 and H(s) of eq. 28 amplify that rounding, cond=HC_ESO_COND).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+from _tolerance import HC_ESO_COND, assert_same_law
 
 import fawtgym  # noqa: F401  (registers the env ids)
 from fawtgym.agents.backstepping_quat import cross3
@@ -28,7 +30,6 @@ from fawtgym.observers.hc_eso_so3 import (
 from fawtgym.observers.lie import exp_so3
 from fawtgym.observers.lie import exp_so3_floats as _exp_so3_single
 
-TOL = 1e-9
 G = 9.80665
 J_QUAD = np.diag([0.015, 0.016, 0.026])
 
@@ -40,17 +41,23 @@ def _pair(mass, inertia, **kw):
     return fast, slow
 
 
-def _agree(a, b, what):
-    """|a - b| <= TOL (|b| + scale): relative to the quantity's own scale over the run."""
-    for name in ("torque", "force"):
-        x, y = getattr(a, name), getattr(b, name)
-        assert x.shape == y.shape, what
-        np.testing.assert_allclose(x, y, rtol=TOL, atol=TOL * 0.05, err_msg=f"{what}: {name}")
+def _agree(a, b, what, *, steps, inertia, torque_scale=0.0):
+    """Fast (a) and batched (b) estimates agree as two implementations of one law (tests/_tolerance.py) after
+    ``steps`` updates.  Scales: attitude entries 1; body rates and angular accelerations at least 1 (rad/s,
+    rad/s^2: the order of the rates and accelerations in these runs) or their own size; sigma at least
+    ``torque_scale`` / J (the largest torque acting in the run); the torque estimate J sigma at J times the
+    sigma scale; the force, zero in both (HC-ESO estimates torque only), exactly."""
+    j = np.diag(np.asarray(inertia, dtype=float))
     assert set(a.states) == set(b.states) == {"attitude", "angular_velocity", "sigma"}
-    np.testing.assert_allclose(a.states["attitude"], b.states["attitude"], rtol=0, atol=TOL, err_msg=what)
-    np.testing.assert_allclose(a.states["angular_velocity"], b.states["angular_velocity"], rtol=TOL, atol=TOL,
-                               err_msg=what)
-    np.testing.assert_allclose(a.states["sigma"], b.states["sigma"], rtol=TOL, atol=TOL, err_msg=what)
+    w_scale = max(1.0, np.abs(b.states["angular_velocity"]).max())
+    sigma_scale = max(1.0, np.abs(b.states["sigma"]).max(), torque_scale / j.min())
+    law = dict(steps=steps, cond=HC_ESO_COND)
+    assert_same_law(a.states["attitude"], b.states["attitude"], scale=1.0, what=f"{what}: attitude", **law)
+    assert_same_law(a.states["angular_velocity"], b.states["angular_velocity"], scale=w_scale,
+                    what=f"{what}: angular_velocity", **law)
+    assert_same_law(a.states["sigma"], b.states["sigma"], scale=sigma_scale, what=f"{what}: sigma", **law)
+    assert_same_law(a.torque, b.torque, scale=j.max() * sigma_scale, what=f"{what}: torque", **law)
+    assert_same_law(a.force, b.force, scale=0.0, what=f"{what}: force", **law)
     for s in (a.states["attitude"], a.states["angular_velocity"], a.states["sigma"], a.torque, a.force):
         assert s.shape[0] == 1
 
@@ -80,19 +87,22 @@ def test_fast_path_equals_batched_path_on_the_env(env_sequence, kw):
     fast, slow = _pair(preset.mass, preset.inertia_matrix, **kw)
     fast.reset(first)
     slow.reset(first)
+    # the largest torque acting in the run: commanded or wind
+    torque_scale = max(max(np.abs(s[2]).max(), np.abs(s[3]).max()) for s in steps)
     err = []
     for k, (meas, thrust, torque, truth) in enumerate(steps):
         a = fast.update(meas, thrust, torque, dt)
         assert fast._single is not None, "the env's single-vehicle step must take the fast path"
         b = slow.update(meas, thrust, torque, dt)
         assert slow._single is None
-        _agree(a, b, f"step {k}")
+        _agree(a, b, f"step {k}", steps=k + 1, inertia=preset.inertia_matrix, torque_scale=torque_scale)
         err.append(np.abs(a.torque[0] - truth).max())
     # a real estimation run (not two equal failures): the estimate follows the wind torque in the last 2 s
     assert max(err[-200:]) < 0.5 * max(np.abs(s[3]).max() for s in steps[-200:]) + 1e-3
     fast._sync_single()
     for x, y in zip(fast._state + fast._held, slow._state + slow._held, strict=True):
-        np.testing.assert_allclose(x, y, rtol=TOL, atol=TOL)
+        scale = max(1.0, np.abs(y).max(), torque_scale / np.diag(preset.inertia_matrix).min())
+        assert_same_law(x, y, scale=scale, steps=len(steps), cond=HC_ESO_COND, what="state after the run")
 
 
 def _meas(r, w, rng, noise):
@@ -120,10 +130,12 @@ def test_fast_path_equals_batched_path_synthetic_with_path_switches():
     t = 0.0
     err = []
     switched = 0
+    torque_scale = 0.0
     for k in range(1200):
         dt = dts[k % len(dts)]
         tau = -0.08 * w + 0.01 * np.array([math.sin(3 * t), 0.0, math.cos(2 * t)])
         tau_d = np.array([0.03 * math.sin(0.5 * t), 0.02, -0.015 * math.cos(0.3 * t)])
+        torque_scale = max(torque_scale, np.abs(tau).max(), np.abs(tau_d).max())
         for _ in range(4):
             w = w + dt / 4 * ((cross3(w[None] @ J_QUAD.T, w[None])[0] + tau + tau_d) @ j_inv.T)
             r = r @ exp_so3(dt / 4 * w)
@@ -135,7 +147,7 @@ def test_fast_path_equals_batched_path_synthetic_with_path_switches():
         a = fast.update(m, 0.0, tau, dt)
         assert (fast._single is None) == (k % 97 == 50)
         b = slow.update(m, 0.0, tau, dt)
-        _agree(a, b, f"step {k}")
+        _agree(a, b, f"step {k}", steps=k + 1, inertia=J_QUAD, torque_scale=torque_scale)
         err.append(np.abs(a.torque[0] - tau_d).max())
     assert switched == 12
     assert max(err[-100:]) < 0.25 * 0.03 < err[0]  # a real estimation run: from 0.02 off to within 25 % of |tau_d|
@@ -153,8 +165,9 @@ def test_step_function_single_equals_batched():
         got = hc_eso_step_single(r_hat.ravel().tolist(), w[0].tolist(), sg[0].tolist(), l.ravel().tolist(),
                                  om[0].tolist(), tau[0].tolist(), j.ravel().tolist(),
                                  np.linalg.inv(j).ravel().tolist(), gains, h)
-        for x, y in zip(got, ref, strict=True):
-            np.testing.assert_allclose(np.reshape(x, y.shape), y, rtol=1e-13, atol=1e-13)
+        for x, y, what in zip(got, ref, ("R_hat", "Omega_hat", "sigma_hat"), strict=True):
+            # one step of eq. 30 in floats and in numpy (tests/_tolerance.py), through J^-1: cond(J)
+            assert_same_law(np.reshape(x, y.shape), y, cond=np.linalg.cond(j), what=what)
     # s_L = 0 (L = K R_hat) hits the floor of the Hölder terms in both
     r_hat = exp_so3(np.array([[0.1, 0.2, 0.3]]))
     l = np.diag([3.0, 2.0, 1.0]) @ r_hat
@@ -162,15 +175,17 @@ def test_step_function_single_equals_batched():
     ref = hc_eso_step(*args)
     got = hc_eso_step_single(*(np.ravel(a).tolist() for a in args[:6]), j.ravel().tolist(),
                              np.linalg.inv(j).ravel().tolist(), gains, 0.01)
-    for x, y in zip(got, ref, strict=True):
-        np.testing.assert_allclose(np.reshape(x, y.shape), y, rtol=1e-13, atol=1e-15)
+    for x, y, what in zip(got, ref, ("R_hat", "Omega_hat", "sigma_hat"), strict=True):
+        assert_same_law(np.reshape(x, y.shape), y, cond=np.linalg.cond(j), what=f"s_L = 0: {what}")
 
 
 @pytest.mark.parametrize("scale", [0.0, 1e-7, 1e-4, 0.1, 2.0, 3.1])
 def test_exp_single_equals_batched(scale):
     x = scale * np.random.default_rng(2).standard_normal(3)
-    np.testing.assert_allclose(np.reshape(_exp_so3_single(*x.tolist()), (3, 3)), _exp_so3(x[None])[0],
-                               rtol=0, atol=2e-16)
+    # two implementations of Rodrigues' formula (tests/_tolerance.py), at the scale of its terms I, theta^, theta^2
+    theta = np.linalg.norm(x)
+    assert_same_law(np.reshape(_exp_so3_single(*x.tolist()), (3, 3)), _exp_so3(x[None])[0],
+                    scale=1.0 + theta + theta**2, what=f"exp, |theta| = {theta:.3g}")
     assert all(map(math.isnan, _exp_so3_single(math.inf, 0.0, 0.0)))
 
 
@@ -178,8 +193,11 @@ def test_imu_body_vectors_single_equals_batched():
     rng = np.random.default_rng(4)
     for _ in range(20):
         f, m = rng.normal(size=(2, 3))
-        np.testing.assert_array_equal(np.reshape(va.imu_body_vectors_single(f.tolist(), m.tolist()), (3, 3)),
-                                      va.imu_body_vectors(f[None], m[None])[0])
+        # two implementations (floats, numpy) of unit vectors (tests/_tolerance.py); the normalized cross product
+        # amplifies rounding by 1 / sin(angle between f and m)
+        sin_angle = np.linalg.norm(np.cross(f, m)) / (np.linalg.norm(f) * np.linalg.norm(m))
+        assert_same_law(np.reshape(va.imu_body_vectors_single(f.tolist(), m.tolist()), (3, 3)),
+                        va.imu_body_vectors(f[None], m[None])[0], scale=1.0, cond=1.0 / sin_angle, what="U^m")
     assert va.imu_body_vectors_single([0.0, 0.0, 0.0], [1.0, 0.0, 0.0]) is None
     assert va.imu_body_vectors_single([0.0, 0.0, -9.8], [0.0, 0.0, 0.0]) is None
     assert va.imu_body_vectors_single([0.0, 0.0, -9.8], [0.0, 0.0, 0.4]) is None
@@ -260,8 +278,9 @@ def test_malformed_steps_raise_the_batched_errors_and_change_nothing(case, vecto
         assert str(got.value) == str(exc)
     else:
         assert vectors == "attitude" and case in _FINE_WITH_ATTITUDE
-        _agree(fast.update(bad, thrust, torque, dt), ref, case)
-    _agree(fast.update(_good(), 0.0, np.zeros(3), 0.01), slow.update(_good(), 0.0, np.zeros(3), 0.01), case)
+        _agree(fast.update(bad, thrust, torque, dt), ref, case, steps=3, inertia=J_QUAD)
+    _agree(fast.update(_good(), 0.0, np.zeros(3), 0.01), slow.update(_good(), 0.0, np.zeros(3), 0.01), case,
+           steps=4, inertia=J_QUAD)
 
 
 @pytest.mark.parametrize("extra, fast_path", [
@@ -273,10 +292,10 @@ def test_which_values_take_the_fast_path(extra, fast_path):
     fast.reset(_good())
     slow.reset(_good())
     m = {**_good(), **extra}
-    for _ in range(3):
+    for k in range(3):
         a, b = fast.update(m, 0.0, np.zeros(3), 0.01), slow.update(m, 0.0, np.zeros(3), 0.01)
         assert (fast._single is not None) == fast_path
-        _agree(a, b, str(extra))
+        _agree(a, b, str(extra), steps=k + 1, inertia=J_QUAD)
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # numpy's overflow warnings in the batched path

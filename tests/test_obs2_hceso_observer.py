@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _tolerance import HC_ESO_COND, assert_same_law
 
 from fawtgym.agents.backstepping_quat import cross3
 from fawtgym.envs.measurement import EARTH_FIELD_NED
@@ -116,6 +117,10 @@ def test_observer_recovers_a_constant_torque(vectors):
 def test_batch_equals_separate_runs():
     tau_d = np.array([0.01, 0.0, -0.01])
     batch, _, _ = _synthetic(make_observer("hc_eso", 1.0, J_QUAD), tau_d, t_end=0.3, n=3, seed=7)
+    # two implementations of one law (tests/_tolerance.py): the 3-row batch and N = 1 runs, each fed by its own
+    # shape of the same dynamics (3-row vs 1-row BLAS products, which round differently on some CPUs); the
+    # Hölder terms of eq. 30 and H(s) of eq. 28 amplify that rounding (cond=HC_ESO_COND)
+    scale = max(np.abs(b.torque).max() for b in batch)
     rng = np.random.default_rng(7)
     r0 = exp_so3(rng.normal(scale=0.3, size=(3, 3)))
     w0 = rng.normal(scale=0.3, size=(3, 3))
@@ -130,8 +135,10 @@ def test_batch_equals_separate_runs():
                 w = w + 0.0025 * ((cross3(w @ J_QUAD.T, w) + tau + tau_d) @ np.linalg.inv(J_QUAD).T)
                 r = r @ exp_so3(0.0025 * w)
             e = obs.update(_meas(r, w), np.zeros(1), tau, 0.01)
-            np.testing.assert_allclose(batch[k].torque[i], e.torque[0], rtol=1e-10, atol=1e-13)
-            np.testing.assert_allclose(batch[k].states["attitude"][i], e.states["attitude"][0], atol=1e-12)
+            assert_same_law(e.torque[0], batch[k].torque[i], scale=scale, steps=k + 1, cond=HC_ESO_COND,
+                            what=f"row {i} step {k} torque")
+            assert_same_law(e.states["attitude"][0], batch[k].states["attitude"][i], scale=1.0, steps=k + 1,
+                            cond=HC_ESO_COND, what=f"row {i} step {k} attitude")
 
 
 def test_update_errors_are_clear():

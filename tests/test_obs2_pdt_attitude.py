@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _tolerance import HOLDER, assert_same_law
 from scipy.integrate import solve_ivp
 
 from fawtgym.envs.measurement import EARTH_FIELD_NED
@@ -174,8 +175,13 @@ def test_env_estimator_batch_equals_separate_runs() -> None:
             return rates(t, 3)[i:i + 1]
 
         a_1, w_1, est_1 = _fly(one, R0[i:i + 1], rate_i, 0.5, 0.004)
-        assert np.allclose(est_1.states["attitude"][0], est_b.states["attitude"][i], atol=1e-12)
-        assert np.allclose(est_1.states["angular_velocity"][0], est_b.states["angular_velocity"][i], atol=1e-10)
+        # a row of the batch and a separate N = 1 run: two implementations of one law after 125 steps
+        # (tests/_tolerance.py); super-twisting terms |e|^(1/2) sign(e) (cond=HOLDER); rates at least 1 rad/s
+        law = dict(steps=125, cond=HOLDER)
+        assert_same_law(est_1.states["attitude"][0], est_b.states["attitude"][i], scale=1.0, what=f"row {i}", **law)
+        want = est_b.states["angular_velocity"][i]
+        assert_same_law(est_1.states["angular_velocity"][0], want, scale=max(1.0, np.abs(want).max()),
+                        what=f"row {i}", **law)
 
 
 def test_env_estimator_bounded_with_noise() -> None:

@@ -4,6 +4,7 @@ estimator ``pdt_sta`` (``PdtStaAttitudeObserver._update_single``) against the ba
 
 import numpy as np
 import pytest
+from _tolerance import HOLDER, assert_same_law
 
 from fawtgym.envs.measurement import EARTH_FIELD_NED, batch_measurement
 from fawtgym.observers import make_observer
@@ -12,6 +13,17 @@ from fawtgym.observers.gyroless_attitude import GibbsSTSMO, rot_to_gibbs
 from fawtgym.observers.lie import exp_so3, log_so3
 
 FIELDS = ("R", "quaternion", "gibbs", "lambda_max", "loss")
+
+
+def _same_quest(got, ref, what):
+    """Two implementations of QUEST (floats, numpy; tests/_tolerance.py): every field at unit scale (rotation
+    entries, unit quaternion, normalized weights: lambda_max <= 1, loss = 1 - lambda_max) or its own size (the
+    Gibbs vector); eq. 65 is a 3 x 3 solve whose condition grows like 1 + |g|^2, <= 101 in the frame QUEST
+    solves it in (it switches frames beyond |g| = 10)."""
+    cond = 1.0 + 10.0**2
+    for f in FIELDS:
+        want = getattr(ref, f)[:1]
+        assert_same_law(getattr(got, f), want, scale=max(1.0, np.abs(want).max()), cond=cond, what=f"{what}: {f}")
 
 
 def _case(rng: np.random.Generator, angle: float, noise: float, nobs: int):
@@ -33,13 +45,13 @@ def test_single_path_equals_batch_path(nobs: int) -> None:
         used += Q._quest_unit_single(body[0].tolist(), ref[0].tolist(), a[0].tolist()) is not None
         one = Q.quest_unit(body, ref, a)  # N = 1: the float path (or its fallback)
         two = Q.quest_unit(np.repeat(body, 2, 0), np.repeat(ref, 2, 0), np.repeat(a, 2, 0))  # batched
-        for f in FIELDS:
-            np.testing.assert_allclose(getattr(one, f), getattr(two, f)[:1], rtol=0, atol=1e-15, err_msg=f)
+        _same_quest(one, two, f"case {k}")
     assert used == 200  # the float path handled every case (also the near half turns, by sequential rotations)
 
 
 def _eigh_quaternion(body, ref, a):
-    """The eigenvector of K for its largest eigenvalue (eq. 64), (w, x, y, z) with w >= 0, computed independently."""
+    """The eigenvector of K for its largest eigenvalue (eq. 64), (w, x, y, z) with w >= 0, computed independently;
+    with lambda_max, |K| and the eigenvector's condition number |K| / (lambda_1 - lambda_2)."""
     a = a / a.sum(axis=1, keepdims=True)
     B = np.einsum("ni,nij,nik->njk", a, body, ref)
     S = B + np.swapaxes(B, 1, 2)
@@ -51,7 +63,9 @@ def _eigh_quaternion(body, ref, a):
     K[:, 3, 3] = rho
     w, v = np.linalg.eigh(K)
     q = np.concatenate([v[:, 3:, -1], v[:, :3, -1]], axis=1)
-    return q * np.where(q[:, :1] < 0, -1.0, 1.0), w[:, -1]
+    norm = np.abs(w).max(axis=1)
+    cond = norm / (w[:, -1] - w[:, -2])
+    return q * np.where(q[:, :1] < 0, -1.0, 1.0), w[:, -1], float(norm.max()), float(max(1.0, cond.max()))
 
 
 @pytest.mark.parametrize("angle", [2.95, 3.05, np.pi - 1e-4, np.pi])
@@ -65,13 +79,14 @@ def test_near_half_turn_sequential_rotations(angle: float) -> None:
         single = Q._quest_unit_single(body[0].tolist(), ref[0].tolist(), a[0].tolist())
         assert single is not None  # the float path handles it
         two = Q.quest_unit(np.repeat(body, 2, 0), np.repeat(ref, 2, 0), np.repeat(a, 2, 0))
-        for f in FIELDS:
-            np.testing.assert_allclose(getattr(single, f), getattr(two, f)[:1], rtol=0, atol=1e-15, err_msg=f)
-        q, lam = _eigh_quaternion(body, ref, a)
+        _same_quest(single, two, f"case {k}")
+        q, lam, norm, cond = _eigh_quaternion(body, ref, a)
         if q[0, 0] < 1e-9:  # an exact half turn: q and -q have w = 0, compare up to sign
             q = q * np.sign(np.vdot(q, single.quaternion))
-        np.testing.assert_allclose(single.quaternion, q, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(single.lambda_max, lam, rtol=0, atol=1e-12)
+        # QUEST (eq. 65 + sequential rotations) and eigh (eq. 64): two implementations of one eigenpair of the
+        # 4 x 4 matrix K (tests/_tolerance.py): eigenvalue to n |K| eps, eigenvector to n |K| / gap eps (n = 4)
+        assert_same_law(single.quaternion, q, scale=1.0, cond=4 * cond, what=f"case {k}: quaternion vs eigh")
+        assert_same_law(single.lambda_max, lam, scale=norm, cond=4, what=f"case {k}: lambda_max vs eigh")
         assert np.all(np.isfinite(single.gibbs))
         flipped += Q._gibbs_floats(body[0].tolist(), ref[0].tolist(), a[0].tolist()) is None
     assert flipped >= 20  # eq. 65 in the given frame was ill-conditioned (|g| > 10) in most cases
@@ -87,8 +102,19 @@ def test_eigh_is_the_last_resort(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(Q, "_GIBBS_SWITCH", 0.0)
     assert Q._quest_unit_single(body[0].tolist(), ref[0].tolist(), a[0].tolist()) is None
     last = Q.quest_unit(body, ref, a)
-    np.testing.assert_allclose(last.quaternion, regular.quaternion, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(last.R, regular.R, rtol=0, atol=1e-12)
+    # eigh (eq. 64) and QUEST (eq. 65): two implementations of one eigenvector, tests/_tolerance.py
+    cond = 4 * _eigh_quaternion(body, ref, a)[3]
+    assert_same_law(last.quaternion, regular.quaternion, scale=1.0, cond=cond, what="quaternion")
+    assert_same_law(last.R, regular.R, scale=1.0, cond=cond, what="R")
+
+
+def _same_stsmo(one, two, steps):
+    """The float (N = 1) and the batched STSMO: two implementations of one law (tests/_tolerance.py) after ``steps``
+    steps; the super-twisting terms |e1|^(1/2) sign(e1) are Hölder (cond=HOLDER).  Gibbs vectors and their rates
+    at the scale of the run (0.3 rad/s input noise: at least 1), the time at its own."""
+    for a, b, what in ((one.x1, two.x1, "x1"), (one.x2, two.x2, "x2")):
+        assert_same_law(a, b[:1], scale=max(1.0, np.abs(b).max()), steps=steps, cond=HOLDER, what=what)
+    assert_same_law(one.t, two.t[:1], steps=steps, what="t")
 
 
 def test_stsmo_single_step_equals_batch_step() -> None:
@@ -106,19 +132,16 @@ def test_stsmo_single_step_equals_batch_step() -> None:
             dt = float(rng.choice([1e-3, 2e-3, 7e-3]))
             one.step(y, u, dt)  # N = 1: the float path
             two.step(np.repeat(y, 2, 0), np.repeat(u, 2, 0), dt)  # batched
-            for a, b in ((one.x1, two.x1), (one.x2, two.x2), (one.t, two.t)):
-                np.testing.assert_allclose(a, b[:1], rtol=0, atol=1e-15)
+            _same_stsmo(one, two, k + 1)
         assert one.t[0] > one.t_s  # both phases were covered
 
 
 # --------------------------------------------------------------------------------------------------
 # the env estimator pdt_sta: PdtStaAttitudeObserver._update_single (plain floats) vs the batched path
 # --------------------------------------------------------------------------------------------------
-#: agreement of the N = 1 float path with the batched numpy path, per step over the whole run: attitude
-#: entries and Gibbs vectors absolutely, rates relative to their scale.  The two paths evaluate the same
-#: formulas and differ only in the rounding of a few sums/products (BLAS matmul, numpy reductions); measured
-#: differences are <= 3e-14 over these runs.
-TOL = 1e-12
+#: the N = 1 float path and the batched numpy path are two implementations of one law (tests/_tolerance.py):
+#: they differ in the rounding of a few sums/products (BLAS matmul, numpy reductions), which the super-twisting
+#: terms |e|^(1/2) sign(e) of eqs. 77-82 amplify (cond=HOLDER); compared at every step over the whole run.
 KEYS = ("attitude", "angular_velocity", "attitude_quest", "gibbs", "quest_valid")
 
 
@@ -144,14 +167,14 @@ def _twice(meas):
     return {k: np.repeat(v, 2, 0) for k, v in batch_measurement(meas).items()}
 
 
-def _agree(a, b, what):
+def _agree(a, b, what, steps):
+    """Attitude matrices at unit scale, Gibbs vectors and rates at their own scale or at least 1 (rad/s: the rates
+    of these runs), the QUEST flag and the (zero) wrench exactly."""
     assert set(a.states) == set(b.states) == set(KEYS), what
-    for k in ("attitude", "attitude_quest", "gibbs"):
-        assert a.states[k].shape == b.states[k][:1].shape, (what, k)
-        np.testing.assert_allclose(a.states[k], b.states[k][:1], rtol=0, atol=TOL, err_msg=f"{what}: {k}")
-    w_scale = 1.0 + np.abs(b.states["angular_velocity"]).max()
-    np.testing.assert_allclose(a.states["angular_velocity"], b.states["angular_velocity"][:1], rtol=0,
-                               atol=TOL * w_scale, err_msg=f"{what}: angular_velocity")
+    for k in ("attitude", "attitude_quest", "gibbs", "angular_velocity"):
+        want = b.states[k][:1]
+        assert_same_law(a.states[k], want, scale=max(1.0, np.abs(want).max()), steps=steps, cond=HOLDER,
+                        what=f"{what}: {k}")
     np.testing.assert_array_equal(a.states["quest_valid"], b.states["quest_valid"][:1])
     np.testing.assert_array_equal(a.force, np.zeros((1, 3)))
     np.testing.assert_array_equal(a.torque, np.zeros((1, 3)))
@@ -190,13 +213,15 @@ def test_observer_fast_path_equals_batched_path_on_the_env(env_sequence) -> None
     for k, (meas, thrust, torque, truth) in enumerate(steps):
         a = fast.update(meas, thrust, torque, dt)
         b = ref.update(_twice(meas), np.repeat(thrust, 2), np.repeat(np.atleast_2d(torque), 2, 0), dt)
-        _agree(a, b, f"step {k}")
+        _agree(a, b, f"step {k}", k + 1)
         r_true = np.asarray(truth["attitude"]).reshape(3, 3)
         att_err.append(float(np.linalg.norm(log_so3(a.states["attitude"][0].T @ r_true))))
     assert all(spy) and len(spy) == len(steps)  # every env step took the float path
     assert fast.core.t[0] > fast.core.t_s  # both phases of eq. 77 were run
-    np.testing.assert_allclose(fast.core.x1, ref.core.x1[:1], rtol=0, atol=TOL)
-    np.testing.assert_allclose(fast.core.t, ref.core.t[:1], rtol=0, atol=1e-12)
+    n = len(steps)
+    assert_same_law(fast.core.x1, ref.core.x1[:1], scale=max(1.0, np.abs(ref.core.x1).max()), steps=n, cond=HOLDER,
+                    what="x1")
+    assert_same_law(fast.core.t, ref.core.t[:1], steps=n, what="t")
     # a real estimation run, not two equal failures: after t_c the attitude follows the truth
     assert np.median(att_err[200:]) < 0.05
 
@@ -234,14 +259,15 @@ def test_observer_fast_path_equals_batched_path_tumbling() -> None:
             a = fast.update(m, 0.0, tau, dt)
             b = ref.update(_twice(m), np.zeros(2), np.repeat(tau[None], 2, 0), dt)
             assert spy[-1] == (k % 150 != 75)
-            _agree(a, b, f"{kw} step {k}")
+            _agree(a, b, f"{kw} step {k}", k + 1)
             anchors += fast.anchor is not anchor
             g = rot_to_gibbs(a.states["attitude_quest"]) if abs(np.trace(a.states["attitude_quest"][0]) + 1) > 1e-6 \
                 else np.full((1, 3), np.inf)
             half += bool(np.linalg.norm(g) > 10)
         if n_steps == 1200:
             assert anchors >= 3 and half >= 5, (anchors, half)  # both special cases were exercised
-        np.testing.assert_allclose(fast.core.x2, ref.core.x2[:1], rtol=0, atol=TOL * (1 + np.abs(ref.core.x2).max()))
+        assert_same_law(fast.core.x2, ref.core.x2[:1], scale=max(1.0, np.abs(ref.core.x2).max()), steps=n_steps,
+                        cond=HOLDER, what=f"{kw} x2")
 
 
 def _hover_meas(n: int = 1):
@@ -308,5 +334,4 @@ def test_stsmo_single_step_equals_batch_step_other_modes(mode, integrator) -> No
         one.step(y, u, dt)
         two.step(np.repeat(y, 2, 0), np.repeat(u, 2, 0), dt)
         assert one._floats is not None  # the float path ran
-        for a, b in ((one.x1, two.x1), (one.x2, two.x2), (one.t, two.t)):
-            np.testing.assert_allclose(a, b[:1], rtol=0, atol=1e-15)
+        _same_stsmo(one, two, k + 1)

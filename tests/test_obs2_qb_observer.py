@@ -11,6 +11,7 @@ import warnings
 
 import numpy as np
 import pytest
+from _tolerance import assert_same_law
 from scipy.integrate import solve_ivp
 
 from fawtgym.envs.vehicles import GRAVITY
@@ -50,7 +51,9 @@ def test_every_shipped_gain_matches_its_design_inputs_and_satisfies_lmi7(name):
     g = load_gain(name)
     pr = uav_model(r=g.meta["r"], q1_scale=g.meta["q1_scale"], q2=scaled_q2(g.meta["mass"], g.meta["inertia"]))
     for arr_name, arr in pr.as_arrays().items():
-        np.testing.assert_allclose(getattr(g, arr_name), arr, rtol=1e-12, err_msg=f"{name}: stored {arr_name} is stale")
+        # built here and when the file was written (another machine, another BLAS): two runs of one law that may
+        # round differently (tests/_tolerance.py); a stale file differs at the level of the changed inputs
+        assert_same_law(getattr(g, arr_name), arr, what=f"{name}: stored {arr_name} is stale")
     sol = _as_solution(g)
     r = qd.lmi_residuals(pr, sol)
     assert r["lmi7_max_eig"] <= 1e-6 * r["lmi7_scale"], (name, r)  # LMI (7) with the stored P, L
@@ -108,8 +111,9 @@ def test_batch_equals_single(gains):
         one.reset({key: v[i] for key, v in seq[0].items()})
         for k in range(1, 6):
             e1 = one.update({key: v[i] for key, v in seq[k].items()}, thrust[k, i], torque[k, i], 0.01)
-        np.testing.assert_allclose(e1.force[0], eb.force[i], rtol=1e-9, atol=1e-12)
-        np.testing.assert_allclose(e1.torque[0], eb.torque[i], rtol=1e-9, atol=1e-12)
+        # a batch row and a separate N = 1 run: two implementations of one law over 5 steps (tests/_tolerance.py)
+        assert_same_law(e1.force[0], eb.force[i], scale=np.abs(eb.force).max(), steps=5, what=f"row {i} force")
+        assert_same_law(e1.torque[0], eb.torque[i], scale=np.abs(eb.torque).max(), steps=5, what=f"row {i} torque")
 
 
 def test_estimates_true_disturbance_of_a_rotating_rigid_body():
@@ -184,8 +188,9 @@ print(json.dumps([e.force[0].tolist(), e.torque[0].tolist(), msg]))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     force, torque, msg = json.loads(out.stdout.strip().splitlines()[-1])
-    np.testing.assert_allclose(force, est.force[0], rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(torque, est.torque[0], rtol=1e-12, atol=1e-12)
+    # lists in the subprocess, (1, 3) arrays here: possibly two paths of one law (tests/_tolerance.py)
+    assert_same_law(force, est.force[0], steps=3, what="force without cvxpy")
+    assert_same_law(torque, est.torque[0], steps=3, what="torque without cvxpy")
     # ... and designing without cvxpy names the optional extra
     assert "pip install 'fawtgym[design]'" in msg, msg
 

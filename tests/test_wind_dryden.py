@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import scipy.integrate
 import scipy.signal
+from _tolerance import assert_same_law
 
 from fawtgym.envs.wind.dryden import V_FLOOR, DrydenParams, DrydenProcess, dryden_psd
 
@@ -31,7 +32,9 @@ def test_forms_agree_for_the_same_turbulence():
     a = DrydenParams(sigma=(1.0, 1.0, 1.0), length=(10.0, 10.0, 4.0), form="8785c")
     b = DrydenParams(sigma=(1.0, 1.0, 1.0), length=(10.0, 5.0, 2.0), form="1797")
     for c in "uvw":
-        np.testing.assert_allclose(dryden_psd(a, c, f, 7.0), dryden_psd(b, c, f, 7.0), rtol=1e-12)
+        # two forms of one spectrum (tests/_tolerance.py): positive terms, no cancellation, each value to its own
+        # relative accuracy (scale 0)
+        assert_same_law(dryden_psd(a, c, f, 7.0), dryden_psd(b, c, f, 7.0), scale=0.0, what=f"Phi_{c}")
 
 
 @pytest.mark.parametrize("form", ["8785c", "1797"])
@@ -93,7 +96,8 @@ def test_seeded_reproducibility_and_per_field_streams():
     c.reset(1, seed=5)
     ya, yb, yc = a.sample(300, 0.01, 8.0), b.sample(300, 0.01, 8.0), c.sample(300, 0.01, 8.0)
     np.testing.assert_array_equal(ya, yb)
-    np.testing.assert_allclose(ya[:, 0], yc[:, 0], rtol=1e-12, atol=1e-12)  # field 0 does not depend on N
+    # field 0 does not depend on N: a row of a batch of 4 and a batch of 1, possibly two paths (tests/_tolerance.py)
+    assert_same_law(ya[:, 0], yc[:, 0], scale=a.stationary_std().max(), steps=300, what="field 0")
     a.reset(4, seed=6)
     assert not np.allclose(a.sample(300, 0.01, 8.0), ya)
 
@@ -164,7 +168,11 @@ def test_expm_small_matches_scipy():
     for rates in (False, True):
         a = DrydenProcess(DrydenParams(sigma=(1.0, 1.0, 1.0), length=(0.015, 0.02, 0.01)), rates=rates).a
         for d in (1e-5, 1e-3, 0.08, 1.0, 30.0):
-            np.testing.assert_allclose(expm_small(a * d), scipy.linalg.expm(a * d), rtol=1e-10, atol=1e-13)
+            # two implementations of one matrix exponential (tests/_tolerance.py): entries <= 1 (a stable
+            # matrix), rounding of n-term products (cond n) through the scaling-and-squaring steps
+            squarings = max(1, math.ceil(math.log2(4 * np.abs(a * d).sum(axis=0).max())))
+            assert_same_law(expm_small(a * d), scipy.linalg.expm(a * d), scale=1.0, steps=squarings, cond=a.shape[0],
+                            what=f"rates={rates}, d={d}")
 
 
 @pytest.mark.parametrize("rates", [False, True])
@@ -178,7 +186,8 @@ def test_float_path_equals_numpy_path(rates):
         v = 8.0 + np.sin(0.05 * k)
         ya = a.step1(0.01, v) if k % 7 else a.step(0.01, v)[0].tolist()
         yb = b.step(0.01, v)[0]
-        np.testing.assert_allclose(ya, yb, rtol=1e-9, atol=1e-12)
+        # two implementations of one law (tests/_tolerance.py), at the process's standard deviation
+        assert_same_law(ya, yb, scale=b.stationary_std().max(), steps=k + 1, what=f"step {k}")
 
 
 def test_float_path_picks_the_same_bin_at_bin_edges():
@@ -196,5 +205,6 @@ def test_float_path_picks_the_same_bin_at_bin_edges():
         edge = math.exp((k + 0.5) * _BIN) / dt
         speeds += [edge, edge * (1 + 1e-15), edge * (1 - 1e-15), edge * (1 + 1e-9), edge * (1 - 1e-9)]
     speeds += [_D_MIN / dt * 0.5, 2 * _D_MAX / dt, 8.0, 8.0 * (1 + 1e-13)]
-    for v in speeds * 2:
-        np.testing.assert_allclose(a.step1(dt, v), b.step(dt, v)[0], rtol=1e-9, atol=1e-12)
+    for k, v in enumerate(speeds * 2):  # two implementations of one law (tests/_tolerance.py)
+        assert_same_law(a.step1(dt, v), b.step(dt, v)[0], scale=b.stationary_std().max(), steps=k + 1,
+                        what=f"v = {v!r}")
