@@ -157,7 +157,7 @@ class HoverEnv(gym.Env):
         self.action_type = action_type
         self.wind = make_wind(wind)
         self.aero = AeroModel(self.preset)
-        self.sensor = SensorModel(make_sensor_spec(sensors), self.dt)
+        self.sensor = SensorModel(make_sensor_spec(sensors), self.dt, self.physics_dt)
         self.render_mode = render_mode
         self._render_size = (int(render_height), int(render_width))
         self._renderer: mujoco.Renderer | None = None

@@ -98,10 +98,40 @@ def make_sensor_spec(spec: str | SensorSpec | Mapping[str, Any]) -> SensorSpec:
     raise ValueError(f"unknown sensor preset {spec!r}; valid: {list(SENSOR_PRESETS)} (or a SensorSpec/mapping)")
 
 
-class SensorModel:
-    """Turns the true state into a measurement mapping, for one vehicle, at the control rate."""
+def allowed_control_rates(pose_rate: float, physics_rate: float) -> list[float]:
+    """Control rates [Hz] that a sensor with ``pose_rate`` allows under ``physics_rate``: the multiples of the pose
+    rate that divide the physics rate, ascending; empty if the pose rate does not divide the physics rate."""
+    m = physics_rate / pose_rate
+    if m < 1.0 - 1e-9 or abs(m - round(m)) > 1e-6:
+        return []
+    m = int(round(m))
+    return [pose_rate * d for d in range(1, m + 1) if m % d == 0]
 
-    def __init__(self, spec: SensorSpec, control_dt: float) -> None:
+
+def pose_rate_error(spec: SensorSpec, control_rate: float, physics_rate: float | None) -> str:
+    """The one-line message for a control rate that the pose rate of ``spec`` does not divide: names the preset
+    and the control rates allowed with it (given the physics rate when known)."""
+    pose = spec.pose_rate
+    head = (f"sensor preset {spec.name!r}: sensor pose_rate {pose} Hz must divide the control rate "
+            f"{control_rate:g} Hz; allowed: ")
+    if physics_rate is None:
+        return head + f"multiples of {pose:g} Hz that divide the physics rate"
+    rates = allowed_control_rates(pose, physics_rate)
+    if not rates:
+        return head + (f"none with physics_rate {physics_rate:g} Hz, which {pose:g} Hz does not divide "
+                       "(choose a physics rate that is a multiple of the pose rate)")
+    listed = ", ".join(f"{r:g}" for r in rates[:24]) + (", ..." if len(rates) > 24 else "")
+    return head + f"multiples of {pose:g} Hz that divide the physics rate {physics_rate:g} Hz: {listed}"
+
+
+class SensorModel:
+    """Turns the true state into a measurement mapping, for one vehicle, at the control rate.
+
+    ``physics_dt`` (optional) is only used to list the allowed control rates when the pose rate does not divide
+    the control rate.
+    """
+
+    def __init__(self, spec: SensorSpec, control_dt: float, physics_dt: float | None = None) -> None:
         self.spec = spec
         self.dt = control_dt
         if spec.pose_rate is None:
@@ -109,8 +139,8 @@ class SensorModel:
         else:
             ratio = 1.0 / (spec.pose_rate * control_dt)
             if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
-                raise ValueError(f"sensor pose_rate {spec.pose_rate} Hz must divide the control rate "
-                                 f"{1.0 / control_dt:g} Hz")
+                raise ValueError(pose_rate_error(spec, 1.0 / control_dt,
+                                                 None if physics_dt is None else 1.0 / physics_dt))
             self.pose_every = int(round(ratio))
         pose_dt = self.pose_every * control_dt
         root_dt, root_pose = math.sqrt(control_dt), math.sqrt(pose_dt)

@@ -32,10 +32,10 @@ _GRAVITY_NED = np.array([0.0, 0.0, GRAVITY])
 class BatchSensorModel:
     """Measurements of N vehicles (batch-first) at the control rate; see the module docstring."""
 
-    def __init__(self, spec: SensorSpec | str, control_dt: float, n: int) -> None:
+    def __init__(self, spec: SensorSpec | str, control_dt: float, n: int, physics_dt: float | None = None) -> None:
         if not (isinstance(n, (int, np.integer)) and n >= 1):
             raise ValueError(f"number of vehicles n must be a positive int, got {n!r}")
-        single = SensorModel(make_sensor_spec(spec), control_dt)
+        single = SensorModel(make_sensor_spec(spec), control_dt, physics_dt)
         self.spec = single.spec
         self.dt = control_dt
         self.n = int(n)

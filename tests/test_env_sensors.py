@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from _tolerance import assert_same_law
 
 from fawtgym.envs.hover_env import HoverEnv
 from fawtgym.envs.sensors import SensorModel, make_sensor_spec
@@ -33,6 +34,38 @@ def test_seed000_table2_psd_gives_rate_independent_density(dt):
 def test_pose_rate_must_divide_control_rate():
     with pytest.raises(ValueError, match="divide"):
         SensorModel(make_sensor_spec("mocap_imu"), 1 / 250)
+
+
+@pytest.mark.parametrize("physics_rate, allowed", [
+    (1000.0, "100, 200, 500, 1000"), (2000.0, "100, 200, 400, 500, 1000, 2000"), (1500.0, "100, 300, 500, 1500")])
+def test_pose_rate_error_names_the_preset_and_the_allowed_control_rates(physics_rate, allowed):
+    """One line, one ValueError, the same for the single env and the batch env at any N: the preset, its pose
+    rate, the rejected control rate and the control rates that work with this physics rate (each of which does)."""
+    import gymnasium as gym
+
+    import fawtgym  # noqa: F401  (registers the ids)
+    from fawtgym.envs.hover_batch_env import HoverBatchEnv
+
+    kw = dict(sensors="mocap_imu", control_rate=250.0, physics_rate=physics_rate)
+    makers = [lambda: HoverEnv(**kw), lambda: gym.make("fawtgym/Hover-v0", **kw)]
+    makers += [lambda n=n: HoverBatchEnv(n, **kw) for n in (1, 2, 5)]
+    makers += [lambda: gym.make_vec("fawtgym/Hover-v0", num_envs=3, **kw)]
+    messages = set()
+    for make in makers:
+        with pytest.raises(ValueError) as got:
+            make()
+        assert type(got.value) is ValueError
+        messages.add(str(got.value))
+    (msg,) = messages  # the same message everywhere
+    assert "\n" not in msg and "'mocap_imu'" in msg and "100.0 Hz must divide the control rate 250 Hz" in msg
+    assert msg.endswith(f"multiples of 100 Hz that divide the physics rate {physics_rate:g} Hz: {allowed}"), msg
+    for rate in allowed.split(", "):  # ... and every control rate it offers works
+        HoverEnv(sensors="mocap_imu", control_rate=float(rate), physics_rate=physics_rate).close()
+
+
+def test_pose_rate_error_when_no_control_rate_fits_the_physics_rate():
+    with pytest.raises(ValueError, match=r"'mocap_imu'.*allowed: none with physics_rate 750 Hz"):
+        HoverEnv(sensors="mocap_imu", control_rate=250.0, physics_rate=750.0)
 
 
 def test_mocap_hold_and_bias():
@@ -95,6 +128,6 @@ def test_float_measurement_equals_numpy_formulas(preset):
                     "specific_force": f_sp + ab + model.sig_acc * n[12:15],
                     "gyro": w + gb + model.sig_gyro * n[15:18],
                     "magnetometer": mag + spec.mag_sigma * twin.normal(size=3)}
-        for key, value in want.items():
-            np.testing.assert_allclose(m[key], value, rtol=1e-12, atol=1e-12, err_msg=key)
+        for key, value in want.items():  # two implementations of one law (tests/_tolerance.py)
+            assert_same_law(m[key], value, what=key)
         assert float(m["time"]) == pytest.approx(k * dt)
