@@ -212,9 +212,9 @@ def _check_observer_kwargs(spec: AgentSpec, kwargs: Mapping[str, Any]) -> None:
     """Unknown observer gains name the observer's valid keywords."""
     import inspect
 
-    from fawtgym.observers.base import _REGISTRY
+    from fawtgym.observers.base import observer_class
 
-    cls = _REGISTRY[spec.observer]
+    cls = observer_class(spec.observer)
     params = inspect.signature(cls.__init__).parameters
     if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
         return

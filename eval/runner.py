@@ -131,7 +131,7 @@ def fly_cell(agent_name: str, scenario: Mapping[str, Any], seeds: Sequence[int],
         raise CellError(f"{type(exc).__name__}: {exc}".splitlines()[0]) from exc
     finally:
         env.close()
-    observer = getattr(agent, "observer", None) if "agent" in locals() else None
+    observer = getattr(agent, "observer", None)
     result = {
         "format": FORMAT, "key": cell_key(agent_name, scenario, seeds, record_hz), "agent": agent_name,
         "scenario": dict(scenario), "seeds": seeds, "record_hz": record_hz, "steps": int(rec.steps),

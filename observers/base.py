@@ -185,6 +185,13 @@ def register_observer(name: str) -> Callable[[type[Observer]], type[Observer]]:
     return deco
 
 
+def observer_class(name: str) -> type[Observer]:
+    """The class registered under ``name``; ValueError listing the valid names otherwise."""
+    if name not in _REGISTRY:
+        raise ValueError(f"unknown observer {name!r}; valid names: {observer_names()}")
+    return _REGISTRY[name]
+
+
 def observer_names() -> list[str]:
     """Registered observer names (importing :mod:`fawtgym.observers` registers them all)."""
     return sorted(_REGISTRY)

@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from fawtgym.agents.spec import FFTS_ESO_FLIGHT_GAINS
 from fawtgym.eval.reproduce import claims as C
 
 #: Wang et al. 2024, Table 4 (time-averaged tracking error): duty -> (pos PX4, pos PX4+ESO, att PX4, att PX4+ESO);
@@ -51,9 +52,8 @@ PAPER_TABLE4: dict[int, tuple[float | None, float, float | None, float]] = {
     60: (0.0792, 0.0400, 0.0164, 0.0134),
     70: (None, 0.0557, None, 0.0139),
 }
-#: FFTS-ESO gains of the flight experiment (Wang et al. 2024, Sec. 7.2).
-FLIGHT_GAINS: dict[str, float] = dict(p=1.2, kt1=6.0, kt2=3.0, kt3=1.0, kappa_t=0.6, ka1=8.0, ka2=4.0, ka3=2.0,
-                                      kappa_a=0.6)
+#: FFTS-ESO gains of the flight experiment (Wang et al. 2024, Sec. 7.2), as the agent grammar's px4+ffts_eso uses them
+FLIGHT_GAINS: dict[str, float] = FFTS_ESO_FLIGHT_GAINS
 DUTIES = (30, 40, 50, 60, 70)
 #: the paper's hover: 210 s, fan on for 150 s (Sec. 7.3); (hover, on, off) [s]
 PAPER_SCHEDULE = (210.0, 20.0, 170.0)
