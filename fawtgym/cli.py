@@ -18,6 +18,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "wind": ("fawtgym.envs.wind.cli:main", "FAWT/Dryden wind, plotted and compared to Wang et al. (2024) Table 3"),
     "eval": ("fawtgym.eval.runner_cli:main", "fly agents x scenarios x seeds on the same wind; resumable result cells"),
     "leaderboard": ("fawtgym.eval.leaderboard:main", "rank the agents of an eval run (Markdown, CSV, JSON, HTML)"),
+    "train": ("fawtgym.train.cli:main", "train a Stable-Baselines3 policy (or a sweep) on the batched hover env"),
     "reproduce": ("fawtgym.cli:reproduce_main", "reproduce a seed paper's numerical study (see: reproduce --help)"),
     "bench": ("fawtgym.cli:bench_main", "speed benchmarks, printed as ratios measured in one run"),
 }

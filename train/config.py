@@ -1,0 +1,176 @@
+"""What a training run is: its configuration, and the hyperparameters of each algorithm (one YAML per algorithm).
+
+A :class:`TrainConfig` fixes everything that decides a run's result (env, observation, action, observer,
+algorithm, hyperparameters, seed, step budget); its ``key()`` is stored in the run's metadata, so
+``--resume`` refuses to continue a run with another configuration.  Hyperparameters come from
+``train/hyperparams/<algo>.yaml`` (RL-Zoo keys) with ``key=value`` overrides; the keys that are not the
+algorithm's constructor arguments are ours: ``n_envs`` (rows of the batched env), ``normalize``
+(observation and reward normalization by ``VecNormalize``), ``action_noise`` / ``action_noise_std``
+(TD3).
+"""
+
+from __future__ import annotations
+
+import ast
+import dataclasses
+import hashlib
+import json
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+ALGOS = ("ppo", "sac", "td3")
+OBS_MODES = ("state", "state+eso")
+ACTION_MODES = ("ctbr", "motors", "residual")
+HYPERPARAMS_DIR = Path(__file__).parent / "hyperparams"
+#: our keys in the hyperparameter files (not passed to the algorithm's constructor)
+OWN_KEYS = ("policy", "n_envs", "normalize", "action_noise", "action_noise_std")
+
+
+def load_hyperparams(algo: str, overrides: Sequence[str] | Mapping[str, Any] = ()) -> dict[str, Any]:
+    """The algorithm's YAML hyperparameters with ``key=value`` overrides (values are YAML scalars/lists/mappings)."""
+    import yaml
+
+    if algo not in ALGOS:
+        raise ValueError(f"unknown algorithm {algo!r}; valid: {', '.join(ALGOS)}")
+    hp = yaml.safe_load((HYPERPARAMS_DIR / f"{algo}.yaml").read_text())
+    items = overrides.items() if isinstance(overrides, Mapping) else [_split(o) for o in overrides]
+    for key, value in items:
+        if isinstance(value, str):
+            try:
+                value = yaml.safe_load(value)
+            except yaml.YAMLError:
+                pass
+            if isinstance(value, str):  # YAML 1.1 reads 1e-4 (no dot) as a string
+                try:
+                    value = float(value)
+                except ValueError:
+                    pass
+        if key.startswith("policy_kwargs."):
+            hp.setdefault("policy_kwargs", {})[key.split(".", 1)[1]] = value
+        else:
+            hp[key] = value
+    _check_hyperparams(algo, hp)
+    return hp
+
+
+def _split(text: str) -> tuple[str, str]:
+    key, sep, value = text.partition("=")
+    if not sep or not key.strip():
+        raise ValueError(f"--hp takes key=value (e.g. learning_rate=1e-4), got {text!r}")
+    return key.strip(), value.strip()
+
+
+def _check_hyperparams(algo: str, hp: Mapping[str, Any]) -> None:
+    import inspect
+
+    cls = algo_class(algo)
+    ours = {"self", "env", "policy", "_init_setup_model", "device", "seed", "verbose", "tensorboard_log"}
+    valid = (set(inspect.signature(cls.__init__).parameters) - ours) | set(OWN_KEYS)
+    unknown = sorted(set(hp) - valid)
+    if unknown:
+        raise ValueError(f"unknown {algo} hyperparameter(s) {unknown}; valid: {', '.join(sorted(valid))}")
+    n = hp.get("n_envs", 1)
+    if not (isinstance(n, int) and n >= 1):
+        raise ValueError(f"n_envs must be a positive integer, got {n!r}")
+
+
+def algo_class(algo: str) -> Any:
+    """The Stable-Baselines3 class of ``algo``."""
+    import stable_baselines3 as sb3
+
+    if algo not in ALGOS:
+        raise ValueError(f"unknown algorithm {algo!r}; valid: {', '.join(ALGOS)}")
+    return {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}[algo]
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainConfig:
+    """Everything that decides a run (module docstring)."""
+
+    algo: str = "ppo"
+    obs: str = "state+eso"
+    action: str = "ctbr"
+    observer: str = "ffts_eso"
+    observer_kwargs: tuple[tuple[str, Any], ...] = ()
+    scenario: str = "table4-50"
+    episode_seconds: float | None = 20.0
+    randomize: tuple[tuple[str, Any], ...] = ()
+    residual_base: str = "px4+ffts_eso"
+    residual_bound: float = 0.1
+    steps: int = 200_000
+    seed: int = 0
+    hyperparams: tuple[tuple[str, Any], ...] = ()
+    eval_scenarios: tuple[str, ...] = ("table4-50",)
+    eval_seeds: int = 2
+
+    def __post_init__(self) -> None:
+        for name, value, valid in (("algo", self.algo, ALGOS), ("obs", self.obs, OBS_MODES),
+                                   ("action", self.action, ACTION_MODES)):
+            if value not in valid:
+                raise ValueError(f"unknown --{name} {value!r}; valid: {', '.join(valid)}")
+        if not (isinstance(self.steps, int) and self.steps >= 1):
+            raise ValueError(f"--steps must be a positive integer, got {self.steps!r}")
+        if not (isinstance(self.seed, int) and self.seed >= 0):
+            raise ValueError(f"--seed must be an integer >= 0, got {self.seed!r}")
+
+    @property
+    def hp(self) -> dict[str, Any]:
+        return _thaw(dict(self.hyperparams))
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        for k in ("observer_kwargs", "randomize", "hyperparams"):
+            d[k] = _thaw(dict(getattr(self, k)))
+        d["eval_scenarios"] = list(self.eval_scenarios)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> TrainConfig:
+        d = dict(d)
+        for k in ("observer_kwargs", "randomize", "hyperparams"):
+            d[k] = freeze(d.get(k) or {})
+        d["eval_scenarios"] = tuple(d.get("eval_scenarios", ()))
+        return cls(**d)
+
+    def key(self) -> str:
+        """A hash of everything but the step budget (a resumed run may train longer)."""
+        d = self.to_dict()
+        d.pop("steps")
+        return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+    def env_kwargs(self) -> dict[str, Any]:
+        """Arguments of :func:`fawtgym.train.envs.make_train_env` (without ``num_envs`` and ``seed``)."""
+        return {"scenario": self.scenario, "action": self.action, "obs": self.obs, "observer": self.observer,
+                "observer_kwargs": dict(self.observer_kwargs) or None, "residual_base": self.residual_base,
+                "residual_bound": self.residual_bound, "randomize": _thaw(dict(self.randomize)) or None,
+                "episode_seconds": self.episode_seconds}
+
+
+def freeze(x: Any) -> Any:
+    """Mappings and lists as sorted tuples (hashable, for the frozen config)."""
+    if isinstance(x, Mapping):
+        return tuple(sorted((str(k), freeze(v)) for k, v in x.items()))
+    if isinstance(x, list):
+        return ("__list__", *[freeze(v) for v in x])
+    return x
+
+
+def _thaw(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {k: _thaw(v) for k, v in x.items()}
+    if isinstance(x, tuple):
+        if x and x[0] == "__list__":
+            return [_thaw(v) for v in x[1:]]
+        if all(isinstance(p, tuple) and len(p) == 2 and isinstance(p[0], str) for p in x):
+            return {k: _thaw(v) for k, v in x}
+        return [_thaw(v) for v in x]
+    return x
+
+
+def parse_literal(text: str) -> Any:
+    """A command-line value as a Python literal when it reads as one, else the string."""
+    try:
+        return ast.literal_eval(text)
+    except (ValueError, SyntaxError):
+        return text
