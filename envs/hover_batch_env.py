@@ -22,9 +22,44 @@ every row at MuJoCo time ``_MJ_T0`` = 1 s, so a reset row ends at a time below 1
 ``1 + n_substeps dt``; that row (or any row with a non-finite state) terminates with
 ``failure = "diverged"`` and keeps its last finite state, the other rows are unaffected.
 
-Autoreset: ``AutoresetMode.NEXT_STEP`` (gymnasium's default): after a row terminates or truncates,
-the next ``step`` ignores its action, resets it and returns its reset observation and info with
-reward 0 and both flags False.
+Autoreset (``autoreset_mode``, in ``metadata["autoreset_mode"]``):
+
+* ``"next_step"`` (``AutoresetMode.NEXT_STEP``, gymnasium's default and this env's): after a row
+  terminates or truncates, the next ``step`` ignores its action, resets it and returns its reset
+  observation and info with reward 0 and both flags False.
+* ``"same_step"`` (``AutoresetMode.SAME_STEP``, what Stable-Baselines3 expects; no reward-0 step): a row
+  that ends is reset inside the same ``step``.  Reward, ``terminated`` and ``truncated`` are the
+  terminal step's; the returned observation and info rows are the new episode's (exactly what the
+  next-step mode returns one step later); the terminal ones are in gymnasium's ``SyncVectorEnv`` format:
+  ``info["final_obs"]`` an object array (N,) holding the terminal observation of each ended row (None
+  elsewhere), ``info["final_info"]`` the terminal step's info (the batched arrays of every row; only the
+  rows of its masks are terminal, the others equal the returned info's) with a ``"_<key>"`` mask beside
+  every key at every level, and ``info["_final_obs"]`` / ``info["_final_info"]`` the ended rows (N,).
+  Rows restarting while others fly must not advance the others' random streams: their first wind
+  sample comes from the wind model's own restart (a cohort model steps alone; a shared stationary model
+  starts the rows from a k-row copy, the other rows untouched), and with noisy sensors their first
+  measurement draws its noise from each row's own sensor generator (the shared per-step stream of the
+  other rows is untouched).  When every row ends at once the restart is the regular reset (at N = 1
+  the row's own generator *is* the stream).  So with deterministic wind and
+  exact sensors, or at N = 1, every episode (length, rewards, observations, terminal observation)
+  equals the next-step mode's bitwise; with random wind or sensor noise at N > 1 the episodes are
+  draws of the same distributions from other samples of the streams.
+
+Domain randomization (``randomizer``, e.g. :mod:`fawtgym.train.randomization`): a callable
+``randomizer(rows, rngs) -> draws`` called at every episode start (full reset and autoreset) with the
+starting rows (k,) and one generator per row (spawned from the row's episode seed, child 2 of the
+seed sequence whose children 0 and 1 seed the wind and the sensors, so the other streams are
+unchanged and a seed reproduces the draws).  ``draws`` maps any of :data:`RANDOMIZER_KEYS` to one value
+per row, applied per row for the whole episode: ``mass_scale`` (k,) and ``inertia_scale`` (k,) scale
+the MuJoCo body mass and inertia of the row's own model copy (``mujoco.rollout`` takes one model per
+row); ``drag_scale`` (k,) scales the row's aerodynamic wrench, i.e. all three drag coefficients of
+:mod:`.aero` (rotor drag, flapping moment, body drag: the wrench is linear in them); ``gyro_bias`` /
+``accel_bias`` (k, 3) replace the rows' turn-on IMU biases (noisy sensor presets only: exact sensors
+have none); ``wind`` a list of k :class:`WindModel` (e.g. a FAWT wind at a drawn duty), each run for its
+row alone (a cohort of one row, see Wind).  The current values are ``mass_scale``, ``inertia_scale``,
+``drag_scale`` (N,), ``sensor.gyro_bias`` / ``sensor.accel_bias`` (N, 3).  The env's own onboard parts
+keep the nominal vehicle: the ``ctbr`` rate loop, the hover action, ``info["applied"]`` (rotor thrusts
+through the nominal allocation).
 
 Seeding: ``reset(seed=s)`` gives row ``i`` the generator ``HoverEnv.reset(seed=s + i)`` would use
 (same initial-state draws, same wind/sensor seeds; a list of per-row seeds is also accepted), so with
@@ -52,7 +87,7 @@ Not implemented: rendering (render a single ``fawtgym/Hover-v0``).
 from __future__ import annotations
 
 import copy
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import mujoco
@@ -81,6 +116,10 @@ _MJ_T0 = 1.0  #: MuJoCo time at the start of every rollout (a MuJoCo reset sets 
 _STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 _CONTROL_SPEC = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED)
 _SIGN, _SIGN2 = SIGN_MJ_NED, SIGN2_MJ_NED
+#: the autoreset modes of HoverBatchEnv (module docstring)
+AUTORESET_MODES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP}
+#: what a randomizer's draws may set, one value per starting row (module docstring)
+RANDOMIZER_KEYS = ("mass_scale", "inertia_scale", "drag_scale", "gyro_bias", "accel_bias", "wind")
 
 
 def quat_mj_to_rot_ned_batch(q: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -109,7 +148,11 @@ def _time_invariant(wind: WindModel) -> bool:
 
 
 class BatchWind:
-    """Runs one :class:`WindModel` for N rows whose episodes start at different times (module docstring)."""
+    """Runs one :class:`WindModel` for N rows whose episodes start at different times (module docstring).
+
+    ``shared``: one model steps every row (time-invariant models); else cohorts: one model copy per set of
+    rows that started together (or per row, for rows given their own model by a randomizer).
+    """
 
     def __init__(self, template: WindModel, n: int) -> None:
         self.template = copy.deepcopy(template)  # pristine copy: cohorts are copied from it
@@ -117,14 +160,35 @@ class BatchWind:
         self.shared = _time_invariant(template)
         self.model: WindModel | None = None
         self.cohorts: list[list[Any]] = []  # [model, rows (k,), alive (k,) bool]
+        self._started: list[list[Any]] = []  # the cohorts of the last reset_rows (cohort mode)
+        self._scratch: WindModel | None = None  # shared mode: restarts rows while the others go on
+        self._last: tuple[NDArray[np.intp], Sequence[int], Sequence[np.random.SeedSequence]] = (
+            np.zeros(0, dtype=np.intp), [], [])  # (rows, seed ints, seeds) of the last reset_rows
 
     @staticmethod
     def _seed(ints: Sequence[int], seeds: Sequence[np.random.SeedSequence]) -> np.random.SeedSequence:
         # one row: exactly the single env's wind seed; several: all rows' seed integers pooled
         return seeds[0] if len(seeds) == 1 else np.random.SeedSequence([int(i) for i in ints])
 
-    def reset_rows(self, rows: NDArray[np.intp], ints: Sequence[int], seeds: Sequence[np.random.SeedSequence]) -> None:
-        """New episodes (time 0) for ``rows``; ``ints``/``seeds`` are the rows' wind seeds."""
+    def reset_rows(self, rows: NDArray[np.intp], ints: Sequence[int], seeds: Sequence[np.random.SeedSequence],
+                   models: Sequence[WindModel] | None = None) -> None:
+        """New episodes (time 0) for ``rows``; ``ints``/``seeds`` are the rows' wind seeds; ``models``: one own
+        model per row (each then runs as a cohort of one row; a shared model becomes a cohort of its rows)."""
+        self._last = (rows, ints, seeds)
+        if models is not None:
+            if self.shared:
+                if self.model is not None:  # the rows still flying keep the shared model, as a cohort
+                    self.cohorts = [[self.model, np.arange(self.n), np.ones(self.n, dtype=bool)]]
+                self.shared, self.model = False, None
+            for c in self.cohorts:
+                c[2] &= ~np.isin(c[1], rows)
+            self.cohorts = [c for c in self.cohorts if c[2].any()]
+            self._started = []
+            for row, model, seed in zip(rows.tolist(), models, seeds, strict=True):
+                model.reset(1, seed=seed)
+                self._started.append([model, np.array([row]), np.ones(1, dtype=bool)])
+            self.cohorts.extend(self._started)
+            return
         if self.shared:
             if self.model is None or rows.size == self.n:
                 self.model = copy.deepcopy(self.template)
@@ -145,7 +209,37 @@ class BatchWind:
         self.cohorts = [c for c in self.cohorts if c[2].any()]
         model = copy.deepcopy(self.template)
         model.reset(rows.size, seed=self._seed(ints, seeds))
-        self.cohorts.append([model, rows.copy(), np.ones(rows.size, dtype=bool)])
+        self._started = [[model, rows.copy(), np.ones(rows.size, dtype=bool)]]
+        self.cohorts.append(self._started[0])
+
+    def first_step(self, dt: float, points: NDArray[np.float64], velocity: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The first wind sample (k, K, 3) of the rows of the last :meth:`reset_rows` (at their ``points``
+        (k, K, 3)), without stepping the other rows (same-step autoreset, module docstring)."""
+        rows, ints, seeds = self._last
+        if not self.shared:  # the cohorts just started step alone, at episode time 0, as in step()
+            out = np.empty(points.shape)
+            pos = {row: j for j, row in enumerate(rows.tolist())}
+            for model, crows, _ in self._started:
+                idx = np.array([pos[r] for r in crows.tolist()])
+                out[idx] = model.step(0.0, dt, points[idx], velocity[idx])
+            return out
+        if rows.size == self.n:  # a full restart: the fresh shared model steps every row
+            return self.model.step(0.0, dt, points, velocity)
+        # the shared model goes on for the other rows: a k-row copy takes the restarted rows' fresh filter state
+        # (reset_rows drew it) one step forward, with noise from the rows' pooled wind seed, and hands it back
+        if self._scratch is None:
+            self._scratch = copy.deepcopy(self.template)
+        scratch = self._scratch
+        scratch.reset(rows.size, seed=self._seed(ints, seeds))
+        process = getattr(self.model, "process", None)
+        if process is not None:
+            scratch.process.x = process.x[rows].copy()
+        out = scratch.step(0.0, dt, points, velocity)
+        if process is not None:
+            x = process.x.copy()
+            x[rows] = scratch.process.x
+            process.x = x
+        return out
 
     def step(self, times: NDArray[np.float64], dt: float, points: NDArray[np.float64],
              velocity: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -158,6 +252,48 @@ class BatchWind:
             got = model.step(float(times[live[0]]), dt, points[rows], velocity[rows])
             out[live] = got[alive]
         return out
+
+
+def _with_masks(info: Mapping[str, Any], mask: NDArray[np.bool_]) -> dict[str, Any]:
+    """``info`` with a ``"_<key>"`` mask beside every key at every level (gymnasium's vector-info format)."""
+    out: dict[str, Any] = {}
+    for key, value in info.items():
+        out[key] = _with_masks(value, mask) if isinstance(value, Mapping) else value
+        out[f"_{key}"] = mask
+    return out
+
+
+class _RowStreams:
+    """Per-row generators drawn as one block: ``standard_normal((k, m))`` takes row j's m numbers from generator j
+    (the numbers ``rngs[j].standard_normal((1, m))`` gives)."""
+
+    def __init__(self, rngs: Sequence[np.random.Generator]) -> None:
+        self.rngs = rngs
+
+    def standard_normal(self, shape: tuple[int, int]) -> NDArray[np.float64]:
+        return np.stack([g.standard_normal(shape[1:]) for g in self.rngs])
+
+
+def _measure_rows(sensor: BatchSensorModel, rows: NDArray[np.intp], rngs: Sequence[np.random.Generator],
+                  *state: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
+    """The sensor model's measurement of ``rows`` only (true ``state`` of those rows, as ``measure`` takes it), with
+    their noise from their own generators ``rngs``; the other rows' state (pose hold, counters, noise stream) is
+    untouched.  The model's own ``measure`` runs on a k-row view of its state (one law), then the rows' state is
+    written back."""
+    saved = (sensor.n, sensor.rng, sensor.gyro_bias, sensor.accel_bias, sensor._count, sensor._pose)
+    try:
+        sensor.n, sensor.rng = rows.size, _RowStreams(rngs)
+        sensor.gyro_bias, sensor.accel_bias = saved[2][rows], saved[3][rows]
+        sensor._count = saved[4][rows]
+        sensor._pose = {key: value[rows] for key, value in saved[5].items()}
+        out = sensor.measure(*state)
+        count, pose = sensor._count, sensor._pose
+    finally:
+        sensor.n, sensor.rng, sensor.gyro_bias, sensor.accel_bias, sensor._count, sensor._pose = saved
+    sensor._count[rows] = count
+    for key, value in pose.items():
+        sensor._pose[key][rows] = value
+    return out
 
 
 class BatchRateLoop:
@@ -209,6 +345,8 @@ class HoverBatchEnv(VectorEnv):
         **options: the options of :class:`HoverEnv` (vehicle, wind, action_type, sensors, control_rate,
             physics_rate, episode_seconds, setpoint, init_noise, reward_weights, max_position_error,
             integrator); ``render_mode`` must be None.
+        autoreset_mode: ``"next_step"`` (default) or ``"same_step"`` (or the ``AutoresetMode``); module docstring.
+        randomizer: None, or a callable ``(rows, rngs) -> draws`` run at every episode start (module docstring).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -218,9 +356,17 @@ class HoverBatchEnv(VectorEnv):
                  episode_seconds: float = 10.0, setpoint: ArrayLike | None = None, init_noise: float = 1.0,
                  reward_weights: Mapping[str, float] | None = None, max_position_error: float = 2.0,
                  integrator: str = "Euler", render_mode: str | None = None, render_width: int = 480,
-                 render_height: int = 480) -> None:
+                 render_height: int = 480, autoreset_mode: str | AutoresetMode = "next_step",
+                 randomizer: Callable[[NDArray[np.intp], list[np.random.Generator]], Mapping[str, Any]] | None = None
+                 ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
+        modes = {**AUTORESET_MODES, **{m: m for m in AUTORESET_MODES.values()}}
+        if not isinstance(autoreset_mode, (str, AutoresetMode)) or autoreset_mode not in modes:
+            raise ValueError(f"autoreset_mode must be one of {list(AUTORESET_MODES)}, got {autoreset_mode!r}")
+        if randomizer is not None and not callable(randomizer):
+            raise ValueError(f"randomizer must be None or a callable (rows, rngs) -> draws, got "
+                             f"{type(randomizer).__name__}")
         if render_mode is not None:
             raise ValueError(f"HoverBatchEnv does not render; render_mode must be None, got {render_mode!r} "
                              "(render a single fawtgym/Hover-v0 instead)")
@@ -230,6 +376,10 @@ class HoverBatchEnv(VectorEnv):
                           max_position_error=max_position_error, integrator=integrator,
                           render_width=render_width, render_height=render_height)
         n = self.num_envs = int(num_envs)
+        self.autoreset_mode = modes[autoreset_mode]
+        self._same_step = self.autoreset_mode is AutoresetMode.SAME_STEP
+        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
+        self.randomizer = randomizer
         self.preset = single.preset
         self.action_type = action_type
         self.n_substeps, self.physics_dt, self.dt = single.n_substeps, single.physics_dt, single.dt
@@ -248,7 +398,12 @@ class HoverBatchEnv(VectorEnv):
         self.model = single.model
         self._data = mujoco.MjData(self.model)
         self._rollout = rollout.Rollout(nthread=0)  # rollouts on the calling thread: one core
-        self._models = [self.model] * n
+        self._models = [self.model] * n  # one per row: a row with a randomized vehicle gets its own copy
+        self._body = self.model.body("vehicle").id
+        self._nominal_mass = float(self.model.body_mass[self._body])
+        self._nominal_inertia = self.model.body_inertia[self._body].copy()
+        self.mass_scale, self.inertia_scale, self.drag_scale = np.ones(n), np.ones(n), np.ones(n)
+        self._drag_scaled = False
         self._qfrc_col = self.model.nu  # qfrc_applied follows ctrl in the control vector
         self.wind = BatchWind(single.wind, n)
         self.aero = single.aero
@@ -309,21 +464,25 @@ class HoverBatchEnv(VectorEnv):
         """NED/FRD (position, velocity, R, Omega) from FULLPHYSICS states (k, 14) = [time, qpos 7, qvel 6]."""
         return s[:, 1:4] * _SIGN, s[:, 8:11] * _SIGN, quat_mj_to_rot_ned_batch(s[:, 4:8]), s[:, 11:14] * _SIGN
 
-    def _reset_rows(self, rows: NDArray[np.intp]) -> None:
-        """HoverEnv.reset for ``rows`` (each row draws from its own generator, in HoverEnv's order)."""
+    def _reset_rows(self, rows: NDArray[np.intp]) -> list[np.random.Generator]:
+        """HoverEnv.reset for ``rows`` (each row draws from its own generator, in HoverEnv's order), then the
+        randomizer's draws; returns the rows' sensor generators."""
         k = rows.size
         du = np.empty((k, 4, 3))
-        ints, wind_seeds, sensor_rngs = [], [], []
+        ints, wind_seeds, sensor_rngs, draw_rngs = [], [], [], []
         spread = np.array([INIT_SPREAD[key] for key in ("position", "velocity", "attitude", "angular_velocity")])
         for j, row in enumerate(rows.tolist()):  # reset path only: per-row generators
             rng = self._row_rngs[row]
             for i in range(4):
                 du[j, i] = rng.uniform(-1.0, 1.0, 3) * spread[i] * self.init_noise
             seed_int = int(rng.integers(2**63))
-            wind_seed, sensor_seed = np.random.SeedSequence(seed_int).spawn(2)
+            # children 0, 1 as HoverEnv's spawn(2); child 2 (randomizer only) leaves them unchanged
+            wind_seed, sensor_seed, *draw_seed = np.random.SeedSequence(seed_int).spawn(
+                2 if self.randomizer is None else 3)
             ints.append(seed_int)
             wind_seeds.append(wind_seed)
             sensor_rngs.append(np.random.default_rng(sensor_seed))
+            draw_rngs.extend(np.random.default_rng(d) for d in draw_seed)
         s = np.zeros((k, self._mj_state.shape[1]))
         s[:, 1:4] = (self.setpoint[rows] + du[:, 0]) * _SIGN
         s[:, 4:8] = rot_ned_to_quat_mj(exp_so3(du[:, 2]))
@@ -339,12 +498,64 @@ class HoverBatchEnv(VectorEnv):
         self._steps[rows] = 0
         self.time[rows] = 0.0
         self._failure[rows] = ""
-        self.wind.reset_rows(rows, ints, wind_seeds)
         self.sensor.reset_rows(rows, sensor_rngs)
+        winds = None if self.randomizer is None else self._apply_draws(rows, self.randomizer(rows, draw_rngs))
+        self.wind.reset_rows(rows, ints, wind_seeds, winds)
         if self._rate_loop is not None:
             self._rate_loop.reset_rows(rows)
         if self.num_envs == 1:  # N = 1: the row's own sensor stream, as HoverEnv
             self.sensor.set_noise_rng(sensor_rngs[0])
+        return sensor_rngs
+
+    def _apply_draws(self, rows: NDArray[np.intp], draws: Mapping[str, Any]) -> list[WindModel] | None:
+        """Apply a randomizer's draws to ``rows`` (module docstring); returns the rows' wind models (or None).
+
+        The whole draw is checked before anything is applied (ValueError naming the key and what is allowed).
+        """
+        k = rows.size
+        if not isinstance(draws, Mapping):
+            raise ValueError(f"randomizer must return a mapping of {list(RANDOMIZER_KEYS)}, got {type(draws).__name__}")
+        unknown = sorted(set(draws) - set(RANDOMIZER_KEYS))
+        if unknown:
+            raise ValueError(f"randomizer draws {unknown} are unknown; valid: {list(RANDOMIZER_KEYS)}")
+        values = {}
+        for key, shape, need, ok in (("mass_scale", (k,), "> 0", np.greater),
+                                     ("inertia_scale", (k,), "> 0", np.greater),
+                                     ("drag_scale", (k,), ">= 0", np.greater_equal),
+                                     ("gyro_bias", (k, 3), "finite", None), ("accel_bias", (k, 3), "finite", None)):
+            if key in draws:
+                v = np.asarray(draws[key], dtype=float)
+                if v.shape != shape or not np.all(np.isfinite(v)) or (ok is not None and not np.all(ok(v, 0.0))):
+                    raise ValueError(f"randomizer draw {key!r} must be {need} with shape {shape} (one per starting "
+                                     f"row), got shape {v.shape}: {v.ravel()[:6].tolist()}")
+                values[key] = v
+        if ("gyro_bias" in values or "accel_bias" in values) and not self.sensor.noisy:
+            raise ValueError("randomizer draws IMU biases but the sensors are exact (sensors='none' has no biases); "
+                             "use a noisy preset such as 'mocap_imu'")
+        winds = draws.get("wind")
+        if winds is not None and (len(winds) != k or not all(isinstance(w, WindModel) for w in winds)):
+            raise ValueError(f"randomizer draw 'wind' must be a list of {k} WindModel (one per starting row)")
+        if "mass_scale" in values or "inertia_scale" in values:
+            mass = values.get("mass_scale", self.mass_scale[rows])
+            inertia = values.get("inertia_scale", self.inertia_scale[rows])
+            self.mass_scale[rows], self.inertia_scale[rows] = mass, inertia
+            for row, sm, sj in zip(rows.tolist(), mass.tolist(), inertia.tolist(), strict=True):  # reset path only
+                model = self._models[row]
+                if model is self.model:
+                    if sm == 1.0 and sj == 1.0:
+                        continue
+                    model = self._models[row] = copy.deepcopy(self.model)  # the row's own copy, once
+                model.body_mass[self._body] = self._nominal_mass * sm
+                model.body_inertia[self._body] = self._nominal_inertia * sj
+                mujoco.mj_setConst(model, self._data)  # derived constants (subtree masses, ...) of the new body
+        if "drag_scale" in values:
+            self.drag_scale[rows] = values["drag_scale"]
+            self._drag_scaled = bool(np.any(self.drag_scale != 1.0))
+        if "gyro_bias" in values:
+            self.sensor.gyro_bias[rows] = values["gyro_bias"]
+        if "accel_bias" in values:
+            self.sensor.accel_bias[rows] = values["accel_bias"]
+        return None if winds is None else list(winds)
 
     # ---- gym API -------------------------------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None,
@@ -459,8 +670,63 @@ class HoverBatchEnv(VectorEnv):
         truncated = ~terminated & (self._steps >= self.max_steps)
         if any_reset:
             reward[resetting] = 0.0
-        self._autoreset = terminated | truncated
+        ended = terminated | truncated
+        if not self._same_step:
+            self._autoreset = ended
+        elif ended.any():
+            obs, info = self._restart(ended, obs, info)
         return obs, reward, terminated, truncated, info
+
+    def _restart(self, ended: NDArray[np.bool_], obs: NDArray[np.float32], info: dict[str, Any]
+                 ) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        """Same-step autoreset: reset the ``ended`` rows now; the new episodes' observation and info, with the
+        terminal ones under ``final_obs`` / ``final_info`` (module docstring)."""
+        n = self.num_envs
+        rows = np.flatnonzero(ended)
+        mask = ended.copy()
+        mask.flags.writeable = False  # one read-only mask shared by every "_<key>" entry
+        final_obs = np.full(n, None, dtype=object)
+        for i in rows.tolist():  # ended rows only
+            final_obs[i] = obs[i]
+        final_info = _with_masks(info, mask)
+        sensor_rngs = self._reset_rows(rows)
+        if rows.size == n:  # every row restarts: the regular path (N = 1: exactly the next-step reset)
+            self._update_disturbance(np.ones(n, dtype=bool))
+            meas = None
+        else:
+            self._start_disturbance(rows)
+            meas = self._measure_restarted(rows, sensor_rngs, info["measurement"])
+        new_info = self._info(info["action_clipped"] & ~ended, meas)
+        new_obs, _ = self._observation_and_reward(new_info["measurement"], self._last_action)
+        new_info["final_obs"], new_info["_final_obs"] = final_obs, mask
+        new_info["final_info"], new_info["_final_info"] = final_info, mask
+        return new_obs, new_info
+
+    def _start_disturbance(self, rows: NDArray[np.intp]) -> None:
+        """The held disturbance of restarted ``rows`` (their first wind sample), the other rows untouched; the aero
+        wrench over all N rows (the arithmetic of a full step), kept for ``rows``."""
+        points = self._wind_points()
+        wind = np.zeros(points.shape)
+        wind[rows] = self.wind.first_step(self.dt, points[rows], self._vel[rows])
+        force, torque = self._aero_wrench(wind)
+        keep = np.zeros(self.num_envs, dtype=bool)
+        keep[rows] = True
+        self._force = np.where(keep[:, None], force, self._force)
+        self._torque = np.where(keep[:, None], torque, self._torque)
+        self._wind_com = np.where(keep[:, None], wind[:, 0], self._wind_com)
+
+    def _measure_restarted(self, rows: NDArray[np.intp], rngs: list[np.random.Generator],
+                           measurement: Mapping[str, NDArray[np.float64]]) -> dict[str, NDArray[np.float64]]:
+        """``measurement`` with the first samples of the restarted ``rows`` (module docstring: their own noise)."""
+        state = (self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
+        if not self.sensor.noisy:  # exact sensors have no state: every row measured as in a full step
+            return self.sensor.measure(*state)
+        fresh = _measure_rows(self.sensor, rows, rngs, *(x[rows] for x in state))
+        out = {}
+        for key, value in measurement.items():
+            out[key] = value.copy()
+            out[key][rows] = fresh[key]
+        return out
 
     def _rollout_rows(self, state: NDArray[np.float64], ctrl: NDArray[np.float64], out: NDArray[np.float64]
                       ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
@@ -520,15 +786,27 @@ class HoverBatchEnv(VectorEnv):
         self._applied = total / self.n_substeps
         return state, diverged
 
-    def _update_disturbance(self, rows: NDArray[np.bool_]) -> None:
-        """Wind at [CoM, hubs] and the aero wrench for the next step (rows not diverged); the external wrench is
-        added where the wrench is applied and reported, so a new one acts from the next step on."""
+    def _wind_points(self) -> NDArray[np.float64]:
+        """The wind sample points (N, 5, 3) NED: CoM and rotor hubs."""
         b, r = self._pos, self._rot
         points = np.empty((self.num_envs, 5, 3))
         points[:, 0] = b
         points[:, 1:] = b[:, None, :] + np.matmul(self._rotor_pos_t.T, r.transpose(0, 2, 1))
+        return points
+
+    def _aero_wrench(self, wind: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The aero wrench of every row in ``wind`` (N, 5, 3), scaled by the rows' drag draws (if any)."""
+        force, torque = self.aero.wrench(self._rot, self._vel, self._omega, self.rotor_speeds, wind)
+        if self._drag_scaled:  # the wrench is linear in the three drag coefficients (module docstring)
+            force, torque = force * self.drag_scale[:, None], torque * self.drag_scale[:, None]
+        return force, torque
+
+    def _update_disturbance(self, rows: NDArray[np.bool_]) -> None:
+        """Wind at [CoM, hubs] and the aero wrench for the next step (rows not diverged); the external wrench is
+        added where the wrench is applied and reported, so a new one acts from the next step on."""
+        points = self._wind_points()
         wind = self.wind.step(self.time, self.dt, points, self._vel)
-        force, torque = self.aero.wrench(r, self._vel, self._omega, self.rotor_speeds, wind)
+        force, torque = self._aero_wrench(wind)
         if rows.all():
             self._force, self._torque, self._wind_com = force, torque, wind[:, 0].copy()
         else:
@@ -536,8 +814,10 @@ class HoverBatchEnv(VectorEnv):
             self._torque = np.where(rows[:, None], torque, self._torque)
             self._wind_com = np.where(rows[:, None], wind[:, 0], self._wind_com)
 
-    def _info(self, action_clipped: NDArray[np.bool_]) -> dict[str, Any]:
-        meas = self.sensor.measure(self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
+    def _info(self, action_clipped: NDArray[np.bool_],
+              meas: dict[str, NDArray[np.float64]] | None = None) -> dict[str, Any]:
+        if meas is None:
+            meas = self.sensor.measure(self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
         f_torque = self._applied @ self._alloc_t
         return {
             "measurement": meas,
