@@ -1,0 +1,453 @@
+"""Wrappers that make the hover env trainable: a normalized action, observer features, a residual action.
+
+Each transformation is one batch-first *core* (a small class holding only the law and its
+parameters) used three ways: by a gymnasium ``VectorWrapper`` over a batched env
+(:class:`~fawtgym.envs.hover_batch_env.HoverBatchEnv`, the training path), by a ``gymnasium.Wrapper``
+over a single :class:`~fawtgym.envs.hover_env.HoverEnv` (the same core at N = 1: ``Single*``
+classes), and by a deployed policy agent that must see exactly what the policy saw in training.
+
+==================== ============================================= ==============================================
+core                 law                                           wrappers
+==================== ============================================= ==============================================
+:class:`ActionScale` ``u`` in [-1, 1]^A -> env action, piecewise   :class:`NormalizedAction`,
+                     linear per entry: -1 -> low, 0 -> the hover   :class:`SingleNormalizedAction`
+                     command, +1 -> high (motors and ctbr)
+:class:`EstimateFeatures` an observer on ``info["measurement"]`` and   :class:`ObserverFeatures`,
+                     ``info["applied"]``; features force / (m g)    :class:`SingleObserverFeatures`
+                     and torque / tau_max appended to the
+                     observation
+:class:`ResidualScale` ``clip(base + bound (high - low) / 2 u)``     :class:`ResidualAction`,
+                     on a base agent's action                      :class:`SingleResidualAction`
+==================== ============================================= ==============================================
+
+Episode starts.  The vector wrappers follow the env's autoreset mode (``metadata["autoreset_mode"]``):
+with ``same_step`` (what SB3 needs; :class:`fawtgym.train.vec_env.SB3VecEnv` requires it) the rows that
+ended in a ``step`` come back already reset, so the observer and the base agent reset those rows from
+the returned info in the same call; with ``next_step`` they reset the rows one step later, when the
+env returns their reset info.  Terminal observations (``info["final_obs"]``) get the features of the
+terminal step, computed on a copy of the observer (so the rows that go on are not advanced twice):
+a same-step run gives exactly the observations of a next-step run.
+
+Features (:class:`EstimateFeatures`): every observation carries the estimate of an observer updated
+with that observation's info -- at an episode start the observer is reset from the reset info and then
+updated with it, as :class:`~fawtgym.agents.px4_agent.PX4ObserverAgent` does (``reset`` then ``act``), with
+the same inputs (:func:`~fawtgym.agents.base.applied_from_info`) and ``dt`` = the env's control period.
+Scales, from the *nominal* vehicle preset: force ``phi_hat / (m g)`` (world NED), torque
+``tau_hat / tau_max`` (body FRD) with ``tau_max = T_max sum_i max(B_ai, 0)`` per axis a, the largest torque the
+rotors make about that axis (rotor thrusts in [0, T_max], B the quad-X allocation rows; s500: 3.02, 3.02,
+0.32 N m); both clipped to +-:data:`FEATURE_CLIP`.  A channel the observer does not estimate is zero.
+
+Randomized vehicles (:mod:`fawtgym.train.randomization`): the observer of :class:`ObserverFeatures` and the
+base agent of :class:`ResidualAction` are built from the nominal preset; they do not know the draws.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv, VectorWrapper
+from gymnasium.vector.utils import batch_space
+from numpy.typing import ArrayLike, NDArray
+
+from fawtgym.agents.base import applied_from_info, measurement_from_info
+from fawtgym.envs.motors import allocation_matrix
+from fawtgym.envs.vehicles import GRAVITY, VehiclePreset
+
+#: features are clipped to +- this (5 m g of force, 5 times the rotors' torque authority)
+FEATURE_CLIP = 5.0
+#: entries appended to the observation by the observer features (force 3, torque 3)
+N_FEATURES = 6
+
+
+# ---- cores ----------------------------------------------------------------------------------------------------
+class ActionScale:
+    """Normalized action ``u`` in [-1, 1]^A -> env action, piecewise linear per entry through the hover command.
+
+    ``a = c + u (high - c)`` for ``u >= 0`` and ``a = c + u (c - low)`` for ``u < 0``, written so that -1, 0 and +1
+    give ``low``, ``center`` and ``high`` exactly; ``u`` is clipped to [-1, 1] first.  Batch-first: ``u`` (N, A) or
+    (A,) for one vehicle.
+    """
+
+    def __init__(self, low: ArrayLike, high: ArrayLike, center: ArrayLike) -> None:
+        self.low, self.high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+        self.center = np.asarray(center, dtype=float)
+        if not (np.all(self.low <= self.center) and np.all(self.center <= self.high)):
+            raise ValueError(f"the centre {self.center.tolist()} must lie in the action bounds "
+                             f"{self.low.tolist()} .. {self.high.tolist()}")
+
+    def __call__(self, u: ArrayLike) -> NDArray[np.float64]:
+        u = np.clip(np.asarray(u, dtype=float), -1.0, 1.0)
+        s = np.abs(u)
+        edge = np.where(u >= 0.0, self.high, self.low)
+        return self.center * (1.0 - s) + edge * s
+
+    def inverse(self, a: ArrayLike) -> NDArray[np.float64]:
+        """The normalized action of an env action (inside the bounds)."""
+        d = np.asarray(a, dtype=float) - self.center
+        span = np.where(d >= 0.0, self.high - self.center, self.center - self.low)
+        return np.divide(d, span, out=np.zeros_like(d), where=span > 0)
+
+
+class ResidualScale:
+    """``a = clip(base + bound (high - low) / 2 u, low, high)`` with the policy output ``u`` clipped to [-1, 1].
+
+    ``u = 0`` gives ``clip(base)``: exactly the base agent's action as the env applies it.
+    """
+
+    def __init__(self, low: ArrayLike, high: ArrayLike, bound: float) -> None:
+        if isinstance(bound, bool) or not isinstance(bound, (int, float)) or not 0.0 < bound <= 2.0:
+            raise ValueError(f"residual bound must be a number in (0, 2] (a fraction of the action range), "
+                             f"got {bound!r}")
+        self.low, self.high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+        self.bound = float(bound)
+        self.scale = self.bound * (self.high - self.low) / 2.0
+
+    def __call__(self, base: ArrayLike, u: ArrayLike) -> NDArray[np.float64]:
+        u = np.clip(np.asarray(u, dtype=float), -1.0, 1.0)
+        return np.minimum(np.maximum(np.asarray(base, dtype=float) + self.scale * u, self.low), self.high)
+
+
+def torque_authority(preset: VehiclePreset) -> NDArray[np.float64]:
+    """Per body axis (FRD) the largest torque [N m] the rotors make, thrusts in [0, T_max] (module docstring)."""
+    return preset.max_thrust_per_rotor * np.clip(allocation_matrix(preset)[1:], 0.0, None).sum(axis=1)
+
+
+def observer_kwargs_for(name: str, overrides: Mapping[str, Any] | None) -> dict[str, Any]:
+    """An observer's gains: the defaults the agent grammar uses for it (e.g. the FFTS-ESO flight gains), overridden."""
+    from fawtgym.agents.spec import DEFAULT_OBSERVER_KWARGS
+
+    return {**DEFAULT_OBSERVER_KWARGS.get(name, {}), **dict(overrides or {})}
+
+
+def build_observer(name: Any, preset: VehiclePreset, observer_kwargs: Mapping[str, Any] | None = None) -> Any:
+    """A registered observer by name for the nominal ``preset`` (default gains of :func:`observer_kwargs_for`), or an
+    Observer instance as is; ValueError (one line) naming the observer for a bad name or gain."""
+    import fawtgym.observers  # noqa: F401  (registers every observer)
+    from fawtgym.observers.base import Observer, make_observer
+
+    if isinstance(name, Observer):
+        if observer_kwargs:
+            raise ValueError("observer_kwargs is only used when the observer is given by name")
+        return name
+    if not isinstance(name, str):
+        raise ValueError(f"observer must be a registered name or an Observer, got {type(name).__name__}")
+    kwargs = observer_kwargs_for(name, observer_kwargs)
+    try:
+        return make_observer(name, preset.mass, preset.inertia_matrix, **kwargs)
+    except TypeError as exc:
+        import inspect
+
+        from fawtgym.observers.base import observer_class
+
+        gains = [k for k in inspect.signature(observer_class(name).__init__).parameters
+                 if k not in ("self", "mass", "inertia", "args", "kwargs")]
+        raise ValueError(f"observer {name!r}: {str(exc).splitlines()[0]}; its gains: {', '.join(gains)}") from exc
+
+
+class EstimateFeatures:
+    """An observer run on the env's infos and its estimates as scaled features (N, 6) float32 (module docstring).
+
+    ``observer``: a registered name (built for the nominal ``preset`` with :func:`observer_kwargs_for`) or an
+    Observer.  ``dt``: the observer's step, the env's control period.
+    """
+
+    def __init__(self, observer: Any, preset: VehiclePreset, dt: float,
+                 observer_kwargs: Mapping[str, Any] | None = None, clip: float = FEATURE_CLIP) -> None:
+        self.observer = build_observer(observer, preset, observer_kwargs)
+        self.preset = preset
+        self.dt = float(dt)
+        self.clip = float(clip)
+        self.weight = preset.mass * GRAVITY
+        self.inv_scale = 1.0 / np.concatenate([[self.weight] * 3, torque_authority(preset)])
+
+    def space(self) -> spaces.Box:
+        """The features' box (6,) float32."""
+        return spaces.Box(-self.clip, self.clip, shape=(N_FEATURES,), dtype=np.float32)
+
+    def scale(self, force: ArrayLike, torque: ArrayLike) -> NDArray[np.float32]:
+        """Features (N, 6) of force (N, 3) [N] and torque (N, 3) [N m] estimates."""
+        x = np.concatenate([np.asarray(force, dtype=float).reshape(-1, 3),
+                            np.asarray(torque, dtype=float).reshape(-1, 3)], axis=1) * self.inv_scale
+        return np.clip(x, -self.clip, self.clip).astype(np.float32)
+
+    def reset(self, info: Mapping[str, Any], rows: NDArray[np.bool_] | None = None) -> None:
+        """Reset the observer from ``info``'s measurement: every row, or the rows of the bool mask ``rows``."""
+        meas, _ = measurement_from_info(info)
+        self.observer.reset(meas, rows=rows)
+
+    def update(self, info: Mapping[str, Any], observer: Any = None) -> NDArray[np.float32]:
+        """Update the observer (or ``observer``) with ``info`` (one step) and return the features (N, 6)."""
+        obs = self.observer if observer is None else observer
+        meas, _ = measurement_from_info(info)
+        n = meas["position"].shape[0]
+        thrust, torque = applied_from_info(info, n, self.weight)
+        est = obs.update(meas, thrust, torque, self.dt)
+        force = np.asarray(est.force, dtype=float).reshape(n, 3)
+        tau = np.asarray(est.torque, dtype=float).reshape(n, 3)
+        if not (np.all(np.isfinite(force)) and np.all(np.isfinite(tau))):
+            raise FloatingPointError(f"observer {obs.name!r} returned a non-finite estimate")
+        return self.scale(force, tau)
+
+    def peek(self, info: Mapping[str, Any]) -> NDArray[np.float32]:
+        """The features an update with ``info`` would give, from a copy of the observer (its state not advanced)."""
+        return self.update(info, copy.deepcopy(self.observer))
+
+
+# ---- helpers shared by the vector wrappers ------------------------------------------------------------------------
+def _autoreset_mode(env: VectorEnv) -> AutoresetMode:
+    mode = env.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP)
+    if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+        raise ValueError(f"{type(env).__name__}: autoreset mode {mode} is not supported; use next_step or same_step "
+                         "(HoverBatchEnv(..., autoreset_mode='same_step'))")
+    return mode
+
+
+def _hover_env(env: Any) -> Any:
+    """The HoverBatchEnv / HoverEnv under ``env`` (its preset, dt, hover action, action bounds)."""
+    base = env.unwrapped
+    for attr in ("preset", "dt", "hover_action"):
+        if not hasattr(base, attr):
+            raise ValueError(f"{type(base).__name__} is not a fawtgym hover env (it has no {attr!r})")
+    return base
+
+
+def _terminal_info(info: Mapping[str, Any], mask: NDArray[np.bool_]) -> dict[str, Any]:
+    """What an observer reads of the terminal step: ``final_info``'s measurement and applied inputs on the ended
+    rows (``mask``), the returned info's elsewhere."""
+    final = info["final_info"]
+    out = {}
+    for part in ("measurement", "applied"):
+        cur, fin = info[part], final[part]
+        out[part] = {k: np.where(mask.reshape((-1,) + (1,) * (np.ndim(v) - 1)), fin[k], v) for k, v in cur.items()}
+    return out
+
+
+class _EpisodeStarts:
+    """Which rows of a vector env's returned info start a new episode (reset: all; same-step: the rows that ended
+    in this step; next-step: the rows that ended in the previous step)."""
+
+    def __init__(self, env: VectorEnv) -> None:
+        self.same_step = _autoreset_mode(env) is AutoresetMode.SAME_STEP
+        self.pending = np.zeros(env.num_envs, dtype=bool)
+
+    def reset(self) -> None:
+        self.pending[:] = False
+
+    def step(self, terminated: NDArray[np.bool_], truncated: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        ended = np.logical_or(terminated, truncated)
+        if self.same_step:
+            return ended
+        new, self.pending = self.pending, ended
+        return new
+
+
+def _concat_final_obs(info: dict[str, Any], features: NDArray[np.float32], mask: NDArray[np.bool_]) -> None:
+    """Append ``features`` rows to the terminal observations of ``info["final_obs"]`` (rows of ``mask``), in place
+    of a new object array."""
+    final = np.array(info["final_obs"], dtype=object, copy=True)
+    for i in np.flatnonzero(mask).tolist():  # ended rows only
+        final[i] = np.concatenate([final[i], features[i]])
+    info["final_obs"] = final
+
+
+def _box_concat(a: spaces.Box, b: spaces.Box) -> spaces.Box:
+    return spaces.Box(np.concatenate([a.low, b.low]).astype(np.float32),
+                      np.concatenate([a.high, b.high]).astype(np.float32), dtype=np.float32)
+
+
+# ---- vector wrappers ---------------------------------------------------------------------------------------------
+class NormalizedAction(VectorWrapper):
+    """Actions in [-1, 1]^A, 0 = the hover command (:class:`ActionScale`); motors or ctbr."""
+
+    def __init__(self, env: VectorEnv) -> None:
+        super().__init__(env)
+        base = _hover_env(env)
+        space = env.single_action_space
+        self.scale = ActionScale(space.low, space.high, base.hover_action()[0])
+        self.single_action_space = spaces.Box(-1.0, 1.0, shape=space.shape, dtype=np.float32)
+        self.action_space = batch_space(self.single_action_space, env.num_envs)
+
+    def step(self, actions: ArrayLike) -> tuple[Any, Any, Any, Any, dict[str, Any]]:
+        return self.env.step(self.scale(actions))
+
+
+class ObserverFeatures(VectorWrapper):
+    """Appends an observer's scaled force/torque estimates (:class:`EstimateFeatures`) to every observation.
+
+    Default gains for a name: :func:`observer_kwargs_for` (``ffts_eso``: the flight gains of Wang et al. 2024,
+    Sec. 7.2).  Per-row reset of the observer on the rows that start an episode (module docstring).
+    """
+
+    def __init__(self, env: VectorEnv, observer: Any = "ffts_eso", observer_kwargs: Mapping[str, Any] | None = None,
+                 clip: float = FEATURE_CLIP) -> None:
+        super().__init__(env)
+        base = _hover_env(env)
+        self.features = EstimateFeatures(observer, base.preset, base.dt, observer_kwargs, clip)
+        self._starts = _EpisodeStarts(env)
+        self.single_observation_space = _box_concat(env.single_observation_space, self.features.space())
+        self.observation_space = batch_space(self.single_observation_space, env.num_envs)
+
+    def reset(self, *, seed: Any = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        self._starts.reset()
+        self.features.reset(info)
+        return np.concatenate([obs, self.features.update(info)], axis=1), info
+
+    def step(self, actions: ArrayLike) -> tuple[Any, Any, Any, Any, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(actions)
+        new = self._starts.step(terminated, truncated)
+        if new.any():
+            if self._starts.same_step:
+                info = dict(info)
+                _concat_final_obs(info, self.features.peek(_terminal_info(info, new)), new)
+            self.features.reset(info, rows=new)
+        return np.concatenate([obs, self.features.update(info)], axis=1), reward, terminated, truncated, info
+
+
+class ResidualAction(VectorWrapper):
+    """The policy's ``u`` in [-1, 1]^A corrects a base agent's action: :class:`ResidualScale` (``u = 0`` flies exactly
+    the base agent).
+
+    ``base``: an agent name of :mod:`fawtgym.agents.spec` (``px4``, ``px4+ffts_eso``, ...) built for the env (nominal
+    vehicle), or an Agent; its action type must be the env's.  The base agent acts on every returned observation
+    (reset rows first reset from the returned info), so its action for the next step is ready before the policy's.
+    ``features=True`` appends the base agent's own observer estimates (:class:`EstimateFeatures` scales) to the
+    observation: the same features as :class:`ObserverFeatures` with that observer, without running it twice.
+    """
+
+    def __init__(self, env: VectorEnv, base: Any = "px4+ffts_eso", bound: float = 0.1, features: bool = False,
+                 clip: float = FEATURE_CLIP) -> None:
+        super().__init__(env)
+        hover = _hover_env(env)
+        self.agent = _build_agent(base, hover)
+        space = env.single_action_space
+        self.scale = ResidualScale(space.low, space.high, bound)
+        self._starts = _EpisodeStarts(env)
+        self.single_action_space = spaces.Box(-1.0, 1.0, shape=space.shape, dtype=np.float32)
+        self.action_space = batch_space(self.single_action_space, env.num_envs)
+        self.features = _agent_features(self.agent, hover, clip) if features else None
+        if self.features is not None:
+            self.single_observation_space = _box_concat(env.single_observation_space, self.features.space())
+            self.observation_space = batch_space(self.single_observation_space, env.num_envs)
+        self.base_action: NDArray[np.float64] | None = None
+
+    def _observe(self, obs: Any, info: Mapping[str, Any]) -> Any:
+        self.base_action = np.asarray(self.agent.act(obs, info), dtype=float)
+        if self.features is None:
+            return obs
+        return np.concatenate([obs, self.features.scale(*self.agent.raw_estimate)], axis=1)
+
+    def reset(self, *, seed: Any = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        self._starts.reset()
+        self.agent.reset(info)
+        return self._observe(obs, info), info
+
+    def step(self, actions: ArrayLike) -> tuple[Any, Any, Any, Any, dict[str, Any]]:
+        if self.base_action is None:
+            raise RuntimeError("call reset() before step()")
+        obs, reward, terminated, truncated, info = self.env.step(self.scale(self.base_action, actions))
+        new = self._starts.step(terminated, truncated)
+        if new.any():
+            if self.features is not None and self._starts.same_step:
+                info = dict(info)
+                _concat_final_obs(info, self.features.peek(_terminal_info(info, new)), new)
+            self.agent.reset(info, rows=new)
+        return self._observe(obs, info), reward, terminated, truncated, info
+
+
+def _build_agent(base: Any, env: Any) -> Any:
+    """A base agent for ``env`` (name or Agent), checked to emit the env's action type."""
+    from fawtgym.agents.base import Agent
+    from fawtgym.agents.spec import make_agent
+
+    agent = base if isinstance(base, Agent) else make_agent(base, env)
+    if agent.action_type != env.action_type:
+        raise ValueError(f"residual base {base!r} emits {agent.action_type!r} actions but the env takes "
+                         f"{env.action_type!r}; build the env with action_type={agent.action_type!r}")
+    return agent
+
+
+def _agent_features(agent: Any, env: Any, clip: float) -> EstimateFeatures:
+    """Features read from a PX4ObserverAgent's own observer (same inputs and step as the agent's update)."""
+    observer = getattr(agent, "observer", None)
+    if observer is None:
+        raise ValueError(f"residual features need a base agent with an observer (px4+<observer>), got "
+                         f"{type(agent).__name__}")
+    core = EstimateFeatures(observer, env.preset, agent.dt, clip=clip)
+    return core
+
+
+# ---- single-env wrappers (the same cores at N = 1) -------------------------------------------------------------
+class SingleNormalizedAction(gym.ActionWrapper):
+    """:class:`NormalizedAction` for one :class:`~fawtgym.envs.hover_env.HoverEnv`."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        base = _hover_env(env)
+        space = env.action_space
+        self.scale = ActionScale(space.low, space.high, base.hover_action())
+        self.action_space = spaces.Box(-1.0, 1.0, shape=space.shape, dtype=np.float32)
+
+    def action(self, action: ArrayLike) -> NDArray[np.float64]:
+        return self.scale(np.asarray(action, dtype=float)[None])[0]
+
+
+class SingleObserverFeatures(gym.Wrapper):
+    """:class:`ObserverFeatures` for one :class:`~fawtgym.envs.hover_env.HoverEnv`."""
+
+    def __init__(self, env: gym.Env, observer: Any = "ffts_eso", observer_kwargs: Mapping[str, Any] | None = None,
+                 clip: float = FEATURE_CLIP) -> None:
+        super().__init__(env)
+        base = _hover_env(env)
+        self.features = EstimateFeatures(observer, base.preset, base.dt, observer_kwargs, clip)
+        self.observation_space = _box_concat(env.observation_space, self.features.space())
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.features.reset(info)
+        return np.concatenate([obs, self.features.update(info)[0]]), info
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return np.concatenate([obs, self.features.update(info)[0]]), reward, terminated, truncated, info
+
+
+class SingleResidualAction(gym.Wrapper):
+    """:class:`ResidualAction` for one :class:`~fawtgym.envs.hover_env.HoverEnv` (``features`` as there)."""
+
+    def __init__(self, env: gym.Env, base: Any = "px4+ffts_eso", bound: float = 0.1, features: bool = False,
+                 clip: float = FEATURE_CLIP) -> None:
+        super().__init__(env)
+        hover = _hover_env(env)
+        self.agent = _build_agent(base, hover)
+        space = env.action_space
+        self.scale = ResidualScale(space.low, space.high, bound)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=space.shape, dtype=np.float32)
+        self.features = _agent_features(self.agent, hover, clip) if features else None
+        if self.features is not None:
+            self.observation_space = _box_concat(env.observation_space, self.features.space())
+        self.base_action: NDArray[np.float64] | None = None
+
+    def _observe(self, obs: Any, info: Mapping[str, Any]) -> Any:
+        self.base_action = np.asarray(self.agent.act(obs, info), dtype=float)
+        if self.features is None:
+            return obs
+        return np.concatenate([obs, self.features.scale(*self.agent.raw_estimate)[0]])
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.agent.reset(info)
+        return self._observe(obs, info), info
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        if self.base_action is None:
+            raise RuntimeError("call reset() before step()")
+        u = np.asarray(action, dtype=float)[None]
+        obs, reward, terminated, truncated, info = self.env.step(self.scale(self.base_action[None], u)[0])
+        return self._observe(obs, info), reward, terminated, truncated, info
