@@ -98,6 +98,23 @@ def applied_from_info(info: Mapping[str, Any], n: int, default_thrust: float) ->
     return thrust, torque
 
 
+def observer_step(observer: Any, meas: Mapping[str, NDArray[np.float64]], info: Mapping[str, Any], dt: float,
+                  weight: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """One update of ``observer`` with a batched measurement and the known inputs of ``info["applied"]`` (hover
+    thrust ``weight`` [N] and zero torque before the first step); returns (force (N, 3), torque (N, 3)).
+
+    Raises FloatingPointError naming the observer if an estimate is not finite.
+    """
+    n = meas["position"].shape[0]
+    thrust, torque = applied_from_info(info, n, weight)
+    est = observer.update(meas, thrust, torque, dt)
+    force = np.asarray(est.force, dtype=float).reshape(n, 3)
+    tau = np.asarray(est.torque, dtype=float).reshape(n, 3)
+    if not (np.all(np.isfinite(force)) and np.all(np.isfinite(tau))):
+        raise FloatingPointError(f"observer {observer.name!r} returned a non-finite estimate")
+    return force, tau
+
+
 def match_batch(action: NDArray[np.float64], batched: bool) -> NDArray[np.float64]:
     """Drop the batch axis of an (N, A) action when the input was not batched (N must then be 1)."""
     if batched:

@@ -43,7 +43,7 @@ from fawtgym.core.rows import check_row_mask, masked
 from fawtgym.envs.frames import FAWT_HOVER_POINT_NED
 from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
 
-from .base import Agent, applied_from_info, match_batch, measurement_from_info
+from .base import Agent, match_batch, measurement_from_info, observer_step
 from .px4_allocation import QuadXAllocation
 from .px4_attitude_control import AttitudeControl
 from .px4_filters import Butterworth2, FilteredDerivative
@@ -345,13 +345,7 @@ class PX4ObserverAgent(PX4Agent):
 
     def _estimate(self, meas: dict[str, NDArray[np.float64]], info: Mapping[str, Any],
                   dt: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
-        n = meas["position"].shape[0]
-        thrust, torque = applied_from_info(info, n, self.preset.mass * GRAVITY)
-        est = self.observer.update(meas, thrust, torque, dt)
-        force = np.asarray(est.force, dtype=float).reshape(n, 3)
-        tau = np.asarray(est.torque, dtype=float).reshape(n, 3)
-        if not (np.all(np.isfinite(force)) and np.all(np.isfinite(tau))):
-            raise FloatingPointError(f"observer {self.observer.name!r} returned a non-finite estimate")
+        force, tau = observer_step(self.observer, meas, info, dt, self.preset.mass * GRAVITY)
         self.raw_estimate = (force, tau)
         return (force if self.force_ff else None), (tau if self.torque_ff else None)
 

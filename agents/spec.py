@@ -9,7 +9,7 @@
     px4+geso(order=3)        ... with keyword overrides: observer gains, PX4 parameters (upper case),
                              force_ff / torque_ff, PX4Agent options (position_rate, ...)
     module:Class             a user's own Agent subclass (plugin), optionally module:Class(key=value, ...)
-    sb3:PATH                 a Stable-Baselines3 policy (planned: the RL training issue adds it)
+    sb3:PATH                 a policy trained by ``fawtgym train`` (a run folder, or one of its checkpoints)
 
 Values in parentheses are Python literals (numbers, True/False, 'strings', lists).  ``px4+ffts_eso``
 uses the flight gains of Wang et al. (2024), Sec. 7.2 unless overridden.  Several agents are
@@ -178,8 +178,15 @@ def make_agent(spec: AgentSpec | str, env: Any) -> Agent:
     if isinstance(spec, str):
         spec = parse_agent(spec)
     if spec.kind == "sb3":
-        raise ValueError(f"agent {spec.name!r}: Stable-Baselines3 policy agents (sb3:PATH) are planned, not "
-                         "available yet; use px4, px4+<observer> or a module:Class plugin")
+        from .sb3_agent import SB3Agent
+
+        try:
+            return SB3Agent.for_env(env, spec.target, **dict(spec.kwargs))
+        except ImportError as exc:
+            raise ValueError(f"agent {spec.name!r} needs Stable-Baselines3: pip install 'fawtgym[rl]' ({exc})") from exc
+        except ValueError as exc:
+            msg = str(exc).removeprefix("sb3 agent: ")
+            raise ValueError(f"agent {spec.name!r}: {msg}") from exc
     if spec.kind == "plugin":
         cls = _import_plugin(spec)
         try:
@@ -224,6 +231,24 @@ def _check_observer_kwargs(spec: AgentSpec, kwargs: Mapping[str, Any]) -> None:
         raise ValueError(f"agent {spec.name!r}: unknown option(s) {unknown} for observer {spec.observer}; its gains: "
                          f"{', '.join(valid)}; PX4 parameters are upper case; agent options: "
                          f"{', '.join(_AGENT_OPTIONS)}")
+
+
+def agent_action_type(spec: AgentSpec | str) -> str:
+    """The env action type (``motors`` or ``ctbr``) the agent ``spec`` names flies, known before building it (the
+    runner builds the env to match): PX4 agents fly motors, a plugin its class's ``action_type``, an ``sb3:`` run
+    what it was trained on."""
+    if isinstance(spec, str):
+        spec = parse_agent(spec)
+    if spec.kind == "sb3":
+        from .sb3_agent import run_action_type
+
+        try:
+            return run_action_type(spec.target)
+        except ValueError as exc:
+            raise ValueError(f"agent {spec.name!r}: {str(exc).removeprefix('sb3 agent: ')}") from exc
+    if spec.kind == "plugin":
+        return getattr(_import_plugin(spec), "action_type", "motors")
+    return "motors"
 
 
 def _import_plugin(spec: AgentSpec) -> type[Agent]:

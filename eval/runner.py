@@ -83,7 +83,7 @@ def fly_cell(agent_name: str, scenario: Mapping[str, Any], seeds: Sequence[int],
     non-finite estimate or action (FloatingPointError) ends the alive rows' episodes as ``agent_error``.
     """
     import fawtgym  # noqa: F401  (registers the env and the observers)
-    from fawtgym.agents.spec import make_agent, observer_kwargs_of, parse_agent
+    from fawtgym.agents.spec import agent_action_type, make_agent, observer_kwargs_of, parse_agent
     from fawtgym.envs.hover_batch_env import HoverBatchEnv
 
     from .metrics import EpisodeRecorder
@@ -91,9 +91,13 @@ def fly_cell(agent_name: str, scenario: Mapping[str, Any], seeds: Sequence[int],
     sc = scenario_from_mapping(scenario["name"], scenario)
     seeds = [int(s) for s in seeds]
     t0 = time.perf_counter()
-    env = HoverBatchEnv(num_envs=len(seeds), **sc.env_options())
+    spec = parse_agent(agent_name)
     try:
-        spec = parse_agent(agent_name)
+        action_type = agent_action_type(spec)
+    except ValueError as exc:
+        raise CellError(str(exc)) from exc
+    env = HoverBatchEnv(num_envs=len(seeds), **sc.env_options(), action_type=action_type)
+    try:
         try:
             agent = make_agent(spec, env)
         except ValueError as exc:

@@ -169,20 +169,20 @@ def main(argv: Sequence[str] | None = None) -> int:
 def check_agents(agents: Sequence[str], scenario: object) -> None:
     """Build every agent once for a one-vehicle env of ``scenario`` (bad gains, parameters or plugins fail here,
     before any work, with the agent's one-line ValueError)."""
-    from fawtgym.agents.spec import make_agent
+    from fawtgym.agents.spec import agent_action_type, make_agent
     from fawtgym.envs.hover_batch_env import HoverBatchEnv
 
-    env = HoverBatchEnv(num_envs=1, **scenario.env_options())
-    try:
-        _, info = env.reset(seed=0)
-        for name in agents:
+    for name in agents:
+        env = HoverBatchEnv(num_envs=1, **scenario.env_options(), action_type=agent_action_type(name))
+        try:
+            _, info = env.reset(seed=0)
             agent = make_agent(name, env)
             try:
                 agent.reset(info)
             except (ValueError, TypeError, KeyError) as exc:
                 raise ValueError(f"agent {name!r} cannot start on scenario {scenario.name!r}: {exc}") from exc
-    finally:
-        env.close()
+        finally:
+            env.close()
 
 
 def _check_out(out: Path) -> None:

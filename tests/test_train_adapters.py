@@ -10,6 +10,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
+from fawtgym.agents.policy_io import FEATURE_CLIP, ActionScale, torque_authority
 from fawtgym.agents.spec import FFTS_ESO_FLIGHT_GAINS, make_agent
 from fawtgym.envs.hover_batch_env import HoverBatchEnv
 from fawtgym.envs.hover_env import HoverEnv
@@ -18,15 +19,12 @@ from fawtgym.observers import make_observer
 from fawtgym.train.envs import ACTIONS, OBS_MODES, make_single_env, make_train_env, make_vector_env
 from fawtgym.train.vec_env import SB3VecEnv
 from fawtgym.train.wrappers import (
-    FEATURE_CLIP,
-    ActionScale,
     NormalizedAction,
     ObserverFeatures,
     ResidualAction,
     SingleNormalizedAction,
     SingleObserverFeatures,
     SingleResidualAction,
-    torque_authority,
 )
 
 N = 4

@@ -75,10 +75,11 @@ def make_vector_env(scenario: Any = "table4-50", num_envs: int = 16, action: str
                     residual_base: str = "px4+ffts_eso", residual_bound: float = 0.1,
                     randomize: Mapping[str, Any] | None = None, episode_seconds: float | None = None) -> Any:
     """The gymnasium vector-env stack of :func:`make_train_env` (same-step autoreset), without the SB3 adapter."""
+    from fawtgym.agents.policy_io import shares_observer
     from fawtgym.envs.hover_batch_env import HoverBatchEnv
 
     from .randomization import Randomization
-    from .wrappers import NormalizedAction, ObserverFeatures, ResidualAction, observer_kwargs_for
+    from .wrappers import NormalizedAction, ObserverFeatures, ResidualAction
 
     _check_choice("action", action, ACTIONS)
     _check_choice("obs", obs, OBS_MODES)
@@ -92,13 +93,12 @@ def make_vector_env(scenario: Any = "table4-50", num_envs: int = 16, action: str
     sampler = None if config is None else config.sampler(options["wind"])
     shared = False
     if action == "residual":
-        from fawtgym.agents.spec import make_agent, observer_kwargs_of, parse_agent
+        from fawtgym.agents.spec import make_agent, parse_agent
 
         spec = parse_agent(residual_base)
         if spec.kind not in ("px4", "px4+observer"):
             raise ValueError(f"residual base must be px4 or px4+<observer>, got {residual_base!r}")
-        shared = (obs == "state+eso" and spec.kind == "px4+observer" and spec.observer == observer
-                  and dict(observer_kwargs_of(spec)) == observer_kwargs_for(observer, observer_kwargs))
+        shared = shares_observer(residual_base, obs, observer, observer_kwargs)
         options["action_type"] = "motors"  # the PX4 agents fly motor commands
     else:
         options["action_type"] = action
