@@ -60,7 +60,7 @@ def test_make_agent_errors_and_plugin() -> None:
                         ("px4+leso(w0=3)", r"unknown option\(s\) \['w0'\] for observer leso; its gains: gravity, "
                                            "omega_t, omega_a"),
                         ("px4+geso(order=9)", "GESO order must be one of"),
-                        ("sb3:x.zip", "planned"),
+                        ("sb3:x.zip", "is not a folder of .fawtgym train."),
                         ("nosuch_module_xyz:A", "cannot import module 'nosuch_module_xyz'"),
                         ("_plugin_agent:Missing", "has no 'Missing'; Agent classes in it: \\['HoverHold'\\]"),
                         ("_plugin_agent:NotAnAgent", "not a subclass")]:
