@@ -10,6 +10,8 @@ the same conditions.  Built-in names (``scenario_names()``; ``fawtgym eval --hel
   calm and steady parts shortened; the transients are flown in full), no initial offset.
 * ``fawt-<duty>-steady`` (any integer duty 30-70): the same hover with the fan settled from t = 0
   (stationary turbulence only), 30 s.
+* ``fawt-<duty>-switching`` (any integer duty 30-70): the same hover, fan on at 2 s and off at 12 s of a
+  20 s hover: both switch transients in a short episode (the training scenario of ``fawtgym train``).
 * ``dryden-light`` / ``dryden-moderate`` / ``dryden-severe``: MIL-spec low-altitude Dryden turbulence
   (MIL-F-8785C intensities at 10 m, gusts only, no mean wind), 30 s.
 * ``gust-1cos``: a discrete 1-cosine gust (MIL-spec shape) at 5 s of a 20 s hover.
@@ -38,6 +40,7 @@ import numpy as np
 TABLE4_SCHEDULE = (75.0, 5.0, 50.0)
 TABLE4_DUTIES = (30, 40, 50, 60, 70)
 _STEADY = re.compile(r"fawt-(\d+)-steady")
+_SWITCHING = re.compile(r"fawt-(\d+)-switching")
 _TABLE4 = re.compile(r"table4-(\d+)")
 
 
@@ -112,6 +115,16 @@ def _builtin(name: str) -> Scenario | None:
         wind: str | dict[str, Any] = f"fawt-{duty}" if duty in TABLE4_DUTIES else {"name": "fawt", "duty": duty / 100}
         return Scenario(name, wind, seconds=30.0,
                         description=f"FAWT {duty} % duty settled from t = 0 (stationary turbulence), 30 s hover")
+    if m := _SWITCHING.fullmatch(name):
+        duty = int(m.group(1))
+        if not 30 <= duty <= 70:
+            return None
+        base = f"fawt-{duty}" if duty in TABLE4_DUTIES else "fawt"
+        wind = {"name": base, "on_time": 2.0, "off_time": 12.0}
+        if duty not in TABLE4_DUTIES:
+            wind["duty"] = duty / 100
+        return Scenario(name, wind, seconds=20.0,
+                        description=f"FAWT {duty} % duty on at 2 s, off at 12 s of a 20 s hover (both transients)")
     if name in ("dryden-light", "dryden-moderate", "dryden-severe"):
         return Scenario(name, name, seconds=30.0,
                         description=f"MIL-F-8785C low-altitude Dryden turbulence ({name.split('-')[1]}, gusts only), "
@@ -127,6 +140,7 @@ def _builtin(name: str) -> Scenario | None:
 def scenario_names() -> list[str]:
     """The built-in scenario names (``fawt-<duty>-steady`` takes any integer duty 30-70)."""
     return ([f"table4-{d}" for d in TABLE4_DUTIES] + [f"fawt-{d}-steady" for d in TABLE4_DUTIES]
+            + [f"fawt-{d}-switching" for d in TABLE4_DUTIES]
             + ["dryden-light", "dryden-moderate", "dryden-severe", "gust-1cos", "calm"])
 
 
@@ -192,7 +206,7 @@ def get_scenario(name: str) -> Scenario:
     sc = _builtin(name)
     if sc is None:
         raise ValueError(f"unknown scenario {name!r}; valid: {', '.join(scenario_names())} "
-                         "(fawt-<duty>-steady takes any duty 30-70), or a .yaml/.json file")
+                         "(fawt-<duty>-steady/-switching take any duty 30-70), or a .yaml/.json file")
     return sc
 
 

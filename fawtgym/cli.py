@@ -41,6 +41,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "observers": ("fawtgym.eval.bench.observers:main", "per-update cost of every observer, single and N = 1024"),
     "closed-loop": ("fawtgym.eval.bench.closed_loop:main", "PX4 + FFTS-ESO in FAWT-50 wind: real-time factor"),
     "qb-sdp": ("fawtgym.eval.bench.qb_sdp:main", "one QB-observer SDP at fixed alpha"),
+    "train": ("fawtgym.eval.bench.train:main", "PPO end-to-end env-steps/s beside the training env alone"),
     "eval": ("fawtgym.eval.bench.eval:main", "quick leaderboard: cells/min, vehicle-s per wall-s vs the env alone"),
 }
 

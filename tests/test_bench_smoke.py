@@ -42,3 +42,11 @@ def test_bench_eval_prints_throughput_and_ratio(capsys, monkeypatch):
     assert bench_eval.main(["--workers", "1", "--seeds", "1"]) == 0
     out = capsys.readouterr().out
     assert "cells/min" in out and "vehicle-s per wall-s" in out and "ratio eval / env alone" in out
+
+
+def test_bench_train_prints_rates_and_targets(capsys):
+    from fawtgym.eval.bench import train as bench_train
+
+    assert bench_train.main(["--steps", "4096", "--threads", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "end to end" in out and "env alone" in out and "targets:" in out

@@ -118,8 +118,11 @@ def _check_env(cfg: TrainConfig) -> None:
 
 def _run_one(cfg_dict: dict[str, Any], out: str, resume: bool, checkpoint_every: int, eval_every: int | None,
              progress: bool) -> dict[str, Any]:
+    import torch
+
     from .run import train
 
+    torch.set_num_threads(1)  # one core per run: the sweep runs several at once
     return train(TrainConfig.from_dict(cfg_dict), Path(out), resume=resume, checkpoint_every=checkpoint_every,
                  eval_every=eval_every, progress=progress, log=lambda s: None)
 
