@@ -191,3 +191,20 @@ def test_ppo_learns_to_hover_in_calm_air(tmp_path: Path) -> None:
     first = sorted((tmp_path / "run" / "checkpoints").iterdir())[0]
     before, after = deterministic_return(first), deterministic_return(tmp_path / "run")
     assert after >= before + 150.0, (before, after)
+
+
+def test_sweep_on_ray(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("ray")
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text(f"out: {tmp_path / 'runs'}\n"
+                     "base: {algo: ppo, steps: 128, episode_seconds: 0.5, eval_scenarios: [], obs: state}\n"
+                     "grid: {action: [ctbr, motors]}\nseeds: [0]\n"
+                     "hp: {n_envs: 2, n_steps: 64, batch_size: 64, n_epochs: 1}\n")
+    import ray
+
+    try:
+        assert train_main(["--sweep", str(sweep), "--backend", "ray"]) == 0
+    finally:
+        ray.shutdown()
+    for r in ("ctbr-s0", "motors-s0"):
+        assert json.loads((tmp_path / "runs" / r / "metadata.json").read_text())["finished"]

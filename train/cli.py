@@ -171,16 +171,22 @@ def run_sweep(ns: Any) -> int:
     if ns.backend == "ray":
         import ray
 
-        ray.init(address=ns.ray_address, include_dashboard=False, log_to_driver=False, ignore_reinit_error=True)
-        task = ray.remote(num_cpus=1, max_retries=0)(_run_one)
-        refs = {task.remote(*job): job for job in todo}
-        for ref, job in refs.items():
-            try:
-                ray.get(ref)
-                print(f"  done {job[1]}")
-            except Exception as exc:
-                errors += 1
-                print(f"fawtgym train: run {job[1]} failed: {str(exc).splitlines()[0]}", file=sys.stderr)
+        started = not ray.is_initialized()
+        if started:
+            ray.init(address=ns.ray_address, include_dashboard=False, log_to_driver=False)
+        try:
+            task = ray.remote(num_cpus=1, max_retries=0)(_run_one)
+            refs = {task.remote(*job): job for job in todo}
+            for ref, job in refs.items():
+                try:
+                    ray.get(ref)
+                    print(f"  done {job[1]}")
+                except Exception as exc:
+                    errors += 1
+                    print(f"fawtgym train: run {job[1]} failed: {str(exc).splitlines()[0]}", file=sys.stderr)
+        finally:
+            if started:
+                ray.shutdown()
     else:
         ctx = multiprocessing.get_context("spawn")
         with cf.ProcessPoolExecutor(max_workers=max(1, min(ns.workers, len(todo) or 1)), mp_context=ctx) as pool:
