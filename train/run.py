@@ -165,10 +165,13 @@ def evaluate_policy_dir(folder: Path, scenarios: tuple[str, ...], seeds: int) ->
         result, _ = fly_cell(f"sb3:{folder}", get_scenario(name).to_dict(), list(range(1000, 1000 + seeds)))
         eps = result["episodes"]
         done = [e for e in eps if not e["failure"]]
+        att = [e["att_err_mean"] for e in done if e["att_err_mean"] is not None]
+        tilt = [e["tilt_mean"] for e in done if e["tilt_mean"] is not None]
         out[name] = {"pos_err_mean": float(np.mean([e["pos_err_mean"] for e in done])) if done else None,
-                     "att_err_mean": float(np.mean([e["att_err_mean"] for e in done
-                                                    if e["att_err_mean"] is not None])) if done else None,
-                     "failures": len(eps) - len(done), "seeds": len(eps)}
+                     "att_err_mean": float(np.mean(att)) if att else None,
+                     "tilt_mean": float(np.mean(tilt)) if tilt else None,
+                     "failures": len(eps) - len(done), "seeds": len(eps),
+                     "time_flown": float(np.mean([e["time_flown"] for e in eps]))}
     return out
 
 
