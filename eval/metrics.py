@@ -35,6 +35,7 @@ reveal.  For scheduled FAWT scenarios (fan on and off) ``pos_err_paper_schedule`
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping
 from typing import Any
 
@@ -210,8 +211,10 @@ class EpisodeRecorder:
             flown = self.steps
             pos_t = np.where(valid, pos, np.nan)[:flown]
             att_t = np.where(valid & att_known[None, :], self.att_err, np.nan)[:flown]
-            pa = schedule_averages(pos_t, self.dt, hover, on, off).get("paper")
-            aa = schedule_averages(att_t, self.dt, hover, on, off).get("paper")
+            with warnings.catch_warnings():  # all-NaN columns of failed rows (masked below)
+                warnings.simplefilter("ignore", RuntimeWarning)
+                pa = schedule_averages(pos_t, self.dt, hover, on, off).get("paper")
+                aa = schedule_averages(att_t, self.dt, hover, on, off).get("paper")
             complete = self.end_step >= self.max_steps
             m["pos_err_paper_schedule"] = np.where(complete, pa, np.nan) if pa is not None else np.full(self.n, np.nan)
             m["att_err_paper_schedule"] = np.where(complete, aa, np.nan) if aa is not None else np.full(self.n, np.nan)
