@@ -21,6 +21,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "train": ("fawtgym.train.cli:main", "train a Stable-Baselines3 policy (or a sweep) on the batched hover env"),
     "reproduce": ("fawtgym.cli:reproduce_main", "reproduce a seed paper's numerical study (see: reproduce --help)"),
     "bench": ("fawtgym.cli:bench_main", "speed benchmarks, printed as ratios measured in one run"),
+    "sitl": ("fawtgym.eval.sitl.cli:sitl_main", "our env as PX4's simulator over MAVLink (HIL lockstep on TCP 4560)"),
+    "replay": ("fawtgym.eval.sitl.cli:replay_main", "fly an agent through a real autopilot in OFFBOARD over MAVLink"),
 }
 
 #: reproduce <name> -> module:function

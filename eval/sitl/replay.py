@@ -1,0 +1,395 @@
+"""``fawtgym replay``: fly an agent of the agent grammar through a real autopilot over MAVLink.
+
+The companion-computer side of an OFFBOARD flight, one thread, every wait bounded:
+
+1. connect (``udp:HOST:PORT`` listens, as PX4 SITL's offboard link sends to 14540; ``tcp:``/``udpout:``/serial
+   as pymavlink accepts) and wait for the autopilot's HEARTBEAT (``connect_timeout``);
+2. ask for ATTITUDE_QUATERNION, LOCAL_POSITION_NED and HIGHRES_IMU at the setpoint rate (SET_MESSAGE_INTERVAL)
+   and wait for them;
+3. stream SET_ATTITUDE_TARGET (level at the current heading, zero thrust) for ``prestream`` > 1 s, switch to
+   OFFBOARD (PX4: MAV_CMD_DO_SET_MODE, custom main mode 6) or GUIDED_NOGPS (ArduPilot: custom mode 20), arm
+   (MAV_CMD_COMPONENT_ARM_DISARM), each confirmed by the HEARTBEAT;
+4. climb: the agent flies a set point moving from the start to the hover point at ``climb_speed``, then holds
+   it ``settle`` seconds; 5. hover: the agent flies ``duration`` seconds at the hover point;
+6. land (MAV_CMD_NAV_LAND, streaming stops) and wait until the autopilot disarms (a disarm command once it
+   reports it is on the ground).
+
+Each tick (``rate`` Hz, >= 50) turns the latest telemetry into our measurement mapping (:func:`.convert.
+measurement_from_telemetry`: the same keys, units and frames as ``info["measurement"]`` of the env), calls
+``agent.act`` exactly as the runner does in simulation (the observer inside the agent updates on it, with the
+known inputs of the last command), and sends SET_ATTITUDE_TARGET: attitude + thrust for agents that expose an
+attitude set point (the PX4 cascade, ``px4`` / ``px4+<observer>``: R_d and the collective thrust of its
+motor command), body rates + thrust for ``ctbr`` agents.  The torque feedforward of ``px4+<observer>`` acts
+on our side of the rate loop only; SET_ATTITUDE_TARGET carries no torque, so the autopilot's own rate loop
+flies without it.
+
+Safety: heartbeat loss (> ``heartbeat_timeout``, 1 s), telemetry older than ``telemetry_timeout``, Ctrl-C or
+any exception stop the setpoint stream, command LAND if the vehicle may be airborne (else disarm) and raise
+:class:`~fawtgym.eval.sitl.mavio.SitlError` with the one-line reason.  Everything sent and received goes to
+the ``.tlog``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from fawtgym.envs.ctbr import MAX_RATES
+from fawtgym.envs.frames import FAWT_HOVER_POINT_NED, euler_to_rot, rot_to_euler
+
+from . import convert as C
+from .airframe import iris
+from .mavio import SitlError, TlogWriter, mavlink_dialect
+from .plant import ground_start
+
+MAV_AUTOPILOT_ARDUPILOTMEGA, MAV_AUTOPILOT_PX4, MAV_AUTOPILOT_INVALID = 3, 12, 8
+MAV_TYPE_GCS = 6
+PX4_MAIN_OFFBOARD = 6
+ARDUCOPTER_GUIDED_NOGPS = 20
+MAV_CMD_DO_SET_MODE, MAV_CMD_COMPONENT_ARM_DISARM, MAV_CMD_NAV_LAND = 176, 400, 21
+MAV_CMD_SET_MESSAGE_INTERVAL = 511
+MSG_IDS = {"ATTITUDE_QUATERNION": 31, "LOCAL_POSITION_NED": 32, "HIGHRES_IMU": 105}
+ARMED_FLAG, CUSTOM_MODE_FLAG = 128, 1
+MAV_LANDED_STATE_ON_GROUND = 1
+
+
+def resolve_agent(name: str, results: str | Path | None = None) -> str:
+    """``best`` -> the leaderboard winner of ``results`` (as ``fawtgym leaderboard RESULTS --best``); any other
+    name is returned as given (checked by the agent grammar)."""
+    if name != "best":
+        return name
+    if results is None:
+        raise ValueError("--agent best needs --results RESULTS (a folder of 'fawtgym eval --out')")
+    from fawtgym.eval.leaderboard import best, leaderboard
+
+    return best(leaderboard(Path(results)))
+
+
+class Replay:
+    """One OFFBOARD flight of an agent through an autopilot (see the module docstring).
+
+    Args:
+        connect: pymavlink connection string (``udp:127.0.0.1:14540`` listens there).
+        agent: an agent-grammar name (``px4``, ``px4+ffts_eso``, ``module:Class``).
+        vehicle: preset the agent is built for (default the PX4 ``none_iris`` Iris).
+        hover_point: NED set point of the hover, our world frame [m].
+        origin: our NED coordinates of the autopilot's local origin [m] (default where ``fawtgym sitl px4``
+            starts the vehicle, on the ground below the FAWT hover point).
+        rate: setpoint rate [Hz], >= 50; it must divide 1000 (the agent's env physics rate).
+    """
+
+    def __init__(self, connect: str, agent: str, *, vehicle: Any = None, hover_point: ArrayLike | None = None,
+                 origin: ArrayLike | None = None, rate: float = 100.0, duration: float = 10.0,
+                 prestream: float = 1.5, climb_speed: float = 0.5, settle: float = 2.0,
+                 heartbeat_timeout: float = 1.0, telemetry_timeout: float = 0.5, connect_timeout: float = 10.0,
+                 command_timeout: float = 5.0, land_timeout: float = 30.0, tlog: str | Path | None = None,
+                 log: Callable[[str], None] | None = None) -> None:
+        from fawtgym.agents.spec import agent_action_type, make_agent, parse_agent
+        from fawtgym.envs.hover_env import HoverEnv
+        from fawtgym.envs.vehicles import make_vehicle
+
+        if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate >= 50.0):
+            raise ValueError(f"rate must be >= 50 Hz (SET_ATTITUDE_TARGET stream), got {rate!r}")
+        if not (math.isfinite(prestream) and prestream > 1.0):
+            raise ValueError(f"prestream must be more than 1 s (PX4 wants setpoints before OFFBOARD), "
+                             f"got {prestream!r}")
+        for name, value in (("duration", duration), ("climb_speed", climb_speed), ("heartbeat_timeout",
+                            heartbeat_timeout), ("telemetry_timeout", telemetry_timeout), ("connect_timeout",
+                            connect_timeout), ("command_timeout", command_timeout), ("land_timeout", land_timeout)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number, got {value!r}")
+        if not (math.isfinite(settle) and settle >= 0):
+            raise ValueError(f"settle must be >= 0 s, got {settle!r}")
+        self.preset = iris() if vehicle is None else make_vehicle(vehicle)
+        self.hover_point = np.array(FAWT_HOVER_POINT_NED if hover_point is None else hover_point, dtype=float)
+        self.origin = np.array(ground_start(self.preset) if origin is None else origin, dtype=float)
+        for label, v in (("hover_point", self.hover_point), ("origin", self.origin)):
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ValueError(f"{label} must be 3 finite NED coordinates, got {v.tolist()}")
+        spec = parse_agent(agent)
+        self.agent_name = spec.name
+        self.action_type = agent_action_type(spec)
+        self.env = HoverEnv(vehicle=self.preset, action_type=self.action_type, control_rate=rate,
+                            setpoint=self.hover_point, sensors="none")
+        self.agent = make_agent(spec, self.env)
+        if self.action_type != "ctbr" and not hasattr(self.agent, "attitude_setpoint"):
+            raise ValueError(f"agent {spec.name!r} commands motors and exposes no attitude set point; replay sends "
+                             "SET_ATTITUDE_TARGET, so it flies PX4-cascade agents (px4, px4+<observer>) and ctbr "
+                             "agents")
+        self.connect, self.rate, self.dt = connect, float(rate), self.env.dt
+        self.duration, self.prestream, self.climb_speed, self.settle = duration, prestream, climb_speed, settle
+        self.heartbeat_timeout, self.telemetry_timeout = heartbeat_timeout, telemetry_timeout
+        self.connect_timeout, self.command_timeout, self.land_timeout = connect_timeout, command_timeout, land_timeout
+        self.tlog_path = Path(tlog) if tlog else None
+        self.log = log or (lambda text: None)
+        self.sent_setpoints: list[float] = []  # monotonic send times
+        self.autopilot = MAV_AUTOPILOT_PX4
+        self.imu_type = "HIGHRES_IMU"
+        self.phase = "connect"
+        self.bad_bytes = 0
+
+    # ---- messages -----------------------------------------------------------------------------------------
+    def _open(self) -> None:
+        os.environ.setdefault("MAVLINK20", "1")
+        mavlink_dialect()
+        from pymavlink import mavutil
+
+        try:
+            self.conn = mavutil.mavlink_connection(self.connect, source_system=245, source_component=191,
+                                                   dialect="common", autoreconnect=False)
+        except Exception as exc:  # pymavlink raises bare Exceptions/OSErrors for bad addresses
+            raise SitlError(f"cannot open {self.connect!r}: {exc}") from None
+        self.tlog = TlogWriter(self.tlog_path) if self.tlog_path else None
+        self.last: dict[str, Any] = {}
+        self.last_time: dict[str, float] = {}
+        self.target: tuple[int, int] | None = None
+        self.acks: dict[int, int] = {}
+
+    def _send(self, msg: Any) -> None:
+        self.conn.mav.send(msg)
+        if self.tlog is not None:
+            self.tlog.write(msg)
+
+    def _pump(self) -> None:
+        """Read every message waiting (non-blocking), remember the latest of each type, record to the tlog."""
+        while True:
+            msg = self.conn.recv_match(blocking=False)
+            if msg is None:
+                return
+            kind = msg.get_type()
+            if kind == "BAD_DATA":
+                self.bad_bytes += len(msg.get_msgbuf() or b"")
+                continue
+            if self.tlog is not None:
+                self.tlog.write(msg)
+            if kind == "HEARTBEAT":
+                if msg.type == MAV_TYPE_GCS or msg.autopilot == MAV_AUTOPILOT_INVALID:
+                    continue
+                if self.target is None:
+                    self.target = (msg.get_srcSystem(), msg.get_srcComponent())
+                    self.autopilot = int(msg.autopilot)
+                elif (msg.get_srcSystem(), msg.get_srcComponent()) != self.target:
+                    continue
+            elif kind == "COMMAND_ACK":
+                self.acks[msg.command] = msg.result
+            self.last[kind] = msg
+            self.last_time[kind] = time.monotonic()
+
+    def _command(self, command: int, *params: float) -> None:
+        p = [float(x) for x in params] + [0.0] * (7 - len(params))
+        sysid, compid = self.target
+        self._send(self.conn.mav.command_long_encode(sysid, compid, command, 0, *p))
+
+    def _garbage_note(self) -> str:
+        return f" ({self.bad_bytes} bytes received were not valid MAVLink)" if self.bad_bytes else ""
+
+    # ---- state of the autopilot ---------------------------------------------------------------------------
+    @property
+    def armed(self) -> bool:
+        hb = self.last.get("HEARTBEAT")
+        return bool(hb is not None and hb.base_mode & ARMED_FLAG)
+
+    @property
+    def in_offboard(self) -> bool:
+        hb = self.last.get("HEARTBEAT")
+        if hb is None or not hb.base_mode & CUSTOM_MODE_FLAG:
+            return False
+        if self.autopilot == MAV_AUTOPILOT_ARDUPILOTMEGA:
+            return hb.custom_mode == ARDUCOPTER_GUIDED_NOGPS
+        return (hb.custom_mode >> 16) & 0xFF == PX4_MAIN_OFFBOARD
+
+    def _check_health(self) -> None:
+        now = time.monotonic()
+        age = now - self.last_time.get("HEARTBEAT", now)
+        if age > self.heartbeat_timeout:
+            raise SitlError(f"heartbeat lost: none from the autopilot for {age:.1f} s (limit "
+                            f"{self.heartbeat_timeout:g} s) during {self.phase}{self._garbage_note()}")
+        if self.phase in ("prestream", "climb", "hover"):
+            for kind in ("ATTITUDE_QUATERNION", "LOCAL_POSITION_NED", self.imu_type):
+                age = now - self.last_time.get(kind, now)
+                if age > self.telemetry_timeout:
+                    raise SitlError(f"telemetry timeout: no {kind} for {age:.2f} s (limit "
+                                    f"{self.telemetry_timeout:g} s) during {self.phase}")
+
+    # ---- the flight ---------------------------------------------------------------------------------------
+    def run(self) -> dict[str, Any]:
+        """Fly; returns a summary.  Raises SitlError (after stopping the stream and commanding LAND or disarm)."""
+        self._open()
+        try:
+            self._fly()
+        except KeyboardInterrupt:
+            self._abort("interrupted (Ctrl-C)")
+        except SitlError as exc:
+            self._abort(str(exc))
+        except Exception as exc:  # an agent or conversion error: stop the vehicle safely, then report
+            self._abort(f"{type(exc).__name__}: {' '.join(str(exc).split())}")
+        finally:
+            if self.tlog is not None:
+                self.tlog.close()
+            self.conn.close()
+        sent = np.asarray(self.sent_setpoints)
+        gaps = np.diff(sent) if sent.size > 1 else np.array([0.0])
+        return {"agent": self.agent_name, "setpoints": int(sent.size),
+                "setpoint_rate_hz": float((sent.size - 1) / (sent[-1] - sent[0])) if sent.size > 1 else 0.0,
+                "max_gap_s": float(gaps.max()), "final_position_error": self.final_error,
+                "tlog": str(self.tlog_path) if self.tlog_path else None}
+
+    def _abort(self, reason: str) -> None:
+        phase = self.phase
+        self.phase = "abort"
+        try:
+            if self.target is not None and phase in ("climb", "hover", "land"):
+                for _ in range(3):
+                    self._command(MAV_CMD_NAV_LAND)
+                    time.sleep(0.05)
+                action = "LAND commanded"
+            elif self.target is not None and phase in ("prestream", "arm"):
+                self._command(MAV_CMD_COMPONENT_ARM_DISARM, 0.0)
+                action = "disarm commanded"
+            else:
+                action = "nothing was armed"
+        except Exception as exc:  # the link itself may be gone; the reason below still stands
+            action = f"could not command LAND/disarm ({exc})"
+        raise SitlError(f"replay aborted: {reason}; setpoint stream stopped, {action}")
+
+    def _wait(self, what: str, timeout: float, done: Callable[[], bool]) -> None:
+        deadline = time.monotonic() + timeout
+        while not done():
+            if time.monotonic() > deadline:
+                raise SitlError(f"{what} within {timeout:g} s{self._garbage_note()}")
+            self._pump()
+            if self.target is not None:
+                self._check_health()
+            time.sleep(0.005)
+
+    def _fly(self) -> None:
+        self._wait(f"no heartbeat from an autopilot on {self.connect}", self.connect_timeout,
+                   lambda: self.target is not None)
+        self.log(f"autopilot {self.target[0]}/{self.target[1]} ({'ArduPilot' if self.autopilot == 3 else 'PX4'})")
+        for msg_id in MSG_IDS.values():
+            self._command(MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / self.rate)
+        self.phase = "telemetry"
+        self._wait("no ATTITUDE_QUATERNION, LOCAL_POSITION_NED and HIGHRES_IMU/SCALED_IMU telemetry",
+                   self.command_timeout, lambda: self._telemetry_ready())
+        self.imu_type = "HIGHRES_IMU" if "HIGHRES_IMU" in self.last else "SCALED_IMU"
+        yaw = float(rot_to_euler(self._measurement()["attitude"])[2])
+        neutral = (euler_to_rot(0.0, 0.0, yaw), None, 0.0)
+        self.phase = "prestream"
+        self._stream(self.prestream, lambda t: neutral)
+        mode = "GUIDED_NOGPS" if self.autopilot == MAV_AUTOPILOT_ARDUPILOTMEGA else "OFFBOARD"
+        custom = ARDUCOPTER_GUIDED_NOGPS if self.autopilot == MAV_AUTOPILOT_ARDUPILOTMEGA else PX4_MAIN_OFFBOARD
+        self._stream(self.command_timeout, lambda t: neutral, until=lambda: self.in_offboard,
+                     every=(0.5, lambda: self._command(MAV_CMD_DO_SET_MODE, CUSTOM_MODE_FLAG, custom)),
+                     fail=f"the autopilot did not switch to {mode}")
+        self.phase = "arm"
+        self._stream(self.command_timeout, lambda t: neutral, until=lambda: self.armed,
+                     every=(0.5, lambda: self._command(MAV_CMD_COMPONENT_ARM_DISARM, 1.0)),
+                     fail="the autopilot did not arm")
+        self.log(f"{mode}, armed; climbing to {self.hover_point.tolist()}")
+        self.phase = "climb"
+        start = self._measurement()["position"].copy()
+        distance = float(np.linalg.norm(self.hover_point - start))
+        ramp = distance / self.climb_speed
+        self._first = True
+        self._command_state = None
+
+        def climb_sp(t: float) -> NDArray[np.float64]:
+            return start + (self.hover_point - start) * min(1.0, t / ramp) if ramp > 0 else self.hover_point
+
+        self._stream(ramp + self.settle, lambda t: self._agent_target(climb_sp(t)))
+        self.phase = "hover"
+        self._stream(self.duration, lambda t: self._agent_target(self.hover_point))
+        self.final_error = float(np.linalg.norm(self._measurement()["position"] - self.hover_point))
+        self.phase = "land"
+        self.log(f"landing (position error at the end of the hover {self.final_error:.3f} m)")
+        self._land()
+
+    final_error: float | None = None
+
+    def _telemetry_ready(self) -> bool:
+        return all(k in self.last for k in ("ATTITUDE_QUATERNION", "LOCAL_POSITION_NED")) and \
+            ("HIGHRES_IMU" in self.last or "SCALED_IMU" in self.last)
+
+    def _measurement(self) -> dict[str, NDArray[np.float64]]:
+        return C.measurement_from_telemetry(self.last["ATTITUDE_QUATERNION"], self.last["LOCAL_POSITION_NED"],
+                                            self.last[self.imu_type], self.origin, time.monotonic())
+
+    def _stream(self, seconds: float, target: Callable[[float], tuple], until: Callable[[], bool] | None = None,
+                every: tuple[float, Callable[[], None]] | None = None, fail: str | None = None) -> None:
+        """Send setpoints at ``rate`` for ``seconds`` (or until ``until()``; then ``fail`` if it never held)."""
+        t0 = time.monotonic()
+        next_every = t0
+        k = 0
+        while True:
+            self._pump()
+            self._check_health()
+            now = time.monotonic()
+            if until is not None and until():
+                return
+            if now - t0 >= seconds:
+                if until is not None:
+                    raise SitlError(f"{fail} within {seconds:g} s (last COMMAND_ACK results: {self.acks or 'none'})")
+                return
+            if every is not None and now >= next_every:
+                every[1]()
+                next_every = now + every[0]
+            attitude, rates, thrust = target(k * self.dt)
+            boot_ms = int((now - t0) * 1000)
+            fields = C.attitude_target_fields(attitude=attitude, body_rates=rates, thrust=thrust,
+                                              time_boot_ms=boot_ms, target_system=self.target[0],
+                                              target_component=self.target[1])
+            self._send(self.conn.mav.set_attitude_target_encode(**fields))
+            self.sent_setpoints.append(now)
+            k += 1
+            sleep = t0 + k * self.dt - time.monotonic()
+            if sleep > 0:
+                time.sleep(sleep)
+
+    def _agent_target(self, setpoint: NDArray[np.float64]) -> tuple:
+        """One agent step on the latest telemetry -> (attitude or None, body rates or None, PX4 thrust)."""
+        meas = self._measurement()
+        if self._command_state is None:
+            applied = {"thrust": self.preset.mass * 9.80665, "torque": np.zeros(3)}
+        else:
+            applied = {"thrust": self._command_state[0], "torque": self._command_state[1]}
+        info = {"measurement": meas, "applied": applied, "setpoint": np.asarray(setpoint, dtype=float)}
+        if self._first:
+            self.agent.reset(info, seed=0)
+            self._first = False
+        action = np.asarray(self.agent.act(None, info), dtype=float).reshape(-1)
+        if not np.all(np.isfinite(action)):
+            raise SitlError(f"agent {self.agent_name!r} returned a non-finite action {action.tolist()}")
+        if self.action_type == "ctbr":
+            collective = float(np.clip(action[0], 0.0, 1.0)) * 4.0 * self.preset.max_thrust_per_rotor
+            self._command_state = (collective, np.zeros(3))
+            return None, np.clip(action[1:4], -1.0, 1.0) * MAX_RATES, C.px4_thrust(self.preset, collective)
+        collective, torque = C.applied_from_motors(self.preset, action)
+        self._command_state = (collective, torque)
+        attitude = np.asarray(self.agent.attitude_setpoint, dtype=float).reshape(-1, 3, 3)[0]
+        return attitude, None, C.px4_thrust(self.preset, collective)
+
+    def _land(self) -> None:
+        t0 = time.monotonic()
+        next_command = 0.0
+        while self.armed:
+            now = time.monotonic()
+            if now - t0 > self.land_timeout:
+                raise SitlError(f"the autopilot was still armed {self.land_timeout:g} s after LAND")
+            self._pump()
+            self._check_health()
+            if now >= next_command:
+                ext = self.last.get("EXTENDED_SYS_STATE")
+                if ext is not None and ext.landed_state == MAV_LANDED_STATE_ON_GROUND and now - t0 > 1.0:
+                    self._command(MAV_CMD_COMPONENT_ARM_DISARM, 0.0)
+                elif self.acks.get(MAV_CMD_NAV_LAND) != 0:
+                    self._command(MAV_CMD_NAV_LAND)
+                next_command = now + 0.5
+            time.sleep(0.01)
+        self.log("disarmed")
