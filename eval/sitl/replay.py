@@ -119,7 +119,7 @@ class Replay:
         self.env = HoverEnv(vehicle=self.preset, action_type=self.action_type, control_rate=rate,
                             setpoint=self.hover_point, sensors="none")
         self.agent = make_agent(spec, self.env)
-        if self.action_type != "ctbr" and not hasattr(self.agent, "attitude_setpoint"):
+        if self.action_type != "ctbr" and not hasattr(type(self.agent), "attitude_setpoint"):
             raise ValueError(f"agent {spec.name!r} commands motors and exposes no attitude set point; replay sends "
                              "SET_ATTITUDE_TARGET, so it flies PX4-cascade agents (px4, px4+<observer>) and ctbr "
                              "agents")
