@@ -145,7 +145,8 @@ def sitl_main(argv: Sequence[str]) -> int:
             raise ValueError(f"--port must be in 0-65535 (0: a free port, printed), got {ns.port}")
         vehicle = SitlVehicle(wind=wind, sensors=ns.sensors, start=start, seed=ns.seed)
         replay = None
-        if ns.agent is not None:
+        if ns.agent is not None:  # PX4 starts after the bridge: the replay waits for its heartbeat as long
+            ns.connect_timeout = max(ns.connect_timeout, ns.accept_timeout + 60.0)
             replay = _make_replay(parser, ns, ns.connect or DEFAULT_CONNECT, lambda t: print(f"replay: {t}",
                                                                                              flush=True))
         bridge = Px4Bridge(vehicle, home, ns.host, ns.port, realtime=ns.realtime or replay is not None,
