@@ -103,7 +103,7 @@ class AutopilotPeer(threading.Thread):
 
     def __init__(self, companion_port: int, stop_heartbeat_after_arm: float | None = None,
                  stop_telemetry_after_arm: float | None = None, garbage_only: bool = False,
-                 lifetime: float = 20.0) -> None:
+                 ardupilot: bool = False, lifetime: float = 20.0) -> None:
         super().__init__(daemon=True)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
@@ -112,6 +112,11 @@ class AutopilotPeer(threading.Thread):
         self.mav.robust_parsing = True
         self.hb_stop, self.tm_stop, self.garbage_only = stop_heartbeat_after_arm, stop_telemetry_after_arm, garbage_only
         self.lifetime = lifetime
+        # PX4: autopilot 12, OFFBOARD = custom main mode 6 (custom_mode bits 16-23), AUTO.LAND main 4 sub 6;
+        # ArduCopter: autopilot 3, GUIDED_NOGPS = custom_mode 20, LAND = 9
+        self.autopilot = 3 if ardupilot else 12
+        self.offboard_mode = 20 if ardupilot else 6 << 16
+        self.land_mode = 9 if ardupilot else (4 << 16) | (6 << 24)
         self.events: list[tuple[float, str, object]] = []  # (time, what, detail)
         self.setpoints: list[tuple[float, object]] = []
         self.armed, self.custom_mode, self.landed_state = False, 0, 1  # on the ground
@@ -135,19 +140,20 @@ class AutopilotPeer(threading.Thread):
         result = 0
         if msg.command == 176:  # DO_SET_MODE: OFFBOARD needs a second of setpoints first (PX4)
             streamed = [t for t, _ in self.setpoints]
-            if int(msg.param2) == 6 and streamed and now - streamed[0] >= 1.0 and now - streamed[-1] < 0.5:
-                self.custom_mode = 6 << 16
+            wanted = 20 if self.autopilot == 3 else 6
+            if int(msg.param2) == wanted and streamed and now - streamed[0] >= 1.0 and now - streamed[-1] < 0.5:
+                self.custom_mode = self.offboard_mode
             else:
                 result = 1  # TEMPORARILY_REJECTED
         elif msg.command == 400:
-            if msg.param1 == 1 and (self.custom_mode >> 16) & 0xFF == 6:
+            if msg.param1 == 1 and self.custom_mode == self.offboard_mode:
                 self.armed, self.arm_time = True, now
             elif msg.param1 == 0:
                 self.armed = False
             else:
                 result = 1
-        elif msg.command == 21:  # NAV_LAND -> AUTO.LAND (main 4, sub 6)
-            self.custom_mode = (4 << 16) | (6 << 24)
+        elif msg.command == 21:  # NAV_LAND -> the autopilot's land mode
+            self.custom_mode = self.land_mode
             self.land_time = self.land_time or now
         self.send(mavlink.MAVLink_command_ack_message(msg.command, result))
 
@@ -177,7 +183,7 @@ class AutopilotPeer(threading.Thread):
                 next_hb = now + 0.1
                 if self.hb_stop is None or since_arm is None or since_arm < self.hb_stop:
                     base = 1 | (128 if self.armed else 0)
-                    self.send(mavlink.MAVLink_heartbeat_message(2, 12, base, self.custom_mode, 4, 3))
+                    self.send(mavlink.MAVLink_heartbeat_message(2, self.autopilot, base, self.custom_mode, 4, 3))
                     self.send(mavlink.MAVLink_extended_sys_state_message(0, self.landed_state))
             if now >= next_tm:
                 next_tm = now + 0.01

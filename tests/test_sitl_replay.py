@@ -87,6 +87,21 @@ def test_offboard_sequence_rate_land_and_tlog(tmp_path):
     assert counts["HEARTBEAT"] >= 20 and counts["ATTITUDE_QUATERNION"] >= 200
 
 
+def test_ardupilot_guided_nogps():
+    port = free_udp_port()
+    replay = make_replay(port, duration=0.5)
+    peer = AutopilotPeer(port, ardupilot=True)
+    peer.start()
+    try:
+        replay.run()
+    finally:
+        peer.stop_event.set()
+        peer.join(5)
+    modes = [p for _, name, p in peer.events if name == "cmd176"]
+    assert modes and all(p == (1.0, 20.0) for p in modes)  # custom mode GUIDED_NOGPS
+    assert not peer.armed and [name for _, name, _ in peer.events].count("cmd21") >= 1
+
+
 @pytest.mark.parametrize("loss, reason", [("heartbeat", "heartbeat lost"), ("telemetry", "telemetry timeout")])
 def test_abort_on_link_loss(loss, reason):
     port = free_udp_port()
