@@ -122,7 +122,7 @@ def test_abort_on_link_loss(loss, reason):
     assert not [t for t, _ in peer.setpoints if t > land[0] + 0.05], "streaming must stop on abort"
     lost_at = peer.arm_time + 0.3
     limit = replay.heartbeat_timeout if loss == "heartbeat" else replay.telemetry_timeout
-    assert land[0] - lost_at < limit + 0.5
+    assert land[0] - lost_at < limit + 1.0  # + heartbeat period, a tick and scheduling slack
 
 
 def test_malformed_bytes_and_silence_give_clear_errors():
