@@ -20,6 +20,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "leaderboard": ("fawtgym.eval.leaderboard:main", "rank the agents of an eval run (Markdown, CSV, JSON, HTML)"),
     "train": ("fawtgym.train.cli:main", "train a Stable-Baselines3 policy (or a sweep) on the batched hover env"),
     "reproduce": ("fawtgym.cli:reproduce_main", "reproduce a seed paper's numerical study (see: reproduce --help)"),
+    "observe": ("fawtgym.flightlog.cli:main", "run observers on a real flight log (PX4 .ulg or MAVLink .tlog)"),
     "bench": ("fawtgym.cli:bench_main", "speed benchmarks, printed as ratios measured in one run"),
 }
 
