@@ -43,6 +43,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "closed-loop": ("fawtgym.eval.bench.closed_loop:main", "PX4 + FFTS-ESO in FAWT-50 wind: real-time factor"),
     "qb-sdp": ("fawtgym.eval.bench.qb_sdp:main", "one QB-observer SDP at fixed alpha"),
     "train": ("fawtgym.eval.bench.train:main", "PPO end-to-end env-steps/s beside the training env alone"),
+    "flightlog": ("fawtgym.flightlog.bench:main", "observe, one observer, on a 20-min PX4 log (a real one tiled)"),
     "eval": ("fawtgym.eval.bench.eval:main", "quick leaderboard: cells/min, vehicle-s per wall-s vs the env alone"),
 }
 
