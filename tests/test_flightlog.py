@@ -191,3 +191,11 @@ def test_cli_writes_table_summary_and_figures(tmp_path: Path) -> None:
 def test_license_is_committed_beside_the_logs() -> None:
     assert "Redistribution and use in source and binary forms" in (DATA / "LICENSE-pyulog.md").read_text()
     assert shutil.disk_usage(DATA)  # the folder exists in a fresh clone (committed, not ../shared)
+
+
+def test_bench_flightlog_prints_time_memory_and_target(capsys: pytest.CaptureFixture[str]) -> None:
+    from fawtgym.flightlog.bench import main
+
+    assert main(["--minutes", "0.6"]) == 0  # two tiles of the 31 s SITL log: the pipeline, not the timing
+    out = capsys.readouterr().out
+    assert "s wall" in out and "target < 10 s" in out and "peak memory" in out
