@@ -1,7 +1,10 @@
 """Flight phases and flight modes on the time grid, from the log's own state topics.
 
 Airborne is decided by the flight controller itself: armed (``vehicle_status.arming_state == 2``, ARMED
-in every PX4 version) and not landed (``vehicle_land_detected.landed``, PX4's land detector).  A log
+in every PX4 version) and neither landed nor in ground contact by PX4's land detector
+(``vehicle_land_detected.landed``, and its earlier stages ``ground_contact`` / ``maybe_landed`` where the
+log has them).  PX4 declares take-off when it commands it, so the spool-up before lift-off is flagged
+airborne; the ground's push shows there (and at touch-down until ``ground_contact``) as an upward force.  A log
 without the land detector (PX4 before v1.6, or a tlog without EXTENDED_SYS_STATE) falls back to: armed and
 more than :data:`FALLBACK_HEIGHT` above the position where it was armed -- a warning says so.
 
@@ -67,9 +70,11 @@ def detect_phases(log: FlightLog, grid: NDArray[np.float64], position: NDArray[n
     warnings: list[str] = []
     if log.has("vehicle_land_detected"):
         ld = log.topics["vehicle_land_detected"]
-        landed, lvalid = hold(ld.t, np.asarray(ld.fields["landed"]) != 0, grid)
+        flags = [f for f in ("landed", "ground_contact", "maybe_landed") if f in ld.fields]
+        down = np.any([np.asarray(ld.fields[f]) != 0 for f in flags], axis=0)
+        landed, lvalid = hold(ld.t, down, grid)
         airborne = armed & lvalid & ~landed
-        source = "vehicle_status.arming_state + vehicle_land_detected.landed"
+        source = "vehicle_status.arming_state + vehicle_land_detected." + "/".join(flags)
     else:
         height = np.zeros(grid.size)
         starts = np.flatnonzero(np.diff(np.concatenate([[False], armed])) > 0)

@@ -111,14 +111,20 @@ def observe(log: FlightLog | str | Path, observers: Sequence[str], vehicle: str 
         torque_out = np.full((n, 3), np.nan)
         for a, b in runs:
             obs = make_observer(name, preset.mass, preset.inertia_matrix, **opts.get(name, {}))
-            obs.reset({k: v[a:a + 1] for k, v in meas.items()})
-            force_out[a] = 0.0
-            torque_out[a] = 0.0
-            for k in range(a + 1, b):
-                est = obs.update({key: v[k:k + 1] for key, v in meas.items()}, thrust[k - 1:k],
-                                 torque[k - 1:k], dt)
-                force_out[k] = est.force[0]
-                torque_out[k] = est.torque[0]
+            k = a
+            try:
+                obs.reset({key: v[a:a + 1] for key, v in meas.items()})
+                force_out[a] = 0.0
+                torque_out[a] = 0.0
+                for k in range(a + 1, b):
+                    est = obs.update({key: v[k:k + 1] for key, v in meas.items()}, thrust[k - 1:k],
+                                     torque[k - 1:k], dt)
+                    force_out[k] = est.force[0]
+                    torque_out[k] = est.torque[0]
+            except (FloatingPointError, ValueError) as exc:
+                raise FlightLogError(f"observer {name!r} failed at t = {grid[k]:.2f} s of the log at --rate {rate:g} "
+                                     f"Hz ({' '.join(str(exc).split())}); a higher --rate (smaller step) or another "
+                                     "observer may help") from None
         bad = estimated & ~np.all(np.isfinite(np.concatenate([force_out, torque_out], axis=1)), axis=1)
         if bad.any():
             raise FlightLogError(f"observer {name!r} diverged (non-finite estimate) at t = {grid[bad][0]:.2f} s; "
