@@ -200,3 +200,30 @@ def test_bench_flightlog_prints_time_memory_and_target(capsys: pytest.CaptureFix
     assert main(["--minutes", "0.6"]) == 0  # two tiles of the 31 s SITL log: the pipeline, not the timing
     out = capsys.readouterr().out
     assert "s wall" in out and "target < 10 s" in out and "peak memory" in out
+
+
+def test_parquet_table_has_nulls_where_not_estimated(tmp_path: Path) -> None:
+    pq = pytest.importorskip("pyarrow.parquet")
+    from fawtgym.flightlog.outputs import write_table
+
+    r = observe(TLOG, ["ffts_eso"], "s500")
+    path = write_table(r, tmp_path, "parquet")
+    table = pq.read_table(path)
+    assert table.num_rows == r.t.size
+    assert table.column("ffts_eso_force_n_N").null_count == int((~r.estimated).sum()) > 0
+
+
+def test_bad_tlogs_are_one_line_errors(tmp_path: Path) -> None:
+    junk = tmp_path / "junk.tlog"
+    junk.write_bytes(bytes(range(256)) * 8)
+    with pytest.raises(FlightLogError) as exc:
+        read_log(junk)
+    assert "no MAVLink messages from an autopilot" in _one_line(exc)
+    cut = tmp_path / "cut.tlog"
+    cut.write_bytes(TLOG.read_bytes()[:20])  # inside the first record
+    with pytest.raises(FlightLogError) as exc:
+        read_log(cut)
+    _one_line(exc)
+    half = tmp_path / "half.tlog"
+    half.write_bytes(TLOG.read_bytes()[: TLOG.stat().st_size // 2])  # cut mid-flight: read up to the cut
+    assert 3.0 < read_log(half).duration < 6.0
