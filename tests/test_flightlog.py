@@ -227,3 +227,16 @@ def test_bad_tlogs_are_one_line_errors(tmp_path: Path) -> None:
     half = tmp_path / "half.tlog"
     half.write_bytes(TLOG.read_bytes()[: TLOG.stat().st_size // 2])  # cut mid-flight: read up to the cut
     assert 3.0 < read_log(half).duration < 6.0
+
+
+def test_channels_an_observer_does_not_estimate_are_empty_not_zero() -> None:
+    from fawtgym.flightlog.outputs import summary
+
+    r = observe(SITL, ["hc_eso"], JMAVSIM)  # torque only (Wang & Sanyal 2022)
+    force, torque = r.estimates["hc_eso"]
+    assert np.all(np.isnan(force)) and np.all(np.isfinite(torque[r.estimated]))
+    hover = summary(r)["hc_eso"]["hover"]
+    assert "force_mean_N" not in hover and len(hover["torque_mean_Nm"]) == 3
+    with pytest.raises(FlightLogError) as exc:
+        observe(SITL, ["pdt_sta"], JMAVSIM)  # attitude and rates only
+    assert "estimates no disturbance" in _one_line(exc) and "ffts_eso" in str(exc.value)

@@ -89,9 +89,10 @@ def summary(result: ObserveResult) -> dict[str, Any]:
         for code, phase in enumerate(PHASES):
             m = result.settled & (result.phases.label == code)
             entry: dict[str, Any] = {"samples": int(m.sum()), "seconds": float(m.sum() / result.report["rate_hz"])}
-            if m.any():
-                entry.update(force_mean_N=force[m].mean(0).tolist(), force_std_N=force[m].std(0).tolist(),
-                             torque_mean_Nm=torque[m].mean(0).tolist(), torque_std_Nm=torque[m].std(0).tolist())
+            if m.any() and np.isfinite(force[m]).all():
+                entry.update(force_mean_N=force[m].mean(0).tolist(), force_std_N=force[m].std(0).tolist())
+            if m.any() and np.isfinite(torque[m]).all():
+                entry.update(torque_mean_Nm=torque[m].mean(0).tolist(), torque_std_Nm=torque[m].std(0).tolist())
             per[phase] = entry
         out[name] = per
     return out
@@ -115,8 +116,10 @@ def summary_text(result: ObserveResult, summ: dict[str, Any]) -> str:
                 what = "shown, not estimated" if phase == "ground" else "no settled samples"
                 lines.append(f"  {name:10s} {phase:8s} {what}")
                 continue
-            f = " ".join(f"{m:+7.3f}+-{s:.3f}" for m, s in zip(e["force_mean_N"], e["force_std_N"], strict=True))
-            t = " ".join(f"{m:+7.4f}+-{s:.4f}" for m, s in zip(e["torque_mean_Nm"], e["torque_std_Nm"], strict=True))
+            f = " ".join(f"{m:+7.3f}+-{s:.3f}" for m, s in zip(e.get("force_mean_N", ()), e.get("force_std_N", ()),
+                                                                 strict=True)) or "(not estimated by this observer)"
+            t = " ".join(f"{m:+7.4f}+-{s:.4f}" for m, s in zip(e.get("torque_mean_Nm", ()), e.get("torque_std_Nm", ()),
+                                                                 strict=True)) or "(not estimated by this observer)"
             lines.append(f"  {name:10s} {phase:8s} {e['seconds']:6.1f} s  F {f}   tau {t}")
     lines += [f"warning: {w}" for w in rep["warnings"]]
     return "\n".join(lines)

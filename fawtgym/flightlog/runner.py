@@ -6,7 +6,9 @@ one grid at ``rate`` Hz with sample-and-hold (:mod:`.timebase`) -> phases (:mod:
 the first point and updated on the next ones.  The update at ``t_k`` takes the measurement held at
 ``t_k`` and the known inputs held at ``t_{k-1}`` (what was commanded over the step just taken, as the env's
 ``info["applied"]``), with ``dt = 1 / rate``.  Points outside those runs are not estimated: their estimate
-is NaN in the arrays and ``estimated`` is False (the CSV leaves the cells empty).
+is NaN in the arrays and ``estimated`` is False (the CSV leaves the cells empty).  A channel an observer
+does not estimate (``Observer.channels``: e.g. ``hc_eso`` estimates torque only) is NaN throughout;
+an observer without a disturbance channel (``pdt_sta``) is refused with a one-line error.
 """
 
 from __future__ import annotations
@@ -58,6 +60,7 @@ def observe(log: FlightLog | str | Path, observers: Sequence[str], vehicle: str 
             observer_options: dict[str, dict[str, Any]] | None = None) -> ObserveResult:
     """Estimate the disturbance wrench of a logged flight with each named observer.  See the module docstring."""
     from fawtgym.observers import make_observer, observer_names
+    from fawtgym.observers.base import observer_class
 
     if not observers:
         raise FlightLogError(f"no observer given; valid names: {observer_names()}")
@@ -107,8 +110,13 @@ def observe(log: FlightLog | str | Path, observers: Sequence[str], vehicle: str 
     dt = 1.0 / rate
     opts = observer_options or {}
     for name in observers:
+        if not observer_class(name).channels:
+            raise FlightLogError(f"observer {name!r} estimates no disturbance (state estimates only); choose one "
+                                 f"that estimates force or torque: {_disturbance_observers()}")
+    for name in observers:
         force_out = np.full((n, 3), np.nan)
         torque_out = np.full((n, 3), np.nan)
+        obs = None
         for a, b in runs:
             obs = make_observer(name, preset.mass, preset.inertia_matrix, **opts.get(name, {}))
             k = a
@@ -125,10 +133,15 @@ def observe(log: FlightLog | str | Path, observers: Sequence[str], vehicle: str 
                 raise FlightLogError(f"observer {name!r} failed at t = {grid[k]:.2f} s of the log at --rate {rate:g} "
                                      f"Hz ({' '.join(str(exc).split())}); a higher --rate (smaller step) or another "
                                      "observer may help") from None
-        bad = estimated & ~np.all(np.isfinite(np.concatenate([force_out, torque_out], axis=1)), axis=1)
+        channels = frozenset(obs.channels) if runs else observer_class(name).channels
+        kept = [arr for ch, arr in (("force", force_out), ("torque", torque_out)) if ch in channels]
+        bad = estimated & ~np.all(np.isfinite(np.concatenate(kept, axis=1)), axis=1)
         if bad.any():
             raise FlightLogError(f"observer {name!r} diverged (non-finite estimate) at t = {grid[bad][0]:.2f} s; "
-                                 "try a lower --rate or another observer")
+                                 "try a higher --rate or another observer")
+        for ch, arr in (("force", force_out), ("torque", torque_out)):
+            if ch not in channels:  # the observer reports zeros there; zeros are not an estimate
+                arr[:] = np.nan
         estimates[name] = (force_out, torque_out)
 
     warnings = [*log.notes, *phases.warnings, *contradictions(scales, preset)]
@@ -145,3 +158,10 @@ def observe(log: FlightLog | str | Path, observers: Sequence[str], vehicle: str 
         "settle_s": settle, "estimated_s": float(estimated.sum() / rate), "warnings": warnings,
     }
     return ObserveResult(log, preset, grid, phases, estimated, settled, thrust, torque, estimates, report)
+
+
+def _disturbance_observers() -> list[str]:
+    from fawtgym.observers import observer_names
+    from fawtgym.observers.base import observer_class
+
+    return [n for n in observer_names() if observer_class(n).channels]
