@@ -75,7 +75,7 @@ def write_test_tlog(path: str | Path, truth_csv: str | Path, *, seconds: float =
         if step % every == 0:
             t = ground_seconds + info["time"]
             pwm = [int(round(1000 + 1000 * float(c))) for c in np.clip(action, 0, 1)]
-            state(t, info["measurement"], pwm, True, (step // every) % int(log_rate / 2) == 0)
+            state(t, info["measurement"], pwm, True, (step // every) % int(log_rate / 2) == 1)  # 1st: armed
             truth_rows.append([t, *info["truth"]["force"].tolist(), *info["truth"]["torque"].tolist()])
         if term or trunc:
             break
