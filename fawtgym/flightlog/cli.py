@@ -19,7 +19,9 @@ from .runner import DEFAULT_RATE, DEFAULT_SETTLE
 
 
 def build_parser() -> ArgumentParser:
-    p = ArgumentParser(prog="fawtgym observe", description=__doc__.split("\n\n")[0])
+    p = ArgumentParser(prog="fawtgym observe", description=(
+        "Run registered observers on a recorded flight (PX4 .ulg or MAVLink .tlog): disturbance force (world NED) "
+        "and torque (body FRD) over the armed, airborne time, figures and a per-phase summary (docs/flightlogs.md)."))
     p.add_argument("log", help="PX4 ULog (.ulg) or MAVLink telemetry log (.tlog)")
     p.add_argument("--observer", required=True, help="comma-separated observer names (see: fawtgym list)")
     p.add_argument("--vehicle", required=True, help="vehicle preset name (see: fawtgym list) or a .yaml/.json file")
