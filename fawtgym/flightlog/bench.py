@@ -24,14 +24,24 @@ VEHICLE = SOURCE.with_name("jmavsim_quad.yaml")
 
 _CHILD = """
 import resource, sys, time
+
+
+def peak_mb():
+    # VmHWM: this process image's peak resident memory (ru_maxrss would carry the parent's across exec)
+    try:
+        with open("/proc/self/status") as fh:
+            return next(int(line.split()[1]) for line in fh if line.startswith("VmHWM")) / 1024
+    except (OSError, StopIteration):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
 t0 = time.perf_counter()
 from fawtgym.flightlog.runner import observe
 import fawtgym.observers, fawtgym.envs.vehicles, pyulog
-base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+base = peak_mb()
 r = observe(sys.argv[1], [sys.argv[2]], sys.argv[3])
 dt = time.perf_counter() - t0
-rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-print(f"{dt:.3f} {rss:.0f} {r.t.size} {r.estimated.sum()} {r.log.duration:.1f} {base:.0f}")
+print(f"{dt:.3f} {peak_mb():.0f} {r.t.size} {r.estimated.sum()} {r.log.duration:.1f} {base:.0f}")
 """
 
 
