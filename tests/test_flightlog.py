@@ -50,6 +50,8 @@ def test_sitl_hover_estimate_is_finite_and_physically_sized() -> None:
     r = observe(SITL, ["ffts_eso", "leso"], JMAVSIM)
     assert r.report["inputs"]["used"] == "motors" and r.report["thrust_scale"]["from"] == "estimate"
     assert abs(r.report["thrust_scale"]["used"] - 1.0) < 0.05  # PX4's hover thrust 0.487 vs jMAVSim 0.8 kg / 16 N
+    # two independent routes to the thrust scale agree: PX4's hover-thrust estimator and our accelerometer check
+    assert r.report["thrust_scale"]["candidates"]["hover"] == pytest.approx(r.report["thrust_scale"]["used"], rel=0.05)
     assert not r.warnings
     hover = r.settled & (r.phases.label == HOVER)
     assert hover.sum() >= 50  # at least a second of settled hover at 50 Hz

@@ -26,7 +26,8 @@ Thrust scale ``s`` (``--thrust-scale``), candidates in the order ``auto`` tries 
 
 * ``estimate``: four rotors at PX4's own in-flight hover thrust (``hover_thrust_estimate``, v1.12+; its
   valid samples while airborne, averaged) hold the weight;
-* ``hover``: over the hover phase, the modelled thrust equals the thrust the accelerometer felt,
+* ``hover``: over the hover phase (past the settle time after take-off, so no spool-up on the ground),
+  the modelled thrust equals the thrust the accelerometer felt,
   ``s = mean(-m a_z) / mean(f_model)`` with the body-z specific force ``a_z`` (this attributes any mean
   body-z force in hover to the thrust model: a log cannot tell a mass error from a steady vertical
   disturbance);

@@ -92,21 +92,21 @@ def observe(log: FlightLog | str | Path, observers: Sequence[str], vehicle: str 
                                                axis=1)), axis=1)
     phases = detect_phases(log, grid, meas["position"], meas["velocity"])
 
-    model = make_thrust_model(log, preset, thrust_curve)
     airborne = phases.airborne & valid & finite
-    hover = airborne & (phases.label == PHASES.index("hover"))
-    scales = thrust_scales(model, log, c_grid, meas["specific_force"][:, 2], hover, grid[airborne])
-    model.scale, scale_from = choose_scale(scales, thrust_scale)
-    thrust, torque = model.wrench(c_grid)
-
     n = grid.size
-    estimates: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
     runs = [(a, b) for a, b in segments(airborne) if b - a >= 2]
     estimated = np.zeros(n, dtype=bool)
     settled = np.zeros(n, dtype=bool)
     for a, b in runs:
         estimated[a:b] = True
         settled[a + int(np.ceil(settle * rate)):b] = True
+
+    model = make_thrust_model(log, preset, thrust_curve)
+    hover = settled & (phases.label == PHASES.index("hover"))  # past the spool-up, as in the summary
+    scales = thrust_scales(model, log, c_grid, meas["specific_force"][:, 2], hover, grid[airborne])
+    model.scale, scale_from = choose_scale(scales, thrust_scale)
+    thrust, torque = model.wrench(c_grid)
+    estimates: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
     dt = 1.0 / rate
     opts = observer_options or {}
     for name in observers:
