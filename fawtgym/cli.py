@@ -20,6 +20,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "leaderboard": ("fawtgym.eval.leaderboard:main", "rank the agents of an eval run (Markdown, CSV, JSON, HTML)"),
     "train": ("fawtgym.train.cli:main", "train a Stable-Baselines3 policy (or a sweep) on the batched hover env"),
     "reproduce": ("fawtgym.cli:reproduce_main", "reproduce a seed paper's numerical study (see: reproduce --help)"),
+    "observe": ("fawtgym.flightlog.cli:main", "run observers on a real flight log (PX4 .ulg or MAVLink .tlog)"),
     "bench": ("fawtgym.cli:bench_main", "speed benchmarks, printed as ratios measured in one run"),
     "sitl": ("fawtgym.eval.sitl.cli:sitl_main", "our env as PX4's simulator over MAVLink (HIL lockstep on TCP 4560)"),
     "replay": ("fawtgym.eval.sitl.cli:replay_main", "fly an agent through a real autopilot in OFFBOARD over MAVLink"),
@@ -44,6 +45,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "closed-loop": ("fawtgym.eval.bench.closed_loop:main", "PX4 + FFTS-ESO in FAWT-50 wind: real-time factor"),
     "qb-sdp": ("fawtgym.eval.bench.qb_sdp:main", "one QB-observer SDP at fixed alpha"),
     "train": ("fawtgym.eval.bench.train:main", "PPO end-to-end env-steps/s beside the training env alone"),
+    "flightlog": ("fawtgym.flightlog.bench:main", "observe, one observer, on a 20-min PX4 log (a real one tiled)"),
     "eval": ("fawtgym.eval.bench.eval:main", "quick leaderboard: cells/min, vehicle-s per wall-s vs the env alone"),
 }
 
