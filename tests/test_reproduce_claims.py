@@ -181,19 +181,33 @@ def test_geso_claims() -> None:
 
 
 # ---- Wang and Sanyal 2022 -------------------------------------------------------------------------
-def _nb(att: float, om: float, sig: float) -> dict[str, float]:
-    return {"t_from": 15.0, "att_angle_deg_0": 180.0, "att_angle_deg_max": att, "omega_err_0": 1.5,
-            "omega_err_max": om, "sigma_err_0": 6.0, "sigma_err_max": sig, "morse_max": 0.0}
+def _nb(att: float, om: float, sig: float, triv: tuple[float, float, float] | None = None) -> dict[str, float]:
+    out = {"t_from": 15.0, "att_angle_deg_0": 180.0, "att_angle_deg_max": att, "omega_err_0": 1.5,
+           "omega_err_max": om, "sigma_err_0": 6.0, "sigma_err_max": sig, "morse_max": 0.0}
+    if triv is not None:
+        out |= dict(zip(("triv_att_angle_deg_max", "triv_omega_err_max", "triv_sigma_err_max"), triv, strict=True))
+    return out
 
 
 def test_hc_eso_claims() -> None:
     from fawtgym.eval.reproduce import hc_eso as H
 
+    # no trivial-estimator run: convergence alone does not decide
     claims = H.paper_claims(_nb(3.0, 0.3, 10.0), _nb(0.5, 0.01, 11.0))
-    assert [c.verdict for c in claims] == [C.REPRODUCED, C.PARTLY, C.NOT, C.PARTLY]
-    assert "20 % of the initial" in claims[1].reason
+    assert [c.verdict for c in claims] == [C.UNCHECKED, C.UNCHECKED, C.NOT, C.PARTLY]
+    assert "20 % of the initial" in claims[1].reason and "critical point" in claims[0].reason
     assert "sigma_err" in claims[3].reason
     assert H.paper_claims(_nb(3.0, 0.05, 0.1))[-1].verdict == C.UNCHECKED
+    # against the trivial estimator: 3 deg vs 10 -> reproduced; rate 0.06 vs 0.08 -> partly; sigma 0.08 vs 0.065 -> not
+    claims = H.paper_claims(_nb(3.0, 0.06, 0.08, (10.0, 0.08, 0.065)))
+    assert [c.verdict for c in claims[:3]] == [C.REPRODUCED, C.PARTLY, C.NOT]
+    assert "no better than the trivial" in claims[2].reason and "not by 2x" in claims[1].reason
+    # the median decides, the seeds' spread can only downgrade: overlapping ranges -> partly
+    runs = [_nb(a, 0.01, 0.01, (t, 0.08, 0.065)) for a, t in ((3.0, 10.0), (3.2, 9.0), (9.5, 11.0))]
+    agg = H.over_seeds(runs)
+    assert agg["att_angle_deg_max"] == 3.2 and agg["att_angle_deg_max_hi"] == 9.5 and agg["n_seeds"] == 3
+    fig1 = H.paper_claims(agg)[0]
+    assert fig1.verdict == C.PARTLY and "overlap" in fig1.reason and "over 3 seeds" in fig1.our_value
 
 
 # ---- Cayero et al. 2019 ---------------------------------------------------------------------------
