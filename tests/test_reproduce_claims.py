@@ -160,7 +160,7 @@ def test_geso_claims() -> None:
                         {"GESO-1": 1.4, "GESO-2": 0.7, "GESO-3": 0.3})
     whole = _geso_rows({"none": 8.5, "GESO-1": 4.9, "GESO-2": 5.1, "GESO-3": 5.2},
                        {"GESO-1": 1.8, "GESO-2": 1.2, "GESO-3": 0.9})
-    settle = {("GESO-1", 2): math.inf, ("GESO-2", 2): 0.58, ("GESO-3", 2): 0.53}
+    settle = {1.0: {("GESO-1", 2): math.inf, ("GESO-2", 2): 0.58, ("GESO-3", 2): 0.53}}
     claims = G.paper_claims(steady, whole, settle, 2.0, 6.0)
     track = by_statement(claims, "Case 1: tracking error falls")
     assert track.verdict == C.PARTLY and "whole run: not" in track.reason
@@ -169,14 +169,23 @@ def test_geso_claims() -> None:
     assert by_statement(claims, "speed of convergence").verdict == C.REPRODUCED
     for n in (1, 2, 3):
         assert by_statement(claims, f"GESO-{n} gains").verdict == C.REPRODUCED
-    peak = by_statement(claims, "peak magnitudes")
-    assert peak.verdict == C.PARTLY and "rises with n" in peak.reason
+    peak = by_statement(claims, "peak magnitudes")   # the statement after eq. 38 is false: flagged
+    assert peak.verdict == C.NOT and "false as stated" in peak.reason and "1.155, 1.299, 1.431" in peak.our_value
     assert by_statement(claims, "falls as w_b rises").verdict == C.REPRODUCED
-    # the study's yes/no table is the same rule
-    assert [ok for _, ok, _ in G.check_claims(whole)] == [True, False, True]
+    # the study's yes/no table is the same rule, and lists the G(s) claims and the speed claim as well
+    assert [ok for _, ok, _ in G.check_claims(whole, bode=False)] == [True, False, True]
+    table = G.check_claims(whole, settle, 6.0)
+    assert any("peak magnitudes" in c and not ok for c, ok, _ in table)
+    assert any("Fig. 3" in c or "low frequency" in c for c, _, _ in table)
+    assert any("speed of convergence" in c and ok for c, ok, _ in table)
+    # speed over several bands (as measured: 2 and 5 deg are not monotone) -> partly
+    bands = {1.0: settle[1.0], 2.0: {("GESO-1", 2): 0.405, ("GESO-2", 2): 0.455, ("GESO-3", 2): 0.423},
+             5.0: {("GESO-1", 2): 0.233, ("GESO-2", 2): 0.287, ("GESO-3", 2): 0.28}}
+    speed = G.speed_claim(bands, 6.0)
+    assert speed.verdict == C.PARTLY and "not monotone" in speed.reason and "0.405 / 0.455 / 0.423" in speed.our_value
     bad = _geso_rows({"none": 1.0, "GESO-1": 2.0, "GESO-2": 3.0, "GESO-3": 4.0},
                      {"GESO-1": 1.0, "GESO-2": 2.0, "GESO-3": 3.0})
-    claims = G.paper_claims(bad, bad, {("GESO-1", 2): 0.5, ("GESO-2", 2): 0.6, ("GESO-3", 2): 0.7}, 2.0, 6.0)
+    claims = G.paper_claims(bad, bad, {1.0: {("GESO-1", 2): 0.5, ("GESO-2", 2): 0.6, ("GESO-3", 2): 0.7}}, 2.0, 6.0)
     assert {c.verdict for c in claims if c.where.startswith("Fig") and "Case" in c.statement} == {C.NOT}
 
 
@@ -240,6 +249,20 @@ def test_qb_claims() -> None:
     assert by_statement(claims, "trades off").verdict == C.PARTLY
     assert by_statement(claims, "slower").verdict == C.NOT
     assert by_statement(claims, "error stability").verdict == C.NOT
+
+
+def test_qb_observations_say_what_the_table_shows() -> None:
+    from fawtgym.eval.reproduce import qb_observer as Q
+
+    s = _qb_summary(ellipsoid_dx={0.2: 5.8, 0.95: 1.5}, trivial={"rms_d": 1.3, "max_d": 2.0},
+                    region={0.2: {"rms": 0.41, "rms_lo": 0.40, "rms_hi": 0.43, "n_seeds": 5.0},
+                            0.95: {"rms": 0.18, "rms_lo": 0.17, "rms_hi": 0.19, "n_seeds": 5.0}})
+    text = "\n".join(Q.observations(s))
+    assert "mu = 0.2 design has alpha = 20, at the upper edge of the sweep" in text   # alpha 20 = max of the grid
+    assert "mu = 0.95 design" not in text                                              # 2.8: inside the sweep
+    assert "2.90 x the 2 N peak" in text and "certifies nothing" in text               # 5.8 N above 2 N
+    assert "0.75 x the 2 N peak of the Fig. 3 disturbance (below the signal)" in text
+    assert "x the trivial estimate d_hat = 0" in text
 
 
 # ---- Silva and Santos 2023 ------------------------------------------------------------------------
