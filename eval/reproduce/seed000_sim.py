@@ -225,10 +225,11 @@ def _x(value: float, threshold: float) -> str:
     return f"{value / threshold:.2f}x" if threshold > 0 else "inf"
 
 
-def _rank(res: StudyResult, obs: str, i: int, quantity: str = "torque") -> tuple[int, int]:
-    """(rank of ``obs`` among the observers run, best = 1; how many) by steady RMS of case i."""
+def _rank(res: StudyResult, obs: str, i: int, quantity: str = "torque",
+          among: Sequence[str] | None = None) -> tuple[int, int]:
+    """(rank of ``obs`` among the observers run (or ``among``), best = 1; how many) by steady RMS of case i."""
     d = res.steady_torque if quantity == "torque" else res.steady_force
-    vals = sorted(d[o][i] for o in d)
+    vals = sorted(d[o][i] for o in (among if among is not None else d))
     return vals.index(d[obs][i]) + 1, len(vals)
 
 
@@ -322,15 +323,19 @@ def paper_claims(res: StudyResult) -> list[C.Claim]:
             verdict = C.NOT
             reason = "stays converged: " + "; ".join(f"{res.names[i]}: {lv}" for i, lv in zip(idx_fh, levels,
                                                                                                strict=True))
-            ranks = [_rank(res, obs, i) for i in idx_fh]
+            paper3 = [o for o in obs3 if o in st]
+            ranks = [_rank(res, obs, i, among=paper3) for i in idx_fh]
+            ranks_all = [_rank(res, obs, i) for i in idx_fh]
             if all(r == 1 for r, _ in ranks):
-                reason += (f"; it is the most accurate torque estimate of all {ranks[0][1]} observers there "
-                           + ", ".join(f"{res.names[i]} {C.fmt(st[obs][i])} N m" for i in idx_fh)
-                           + (" (noise-free, it acts on almost exact finite-differenced rates)"
-                              if obs == "fxtsdo" else ""))
+                reason += (f"; it is the most accurate torque estimate of the paper's {ranks[0][1]} observers there ("
+                           + ", ".join(f"{res.names[i]} {C.fmt(st[obs][i])} N m" for i in idx_fh) + ")")
             else:
-                reason += "; rank among the observers: " + ", ".join(
+                reason += "; rank among the paper's observers: " + ", ".join(
                     f"{res.names[i]} {r} of {n}" for i, (r, n) in zip(idx_fh, ranks, strict=True))
+            reason += "; among all observers run: " + ", ".join(
+                f"{res.names[i]} {r} of {n}" for i, (r, n) in zip(idx_fh, ranks_all, strict=True))
+            if obs == "fxtsdo":
+                reason += " (noise-free, it acts on almost exact finite-differenced rates)"
         reason += f" ({margins})"
         ours = ", ".join(f"{res.names[i]} {C.fmt(st[obs][i])} N m" for i in idx_fh)
         if hv is not None:
