@@ -82,7 +82,9 @@ def test_predefined_observer_converges_by_tc() -> None:
     assert res.g_err[0] > 0.3
     assert res.g_err[k // 2] > 1e-2
     assert res.g_err[k] < 1e-4  # at t_c
-    assert res.g_err[k:].max() < 1e-3 and res.w_err[k + 500:].max() < 0.3  # stays in a small neighbourhood
+    # stays in a small neighbourhood: attitude; the rate, relative to ||omega|| (0.39-0.44 rad/s here, the error of
+    # omega_hat = 0): measured 0.083 rad/s = 0.21 of the smallest ||omega|| after t_c
+    assert res.g_err[k:].max() < 1e-3 and res.w_err[k + 500:].max() < 0.3 * res.w_norm[k:].min()
     assert res.w_err[k // 2] > 0.5
 
 
@@ -146,7 +148,8 @@ def test_env_estimator_defaults_and_interface() -> None:
     assert est.states["attitude"].shape == (1, 3, 3) and est.states["angular_velocity"].shape == (1, 3)
     k = int(round(1.5 / dt))
     assert att[k:].max() < 3e-3 and att[k + 100:].max() < 3e-4  # rad, noise-free, after t_c = 1.5 s
-    assert werr[k + 40:].max() < 0.15  # rad/s (discrete STA chattering at 200 Hz)
+    # rad/s, discrete STA chattering at 200 Hz: measured 0.031, 0.14 of |omega| = 0.224 (omega_hat = 0 has error 1.0)
+    assert werr[k + 40:].max() < 0.3 * np.linalg.norm(_slow_rate(0.0, 1))
     assert werr[: k // 3].max() > 3 * werr[k + 40:].max()  # it did have to converge
 
 
