@@ -142,12 +142,11 @@ EXPECTED_VERDICTS = [
 @pytest.mark.long
 def test_full_seed000_study(tmp_path):
     """The full Sec. 6 run (30 s, four trajectories, both noise cases) through the CLI entry point; every verdict."""
-    assert sim.main(["--out", str(tmp_path)]) == 0
+    res, out, _, _ = sim._run(["--out", str(tmp_path)])   # the CLI's own path, keeping the result
     rows = (tmp_path / "seed000_rms.csv").read_text().splitlines()
     assert len(rows) == 1 + 4 * 8
     res_md = (tmp_path / "seed000_rms.md").read_text()
     assert "With noise FxTSDO gives no meaningful estimate (Remark 2) | confirmed" in res_md
-    res = sim.run_study()
     claims = sim.paper_claims(res)
     assert [(c.where, c.statement[:50], c.verdict) for c in claims] == EXPECTED_VERDICTS
     # the paper's "FxTSDO's torque diverges noise-free in FS and HP" is listed, contradicted, with the reason
