@@ -100,7 +100,8 @@ def frac_power(e: ArrayLike, p: float, eps: float = 0.0) -> NDArray[np.float64]:
 
     With eps = 0 this is exactly (e^T e)^((1-p)/p) e (continuous, 0 at e = 0).  With eps > 0 it is exact for
     |e| > sqrt(eps) and linear inside that ball -- the regularisation used by the ESOs, whose derivative
-    :func:`frac_power_rate` is bounded.
+    :func:`frac_power_rate` is bounded.  Its slope inside the ball is eps^((1-p)/p); an ESO integrated by
+    explicit Euler at step dt must take eps from :func:`euler_stable_eps` (a fixed 1e-12 diverges for p > 1.4).
     """
     e = np.asarray(e, dtype=float)
     r2 = _sq(e)
