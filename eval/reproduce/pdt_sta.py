@@ -196,7 +196,8 @@ def run_case(case: Sec5Case, ts: float = 1e-4, t_f: float = 3.0, omega_source: s
 
 
 #: the thresholds of the Sec.-5 verdicts, each relative to the signal it judges (omega_scale = max ||omega|| over
-#: the run, 0.47 rad/s; g_scale = max ||g||, 0.23): the trivial estimate omega_hat = 0 has a rate error of
+#: the run, 0.47 rad/s; g_scale = the larger of ||g(0)|| and the initial error ||g - g_hat||(0), 0.39 in Table 1's
+#: setting): the trivial estimate omega_hat = 0 has a rate error of
 #: 0.64-1.0 x omega_scale, so every rate threshold below is one that estimate fails
 #: * "at zero" (Figs. 5-7: the discrete STA's chattering band): ||g err|| < G_ZERO_REL g_scale and
 #:   ||omega err|| < W_ZERO_REL omega_scale; the settling instant is the time from which both hold
