@@ -85,5 +85,7 @@ def test_full_reproduction(tmp_path):
     assert clean["sigma_err_max"] < 0.4 * sig and clean["att_angle_deg_max"] < 0.2 and clean["omega_err_max"] < 0.005
     assert noisy["omega_err_max"] < 0.8 * noisy["triv_omega_err_max"]
     assert noisy["sigma_err_max"] > sig   # the paper's noisy run: the sigma estimate is worse than zero
+    # every verdict: attitude within the static Wahba solution's noise (ranges overlap: 3.23-3.50 vs 3.19-3.70 deg),
+    # rate 0.63x the raw rate's error, sigma 1.27x |sigma|, the noise-free neighbourhood smaller
     verdicts = [c.verdict for c in rep.paper_claims(noisy, clean)]
-    assert verdicts[2] == "not" and verdicts[3] == "reproduced"
+    assert verdicts == ["partly", "partly", "not", "reproduced"]
