@@ -34,6 +34,15 @@ g(e) = max(e^T e, eps)^((1-p)/p) e (exact for |e| > sqrt(eps), linear inside) an
 is used (:func:`fawtgym.observers.hc_ffts.frac_power` / :func:`~fawtgym.observers.hc_ffts.frac_power_rate`), so the
 implemented observer is the paper's with psi's fractional term replaced by g; finite at e = 0.
 
+The floor eps depends on p and dt.  g's largest slope is eps^((1-p)/p) (at the ball's edge), and the
+H-terms feed it back into the error's own rate, so the stiffest error mode near e = 0 decays at
+lambda = kappa eps^((1-p)/p) (times tr(K) - min K for the rotational ESO, eq. 66); explicit Euler is
+unstable once lambda dt > 2.  With a fixed eps = 1e-12 and dt = 1 ms that happens for p > 1.395 (p = 1.5:
+force errors of 1.5 N, p = 1.9: tens of N).  Each update therefore uses, per ESO half,
+eps = max(``eps``, (gain dt / 1.5)^(p/(p-1))) (:func:`fawtgym.observers.hc_ffts.euler_stable_eps`, with the
+derivation), which keeps lambda dt <= 1.5 for every p in (1, 2) and leaves eps at ``eps`` wherever the fixed
+floor was already stable (p = 1.2 with the paper's gains at dt <= 10 ms: unchanged results).
+
 Default gains: the paper's Sec. 6 simulation gains, p = 1.2, k_t1 = 3, k_t2 = 2, k_t3 = 6, kappa_t = 0.8,
 k_a1 = 3, k_a2 = 2, k_a3 = 4, kappa_a = 0.6.  The paper does not give K of the Morse function; the
 default K = diag(1.2, 1.1, 1.0) is our choice (satisfies K1 > K2 > K3 >= 1 of Lemma 5).
@@ -58,7 +67,7 @@ from fawtgym.observers._obs_common import (
     step_inputs,
 )
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
-from fawtgym.observers.hc_ffts import DEFAULT_EPS, check_p, hurwitz_matrix
+from fawtgym.observers.hc_ffts import DEFAULT_EPS, check_p, euler_stable_eps, hurwitz_matrix
 from fawtgym.observers.lie import integrate_rotation, project_so3, vee
 
 _E3 = np.array([0.0, 0.0, 1.0])
@@ -141,6 +150,19 @@ class FFTSESO(Observer):
         self._j_list = self.inertia.tolist()
         self._jinv_list = self.inertia_inv.tolist()
         self._kv = tuple(self.morse_k.tolist())
+        # stiffest-mode gains of the two halves (euler_stable_eps): e_v' ~ -kappa_t g' e_v, and
+        # e_Omega' ~ -kappa_a g' (tr(K) I - K) e_Omega at E = I (eq. 66)
+        self._stiff_t = self.kappa_t
+        self._stiff_a = self.kappa_a * float(self.morse_k.sum() - self.morse_k.min())
+        self._eps_cache: tuple[float, float, float] = (math.nan, self.eps, self.eps)
+
+    def eps_at(self, dt: float) -> tuple[float, float]:
+        """(eps_t, eps_a): the floors of the translational and rotational fractional terms at step ``dt``
+        (:func:`fawtgym.observers.hc_ffts.euler_stable_eps`; ``eps`` wherever that is already stable)."""
+        if dt != self._eps_cache[0]:
+            self._eps_cache = (dt, euler_stable_eps(self.p, self._stiff_t, dt, self.eps),
+                               euler_stable_eps(self.p, self._stiff_a, dt, self.eps))
+        return self._eps_cache[1], self._eps_cache[2]
 
     # ---- interface -------------------------------------------------------------------------
     def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
@@ -169,7 +191,7 @@ class FFTSESO(Observer):
             return self._update_single(measurement, thrust, torque, dt)
         s = self._state
         m, f, tau = step_inputs(self, measurement, thrust, torque, dt, _KEYS, s["b"].shape[0], "ffts_eso")
-        new = self._advance(s, self._rhs(s, m, f, tau), dt)
+        new = self._advance(s, self._rhs(s, m, f, tau, *self.eps_at(dt)), dt)
         if not all_finite(new["v"], new["w"], new["phi"], new["tau"], new["b"], new["R"]):
             check_finite("ffts_eso", **new)
         self._state = new
@@ -216,7 +238,8 @@ class FFTSESO(Observer):
         (b0, b1, b2, v0, v1, v2, ph0, ph1, ph2, w0, w1, w2, th0, th1, th2,
          h00, h01, h02, h10, h11, h12, h20, h21, h22) = flat
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = rm
-        mass, eps, c, k2c, a, tiny = self.mass, self.eps, self._c, 2.0 * self._k, self._a, _TINY
+        eps, eps_a = self.eps_at(dt)
+        mass, c, k2c, a, tiny = self.mass, self._c, 2.0 * self._k, self._a, _TINY
         # translational, eqs. (45), (49), (50)
         eb0, eb1, eb2 = pm0 - b0, pm1 - b1, pm2 - b2
         ev0, ev1, ev2 = vm0 - v0, vm1 - v1, vm2 - v2
@@ -257,9 +280,9 @@ class FFTSESO(Observer):
         ew1 = tr * eo1 - (e01 * ke0 + e11 * ke1 + e21 * ke2)
         ew2 = tr * eo2 - (e02 * ke0 + e12 * ke1 + e22 * ke2)
         r2a = er0 * er0 + er1 * er1 + er2 * er2
-        ra = eps if eps > r2a else r2a
+        ra = eps_a if eps_a > r2a else r2a
         pwa = ra**c
-        coefa = k2c * (er0 * ew0 + er1 * ew1 + er2 * ew2) / ra if r2a > eps else 0.0
+        coefa = k2c * (er0 * ew0 + er1 * ew1 + er2 * ew2) / ra if r2a > eps_a else 0.0
         ka = self.kappa_a
         pa0 = eo0 + ka * (er0 + pwa * er0)
         pa1 = eo1 + ka * (er1 + pwa * er1)
@@ -353,13 +376,18 @@ class FFTSESO(Observer):
                 "tau": s["tau"] + dt * d["tau"]}
 
     def _rhs(self, s: dict[str, NDArray[np.float64]], m: dict[str, NDArray[np.float64]],
-             f: NDArray[np.float64], tau: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
+             f: NDArray[np.float64], tau: NDArray[np.float64], eps: float | None = None,
+             eps_a: float | None = None) -> dict[str, NDArray[np.float64]]:
         """Time derivatives of (b, v, phi, tau, w) and the body rate of R_hat (key "R").
 
         Fused forms of phi1/phi2 (eq. 9) and of the regularised fractional power g(e) = max(e^T e, eps)^c e,
         c = (1-p)/p, and its exact derivative (eqs. 49/68); equal to the hc_ffts functions (tested).
+        ``eps`` / ``eps_a``: the translational / rotational floors (default ``self.eps``; :meth:`update` passes
+        :meth:`eps_at` of its dt).
         """
-        mass, eps, c = self.mass, self.eps, self._c
+        mass, c = self.mass, self._c
+        eps = self.eps if eps is None else eps
+        eps_a = self.eps if eps_a is None else eps_a
         # translational, eqs. (45), (49), (50)
         e_b = m["position"] - s["b"]
         e_v = m["velocity"] - s["v"]
@@ -383,10 +411,10 @@ class FFTSESO(Observer):
         tr = e_mat[:, 0, 0] * kv[0] + e_mat[:, 1, 1] * kv[1] + e_mat[:, 2, 2] * kv[2]
         e_w = tr[:, None] * e_om - ((kv * e_om)[:, None, :] @ e_mat)[:, 0]      # eq. (66)
         r2a = (e_r * e_r) @ _ONES
-        ra = np.maximum(r2a, eps)
+        ra = np.maximum(r2a, eps_a)
         pwa = ra**c
         psi_a = e_om + self.kappa_a * (e_r + pwa * e_r)
-        rate_r = pwa * (e_w - (2.0 * self._k * (e_r * e_w) @ _ONES * (r2a > eps) / ra) * e_r)
+        rate_r = pwa * (e_w - (2.0 * self._k * (e_r * e_w) @ _ONES * (r2a > eps_a) / ra) * e_r)
         qa = np.maximum((psi_a * psi_a) @ _ONES, _TINY) ** self._a
         body = ((cross(om @ self.inertia.T, om) + s["tau"] + tau) @ self.inertia_inv.T
                 + (self.ka1 * (self.ka3 + qa)) * psi_a + self.kappa_a * (rate_r + e_w))

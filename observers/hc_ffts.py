@@ -11,6 +11,8 @@ Source: ``ffts_eso_tse3_fawt_wang2024.txt`` (Wang, Hamrah, Sanyal, Glauser 2024)
   g(e) = max(e^T e, eps)^((1-p)/p) e (exact for |e| > sqrt(eps), linear inside) and g's exact,
   bounded derivative.  This is the one numerical regularisation of the continuous-time law; it is
   documented wherever it is used.
+* :func:`euler_stable_eps` -- the floor eps a discrete-time ESO must use at step dt so that explicit
+  Euler stays stable inside the ball (derivation in its docstring).
 * :class:`HCFFTSD` -- gains (k1, k2, k3, p), the Lyapunov matrix P of eq. (17) from scipy,
   gamma_1, gamma_2 of eq. (32), the Lyapunov function (19) and the settling-time bound of Lemma 2,
   eq. (5) with lambda_1 = gamma_1, lambda_2 = gamma_2, alpha = 1/p.
@@ -98,7 +100,8 @@ def frac_power(e: ArrayLike, p: float, eps: float = 0.0) -> NDArray[np.float64]:
 
     With eps = 0 this is exactly (e^T e)^((1-p)/p) e (continuous, 0 at e = 0).  With eps > 0 it is exact for
     |e| > sqrt(eps) and linear inside that ball -- the regularisation used by the ESOs, whose derivative
-    :func:`frac_power_rate` is bounded.
+    :func:`frac_power_rate` is bounded.  Its slope inside the ball is eps^((1-p)/p); an ESO integrated by
+    explicit Euler at step dt must take eps from :func:`euler_stable_eps` (a fixed 1e-12 diverges for p > 1.4).
     """
     e = np.asarray(e, dtype=float)
     r2 = _sq(e)
@@ -121,6 +124,43 @@ def frac_power_rate(e: ArrayLike, edot: ArrayLike, p: float, eps: float = DEFAUL
     k = (p - 1.0) / p
     dot = np.sum(e * edot, axis=-1, keepdims=True)
     return r ** ((1.0 - p) / p) * (edot - np.where(r2 > eps, 2.0 * k * dot / r, 0.0) * e)
+
+
+#: |Euler factor - 1| allowed for the stiffest mode of the regularised fractional term (< 2 is stable; see
+#: :func:`euler_stable_eps`).  1.5 keeps every p = 1.2 run of the project at dt <= 10 ms on the fixed floor
+#: DEFAULT_EPS (there kappa eps^c dt <= 1.38), so those results do not change.
+EULER_MARGIN = 1.5
+
+
+def euler_stable_eps(p: float, gain: float, dt: float, floor: float = DEFAULT_EPS,
+                     margin: float = EULER_MARGIN) -> float:
+    """The floor eps of :func:`frac_power` for an ESO integrated by explicit Euler at step ``dt``.
+
+    Derivation.  With c = (1-p)/p < 0, g(e) = max(e^T e, eps)^c e has the Jacobian eps^c I inside the ball
+    |e| <= sqrt(eps) and |e|^(2c) (I + 2c e e^T / e^T e) outside it, whose eigenvalues |e|^(2c) and
+    |e|^(2c) (2-p)/p are largest at the ball's edge: the largest slope of g is eps^c.  The ESOs feed the
+    derivative of kappa g(e) back into the rate of the error it differentiates (eqs. 49/68 of Wang et al.
+    2024: e_v' = -kappa (g'(e_b) + I) e_v + slower terms), so near e = 0 the stiffest mode of the error
+    dynamics is e' = -lambda e with lambda = gain eps^c, ``gain`` = kappa times the largest gain from the
+    observer's error rate to e's rate (kappa_t for the translational ESO; kappa_a (K1 + K2 + K3 - min K)
+    for the rotational one, since e_R' = (tr(K) I - K) e_Omega at E = I, eq. 66).  Explicit Euler maps it
+    to e <- (1 - lambda dt) e: stable only while lambda dt < 2, i.e. gain eps^c dt < 2.  With the fixed
+    eps = 1e-12 this fails for p > 1.395 at kappa = 0.8, dt = 1 ms (eps^c = 10^(12 (p-1)/p) reaches 1e4 at
+    p = 1.5), and a smaller dt does not help enough because eps^c grows as fast as 10^(12 (p-1)/p).
+
+    So eps is raised until gain eps^c dt <= ``margin`` (< 2):
+    eps = max(floor, (gain dt / margin)^(p / (p-1))), since eps^c = (gain dt / margin)^(-1) then.
+    The regularisation changes the law only inside a ball of radius sqrt(eps) (for p = 1.9, dt = 1 ms,
+    gain 1.4: about 0.7e-3 in the error's units), where it replaces a gain the step cannot resolve by the
+    largest one it can.  Where the fixed floor already satisfies the bound (p = 1.2 at dt <= 10 ms for the
+    project's gains) eps stays ``floor`` and nothing changes.
+    """
+    check_p(p)
+    if not (np.isfinite(gain) and gain > 0 and np.isfinite(dt) and dt > 0):
+        raise ValueError(f"gain and dt must be finite positive numbers, got gain={gain!r}, dt={dt!r}")
+    if not (0.0 < margin < 2.0):
+        raise ValueError(f"margin must lie in (0, 2) (explicit Euler is unstable beyond 2), got {margin!r}")
+    return max(float(floor), (gain * dt / margin) ** (p / (p - 1.0)))
 
 
 def lyapunov_p(k1: float, k2: float, q: ArrayLike | None = None) -> NDArray[np.float64]:

@@ -82,7 +82,9 @@ def test_predefined_observer_converges_by_tc() -> None:
     assert res.g_err[0] > 0.3
     assert res.g_err[k // 2] > 1e-2
     assert res.g_err[k] < 1e-4  # at t_c
-    assert res.g_err[k:].max() < 1e-3 and res.w_err[k + 500:].max() < 0.3  # stays in a small neighbourhood
+    # stays in a small neighbourhood: attitude; the rate, relative to ||omega|| (0.39-0.44 rad/s here, the error of
+    # omega_hat = 0): measured 0.083 rad/s = 0.21 of the smallest ||omega|| after t_c
+    assert res.g_err[k:].max() < 1e-3 and res.w_err[k + 500:].max() < 0.3 * res.w_norm[k:].min()
     assert res.w_err[k // 2] > 0.5
 
 
@@ -146,7 +148,8 @@ def test_env_estimator_defaults_and_interface() -> None:
     assert est.states["attitude"].shape == (1, 3, 3) and est.states["angular_velocity"].shape == (1, 3)
     k = int(round(1.5 / dt))
     assert att[k:].max() < 3e-3 and att[k + 100:].max() < 3e-4  # rad, noise-free, after t_c = 1.5 s
-    assert werr[k + 40:].max() < 0.15  # rad/s (discrete STA chattering at 200 Hz)
+    # rad/s, discrete STA chattering at 200 Hz: measured 0.031, 0.14 of |omega| = 0.224 (omega_hat = 0 has error 1.0)
+    assert werr[k + 40:].max() < 0.3 * np.linalg.norm(_slow_rate(0.0, 1))
     assert werr[: k // 3].max() > 3 * werr[k + 40:].max()  # it did have to converge
 
 
@@ -184,10 +187,40 @@ def test_env_estimator_batch_equals_separate_runs() -> None:
                         what=f"row {i}", **law)
 
 
+def _static_quest_error(seed: int, t_f: float, dt: float) -> np.ndarray:
+    """The trivial attitude estimator on the same noisy samples as :func:`_fly`: QUEST of each sample alone."""
+    from fawtgym.observers.quest import quest
+
+    rng = np.random.default_rng(seed)
+    R = np.eye(3)[None]
+    out = []
+    for k in range(int(round(t_f / dt))):
+        R = R @ exp_so3(_slow_rate(k * dt, 1) * dt)
+        meas = {key: v + 0.002 * rng.normal(size=v.shape) * np.linalg.norm(v, axis=-1, keepdims=True)
+                for key, v in _imu(R).items()}
+        ref = _imu(np.eye(3)[None])
+        q = quest(np.stack([meas["specific_force"][0], meas["magnetometer"][0]]),
+                  np.stack([ref["specific_force"][0], ref["magnetometer"][0]]))
+        out.append(np.linalg.norm(log_so3(np.swapaxes(q.R, 1, 2) @ R), axis=-1)[0])
+    return np.array(out)
+
+
 def test_env_estimator_bounded_with_noise() -> None:
-    obs = make_observer("pdt_sta", 1.0, [0.03, 0.03, 0.06], noise_bound=0.01)  # t_e = 1.5 - 0.05
-    att, werr, _ = _fly(obs, np.eye(3)[None], _slow_rate, 2.5, 0.005, np.random.default_rng(0))
-    assert np.all(np.isfinite(att)) and att[320:].max() < 0.02 and werr[320:].max() < 1.0
+    """With 0.2 % vector noise, after t_c (sample 320 = 1.6 s) over three noise seeds, judged against the signal
+    (|omega| = 0.224 rad/s: omega_hat = 0 has error 1.0 x |omega|) and against static QUEST on the same samples.
+    Measured: rate max 0.29-0.45 x |omega|, median 0.12-0.16 x; attitude max 4.7-6.3 mrad, QUEST alone 13-17."""
+    w_sig = float(np.linalg.norm(_slow_rate(0.0, 1)))
+    w_max, w_med, att_max, quest_max = [], [], [], []
+    for seed in range(3):
+        obs = make_observer("pdt_sta", 1.0, [0.03, 0.03, 0.06], noise_bound=0.01)  # t_e = 1.5 - 0.05
+        att, werr, _ = _fly(obs, np.eye(3)[None], _slow_rate, 2.5, 0.005, np.random.default_rng(seed))
+        assert np.all(np.isfinite(att)) and np.all(np.isfinite(werr))
+        w_max.append(werr[320:].max())
+        w_med.append(np.median(werr[320:]))
+        att_max.append(att[320:].max())
+        quest_max.append(_static_quest_error(seed, 2.5, 0.005)[320:].max())
+    assert np.median(w_max) < 0.6 * w_sig and np.median(w_med) < 0.25 * w_sig
+    assert np.median(att_max) < 0.6 * np.median(quest_max)   # the observer filters: better than QUEST alone
 
 
 def test_env_estimator_bad_input() -> None:

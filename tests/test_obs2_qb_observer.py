@@ -240,6 +240,12 @@ def test_full_reproduction(tmp_path):
                  "qb_summary.md", "qb_fig4.png", "qb_fig7.png"):
         assert (tmp_path / name).is_file()
     assert s["max_rel_lmi7"] < 1e-6 and s["max_decay_margin"] <= 0
+    # what the table shows is said: the mu = 0.2 design at alpha = 20, the sweep's edge; its guaranteed |e_dx| bound
+    # (5.5-5.8 N) above the 2 N signal; the trivial estimate beside the noisy error (median of 5 seeds)
+    text = (tmp_path / "qb_summary.md").read_text()
+    assert "mu = 0.2 design has alpha = 20, at the upper edge of the sweep" in text
+    assert s["ellipsoid_dx"][0.2] > s["trivial"]["max_d"] and "certifies nothing" in text
+    assert s["region"][0.2]["n_seeds"] == 5 and s["region"][0.95]["rms"] < s["trivial"]["rms_d"]
 
 
 def test_runs_in_the_hover_env_with_its_measurement_and_applied_inputs():

@@ -160,7 +160,7 @@ def test_geso_claims() -> None:
                         {"GESO-1": 1.4, "GESO-2": 0.7, "GESO-3": 0.3})
     whole = _geso_rows({"none": 8.5, "GESO-1": 4.9, "GESO-2": 5.1, "GESO-3": 5.2},
                        {"GESO-1": 1.8, "GESO-2": 1.2, "GESO-3": 0.9})
-    settle = {("GESO-1", 2): math.inf, ("GESO-2", 2): 0.58, ("GESO-3", 2): 0.53}
+    settle = {1.0: {("GESO-1", 2): math.inf, ("GESO-2", 2): 0.58, ("GESO-3", 2): 0.53}}
     claims = G.paper_claims(steady, whole, settle, 2.0, 6.0)
     track = by_statement(claims, "Case 1: tracking error falls")
     assert track.verdict == C.PARTLY and "whole run: not" in track.reason
@@ -169,31 +169,54 @@ def test_geso_claims() -> None:
     assert by_statement(claims, "speed of convergence").verdict == C.REPRODUCED
     for n in (1, 2, 3):
         assert by_statement(claims, f"GESO-{n} gains").verdict == C.REPRODUCED
-    peak = by_statement(claims, "peak magnitudes")
-    assert peak.verdict == C.PARTLY and "rises with n" in peak.reason
+    peak = by_statement(claims, "peak magnitudes")   # the statement after eq. 38 is false: flagged
+    assert peak.verdict == C.NOT and "false as stated" in peak.reason and "1.155, 1.299, 1.431" in peak.our_value
     assert by_statement(claims, "falls as w_b rises").verdict == C.REPRODUCED
-    # the study's yes/no table is the same rule
-    assert [ok for _, ok, _ in G.check_claims(whole)] == [True, False, True]
+    # the study's yes/no table is the same rule, and lists the G(s) claims and the speed claim as well
+    assert [ok for _, ok, _ in G.check_claims(whole, bode=False)] == [True, False, True]
+    table = G.check_claims(whole, settle, 6.0)
+    assert any("peak magnitudes" in c and not ok for c, ok, _ in table)
+    assert any("Fig. 3" in c or "low frequency" in c for c, _, _ in table)
+    assert any("speed of convergence" in c and ok for c, ok, _ in table)
+    # speed over several bands (as measured: 2 and 5 deg are not monotone) -> partly
+    bands = {1.0: settle[1.0], 2.0: {("GESO-1", 2): 0.405, ("GESO-2", 2): 0.455, ("GESO-3", 2): 0.423},
+             5.0: {("GESO-1", 2): 0.233, ("GESO-2", 2): 0.287, ("GESO-3", 2): 0.28}}
+    speed = G.speed_claim(bands, 6.0)
+    assert speed.verdict == C.PARTLY and "not monotone" in speed.reason and "0.405 / 0.455 / 0.423" in speed.our_value
     bad = _geso_rows({"none": 1.0, "GESO-1": 2.0, "GESO-2": 3.0, "GESO-3": 4.0},
                      {"GESO-1": 1.0, "GESO-2": 2.0, "GESO-3": 3.0})
-    claims = G.paper_claims(bad, bad, {("GESO-1", 2): 0.5, ("GESO-2", 2): 0.6, ("GESO-3", 2): 0.7}, 2.0, 6.0)
+    claims = G.paper_claims(bad, bad, {1.0: {("GESO-1", 2): 0.5, ("GESO-2", 2): 0.6, ("GESO-3", 2): 0.7}}, 2.0, 6.0)
     assert {c.verdict for c in claims if c.where.startswith("Fig") and "Case" in c.statement} == {C.NOT}
 
 
 # ---- Wang and Sanyal 2022 -------------------------------------------------------------------------
-def _nb(att: float, om: float, sig: float) -> dict[str, float]:
-    return {"t_from": 15.0, "att_angle_deg_0": 180.0, "att_angle_deg_max": att, "omega_err_0": 1.5,
-            "omega_err_max": om, "sigma_err_0": 6.0, "sigma_err_max": sig, "morse_max": 0.0}
+def _nb(att: float, om: float, sig: float, triv: tuple[float, float, float] | None = None) -> dict[str, float]:
+    out = {"t_from": 15.0, "att_angle_deg_0": 180.0, "att_angle_deg_max": att, "omega_err_0": 1.5,
+           "omega_err_max": om, "sigma_err_0": 6.0, "sigma_err_max": sig, "morse_max": 0.0}
+    if triv is not None:
+        out |= dict(zip(("triv_att_angle_deg_max", "triv_omega_err_max", "triv_sigma_err_max"), triv, strict=True))
+    return out
 
 
 def test_hc_eso_claims() -> None:
     from fawtgym.eval.reproduce import hc_eso as H
 
+    # no trivial-estimator run: convergence alone does not decide
     claims = H.paper_claims(_nb(3.0, 0.3, 10.0), _nb(0.5, 0.01, 11.0))
-    assert [c.verdict for c in claims] == [C.REPRODUCED, C.PARTLY, C.NOT, C.PARTLY]
-    assert "20 % of the initial" in claims[1].reason
+    assert [c.verdict for c in claims] == [C.UNCHECKED, C.UNCHECKED, C.NOT, C.PARTLY]
+    assert "20 % of the initial" in claims[1].reason and "critical point" in claims[0].reason
     assert "sigma_err" in claims[3].reason
     assert H.paper_claims(_nb(3.0, 0.05, 0.1))[-1].verdict == C.UNCHECKED
+    # against the trivial estimator: 3 deg vs 10 -> reproduced; rate 0.06 vs 0.08 -> partly; sigma 0.08 vs 0.065 -> not
+    claims = H.paper_claims(_nb(3.0, 0.06, 0.08, (10.0, 0.08, 0.065)))
+    assert [c.verdict for c in claims[:3]] == [C.REPRODUCED, C.PARTLY, C.NOT]
+    assert "no better than the trivial" in claims[2].reason and "not by 2x" in claims[1].reason
+    # the median decides, the seeds' spread can only downgrade: overlapping ranges -> partly
+    runs = [_nb(a, 0.01, 0.01, (t, 0.08, 0.065)) for a, t in ((3.0, 10.0), (3.2, 9.0), (9.5, 11.0))]
+    agg = H.over_seeds(runs)
+    assert agg["att_angle_deg_max"] == 3.2 and agg["att_angle_deg_max_hi"] == 9.5 and agg["n_seeds"] == 3
+    fig1 = H.paper_claims(agg)[0]
+    assert fig1.verdict == C.PARTLY and "overlap" in fig1.reason and "over 3 seeds" in fig1.our_value
 
 
 # ---- Cayero et al. 2019 ---------------------------------------------------------------------------
@@ -228,15 +251,35 @@ def test_qb_claims() -> None:
     assert by_statement(claims, "error stability").verdict == C.NOT
 
 
+def test_qb_observations_say_what_the_table_shows() -> None:
+    from fawtgym.eval.reproduce import qb_observer as Q
+
+    s = _qb_summary(ellipsoid_dx={0.2: 5.8, 0.95: 1.5}, trivial={"rms_d": 1.3, "max_d": 2.0},
+                    region={0.2: {"rms": 0.41, "rms_lo": 0.40, "rms_hi": 0.43, "n_seeds": 5.0},
+                            0.95: {"rms": 0.18, "rms_lo": 0.17, "rms_hi": 0.19, "n_seeds": 5.0}})
+    text = "\n".join(Q.observations(s))
+    assert "mu = 0.2 design has alpha = 20, at the upper edge of the sweep" in text   # alpha 20 = max of the grid
+    assert "mu = 0.95 design" not in text                                              # 2.8: inside the sweep
+    assert "2.90 x the 2 N peak" in text and "certifies nothing" in text               # 5.8 N above 2 N
+    assert "0.75 x the 2 N peak of the Fig. 3 disturbance (below the signal)" in text
+    assert "x the trivial estimate d_hat = 0" in text
+
+
 # ---- Silva and Santos 2023 ------------------------------------------------------------------------
-def _pdt(ts: float = 1e-4, fig7_settle: float = 2.07, fig8_dep: float = 5.0, sweep=None) -> dict[str, object]:
+def _pdt(ts: float = 1e-4, fig7_settle: float = 2.07, fig8_dep: float = 5.0, sweep=None,
+         fig6_w: float = 0.07) -> dict[str, object]:
     ex = dict(t1=0.206243, kappa2_min_ours=11.4267, kappa2_min_rounded_t1=11.4155, satisfies_30=1.0,
               fig3a_in_X=0.0, fig3a_x2_t1=2.65, fig3b_in_X=1.0, fig3b_t1=0.19, fig3b_x2_t1=3.3, fig3c_in_X=1.0,
               fig3c_t1=0.16, fig3c_x2_t1=2.3, analytic_vs_ivp_k8=1e-11, analytic_vs_ivp_k12=4e-12,
               noise_bound=0.034641, t_e=1.32679)
+    # rates scaled by omega_scale = 0.47 rad/s: the thresholds are 0.2 (at zero) and 0.25 (bounded) of it
     good = dict(g_err_0=0.4, g_err_tc=1e-6, g_err_half_tc=1e-2, g_err_max_after_tc=3e-5, w_err_max_after_tc=0.07,
-                g_err_max_late=5e-4, w_err_max_late=0.24, departure=0.7, settle_time=1.45)
+                g_err_max_late=5e-4, w_err_max_late=0.07, departure=0.7, settle_time=1.45, t_c=1.5, w_scale=0.47,
+                g_scale=0.4, w_min=0.3, triv_g_late=1e-3, triv_w_forcing_late=0.035, triv_w_fd_late=30.0)
     mets = {n: dict(good) for n in ("fig5", "fig6", "fig7", "fig8", "fig9", "fig9_eq44", "fig8_exact")}
+    mets["fig6"].update(t_c=0.5, settle_time=0.5, w_err_max_after_tc=fig6_w)
+    if fig6_w > 0.2 * 0.47:
+        mets["fig6"]["settle_time"] = 1.27
     mets["fig7"]["settle_time"] = fig7_settle
     mets["fig8"]["departure"] = fig8_dep
     mets["fig9_eq44"]["departure"] = 7.0
@@ -251,7 +294,13 @@ def test_pdt_sta_claims() -> None:
     k2 = by_statement(claims, "kappa2 >= 11.4155")
     assert k2.verdict == C.PARTLY and "rounded" in k2.reason
     assert by_statement(claims, "early switching instant").verdict == C.REPRODUCED
-    assert by_statement(claims, "predefined t_c = 1.5 s").verdict == C.REPRODUCED
+    fig5 = by_statement(claims, "predefined t_c = 1.5 s")
+    assert fig5.verdict == C.REPRODUCED and "omega_r" in fig5.reason   # the trivial estimators are shown
+    assert "does no better than the forcing" in fig5.reason            # 0.07 >= 0.035
+    assert by_statement(claims, "stricter t_c = 0.5 s").verdict == C.REPRODUCED
+    # a rate error above 0.2 omega_scale after t_c (0.258 rad/s = 0.55 of 0.47): the attitude alone -> partly
+    fig6 = by_statement(D.paper_claims(_pdt(fig6_w=0.258)), "stricter t_c = 0.5 s")
+    assert fig6.verdict == C.PARTLY and "the rate is not" in fig6.reason
     assert by_statement(claims, "conventional STSMO").verdict == C.PARTLY
     assert by_statement(claims, "depart from the origin").verdict == C.REPRODUCED
     fig9 = by_statement(claims, "switching early")
@@ -259,9 +308,15 @@ def test_pdt_sta_claims() -> None:
     claims = D.paper_claims(_pdt(fig7_settle=1.65, fig8_dep=1.2))
     assert by_statement(claims, "conventional STSMO").verdict == C.REPRODUCED
     assert by_statement(claims, "depart from the origin").verdict == C.NOT
-    claims = D.paper_claims(_pdt(fig8_dep=5.0, sweep={"fig8": [1.5, 6.4, 1.0, 1.1, 5.5], "fig9": [0.7] * 5}))
+    # over seeds: the median decides, each seed counts
+    base = _pdt()["sec5"]
+    runs8 = [dict(base["fig8"], departure=d) for d in (1.5, 6.4, 1.0, 1.1, 5.5)]
+    runs9 = [dict(base["fig9"], w_err_max_late=w) for w in (0.07, 0.08, 0.26, 0.27, 0.3)]
+    claims = D.paper_claims(_pdt(fig8_dep=5.0, sweep={"fig8": runs8, "fig9": runs9}))
     dep = by_statement(claims, "depart from the origin")
-    assert dep.verdict == C.PARTLY and "2 of 5 seeds" in dep.reason
+    assert dep.verdict == C.PARTLY and "2 of 5 seeds" in dep.reason and "[1.00-6.40 over 5 seeds]" in dep.our_value
+    fig9 = by_statement(claims, "switching early")
+    assert fig9.verdict == C.PARTLY and "bounded in 2 of 5 seeds" in fig9.reason   # 0.26 / 0.47 > 0.25
     coarse = D.paper_claims(_pdt(ts=1e-3))
     sec5 = [c for c in coarse if c.where.startswith("Sec. 5, Fig.")]
     assert len(sec5) == 5 and all(c.verdict == C.UNCHECKED and "10x" in c.reason for c in sec5)
