@@ -31,6 +31,8 @@ from typing import Any
 
 import numpy as np
 
+from fawtgym.cli_parser import ArgumentParser, positive_float, positive_int
+
 
 def _make_env(control_rate: float) -> Any:
     import gymnasium as gym
@@ -182,16 +184,16 @@ def measure(steps: int = 1000, rounds: int = 3, control_rate: float = 200.0,
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="fawtgym bench closed-loop", description=__doc__,
+    parser = ArgumentParser(prog="fawtgym bench closed-loop", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--steps", type=int, default=1000, help="control steps per round")
-    parser.add_argument("--rounds", type=int, default=3)
-    parser.add_argument("--control-rate", type=float, default=200.0,
+    parser.add_argument("--steps", type=positive_int, default=1000, help="control steps per round")
+    parser.add_argument("--rounds", type=positive_int, default=3, help="timing rounds (default 3)")
+    parser.add_argument("--control-rate", type=positive_float, default=200.0,
                         help="agent rate [Hz] (a multiple of the 100 Hz mocap pose rate)")
-    parser.add_argument("--batch", type=int, default=1024, help="N for the vectorized agent + observer")
-    parser.add_argument("--batch-sizes", type=int, nargs="*", default=[64, 256, 1024],
+    parser.add_argument("--batch", type=positive_int, default=1024, help="N for the vectorized agent + observer")
+    parser.add_argument("--batch-sizes", type=positive_int, nargs="*", default=[64, 256, 1024],
                         help="N of the batched closed loop (HoverBatchEnv); none to skip")
-    parser.add_argument("--vehicle-steps", type=int, default=51200,
+    parser.add_argument("--vehicle-steps", type=positive_int, default=51200,
                         help="control steps x N per batched round")
     args = parser.parse_args(argv)
     pinned = pin_blas_one_thread()

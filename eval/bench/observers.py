@@ -13,11 +13,12 @@ N = 1024 cheaper than one mj_step.
 
 from __future__ import annotations
 
-import argparse
 import time
 from collections.abc import Sequence
 
 import numpy as np
+
+from fawtgym.cli_parser import ArgumentParser, positive_int
 
 MASS = 4.34
 INERTIA = np.diag([0.0820, 0.0845, 0.1377])
@@ -101,9 +102,9 @@ def time_observer(name: str, n: int, repeats: int, rng: np.random.Generator) -> 
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="fawtgym bench observers", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--repeats", type=int, default=3, help="best-of repeats per measurement")
-    ap.add_argument("--n", type=int, nargs="+", default=[1, 1024], help="batch sizes")
+    ap = ArgumentParser(prog="fawtgym bench observers", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeats", type=positive_int, default=3, help="best-of repeats per measurement")
+    ap.add_argument("--n", type=positive_int, nargs="+", default=[1, 1024], help="batch sizes")
     ap.add_argument("--only", nargs="*", default=None, help="observer names (default: all registered)")
     ns = ap.parse_args(list(argv) if argv is not None else None)
     if ns.repeats < 1 or any(n < 1 for n in ns.n):

@@ -20,7 +20,6 @@ scheme of :mod:`fawtgym.observers.hc_eso_so3`.  Output: ``hc_eso_errors.csv`` (t
 
 from __future__ import annotations
 
-import argparse
 import csv
 import math
 from collections.abc import Sequence
@@ -30,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
+from fawtgym.cli_parser import ArgumentParser, positive_float, seed
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.observers import vector_attitude as va
 from fawtgym.observers.hc_eso_so3 import HcEsoGains, hc_eso_step
@@ -210,12 +210,12 @@ def _figures(res: dict[str, NDArray[np.float64]], out: Path) -> list[Path]:
 
 
 def _run(argv: Sequence[str] | None) -> tuple[C.StudyOutcome, list[str]]:
-    parser = argparse.ArgumentParser(prog="fawtgym reproduce hc-eso", description=__doc__.splitlines()[0])
+    parser = ArgumentParser(prog="fawtgym reproduce hc-eso", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("results/hc_eso"), help="output folder")
     parser.add_argument("--quick", action="store_true", help="20 s instead of 60 s")
-    parser.add_argument("--t-end", type=float, default=None, help="horizon [s] (default 60, quick 20)")
-    parser.add_argument("--step", type=float, default=0.01, help="integration/measurement step h [s]")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--t-end", type=positive_float, default=None, help="horizon [s] (default 60, quick 20)")
+    parser.add_argument("--step", type=positive_float, default=0.01, help="integration/measurement step h [s]")
+    parser.add_argument("--seed", type=seed, default=0, help="noise seed (default 0)")
     parser.add_argument("--centered-noise", action="store_true", help="zero-mean uniform noise instead of 0.05 rand")
     parser.add_argument("--no-figures", action="store_true")
     ns = parser.parse_args(list(argv) if argv is not None else None)

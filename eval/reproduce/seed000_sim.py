@@ -14,7 +14,6 @@ against these numbers (:func:`paper_claims`, verdict thresholds as module consta
 
 from __future__ import annotations
 
-import argparse
 import csv
 import dataclasses
 import time
@@ -25,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fawtgym.agents.lee_se3 import DesiredRateFilter, LeeSE3Controller
+from fawtgym.cli_parser import ArgumentParser, positive_float, seed
 from fawtgym.envs.frames import rot_to_euler
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce import seed000_plant as plant
@@ -470,14 +470,14 @@ QUICK_SECONDS = 12.0
 
 
 def _run(argv: Sequence[str] | None) -> tuple[StudyResult, Path, list[Path], float]:
-    ap = argparse.ArgumentParser(prog="fawtgym reproduce seed000-sim", description=__doc__.split("\n\n")[0])
+    ap = ArgumentParser(prog="fawtgym reproduce seed000-sim", description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, default=Path("out/seed000"), help="output directory")
-    ap.add_argument("--seconds", type=float, default=None,
+    ap.add_argument("--seconds", type=positive_float, default=None,
                     help=f"simulated duration T [s] (paper and default: {plant.DURATION:g}; quick: {QUICK_SECONDS:g})")
     ap.add_argument("--noise", dest="noise", action="store_true", default=None, help="only the noisy cases")
     ap.add_argument("--no-noise", dest="noise", action="store_false", help="only the noise-free cases")
     ap.add_argument("--quick", action="store_true", help=f"short run ({QUICK_SECONDS:g} s) unless --seconds is given")
-    ap.add_argument("--seed", type=int, default=0, help="noise RNG seed")
+    ap.add_argument("--seed", type=seed, default=0, help="noise RNG seed (default 0)")
     ns = ap.parse_args(list(argv) if argv is not None else None)
     seconds = ns.seconds if ns.seconds is not None else (QUICK_SECONDS if ns.quick else plant.DURATION)
     if not seconds > TRANSIENT:
