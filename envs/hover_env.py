@@ -59,6 +59,7 @@ from .ctbr import MAX_RATES, RateLoop
 from .frames import FAWT_HOVER_POINT_NED, rot_ned_to_quat_mj, vec_ned_to_mj
 from .mjcf import INTEGRATORS, hull_points, vehicle_mjcf
 from .motors import allocation_matrix, hover_command
+from .render import HoverRenderer
 from .sensors import SensorModel, make_sensor_spec
 from .vehicles import GRAVITY, VehiclePreset, make_vehicle
 from .wind import WindModel, make_wind
@@ -114,7 +115,19 @@ class HoverEnv(gym.Env):
         render_mode: ``None`` or ``"rgb_array"`` (headless via MUJOCO_GL=egl, set by default).
     """
 
-    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}
+    @property
+    def metadata(self) -> dict[str, Any]:  # type: ignore[override]
+        """``render_modes`` and ``render_fps``: one frame per control step, so a video plays in real time.
+
+        An instance property (not a class dict) so that the frame rate follows this env's control
+        rate, and so that ``gym.make(..., render_mode="human")`` reaches this env's own one-line error
+        instead of Gymnasium's pygame wrapper.
+        """
+        return {"render_modes": list(RENDER_MODES), "render_fps": self._render_fps}
+
+    @metadata.setter
+    def metadata(self, value: dict[str, Any]) -> None:
+        self._render_fps = value.get("render_fps", getattr(self, "_render_fps", None))
 
     def __init__(self, vehicle: str | VehiclePreset | Mapping[str, Any] = "s500",
                  wind: str | WindModel | Mapping[str, Any] | None = "calm", action_type: str = "motors",
@@ -127,6 +140,9 @@ class HoverEnv(gym.Env):
         self.preset = make_vehicle(vehicle)
         if action_type not in ACTION_TYPES:
             raise ValueError(f"unknown action_type {action_type!r}; valid: {list(ACTION_TYPES)}")
+        if render_mode == "human":
+            raise ValueError("render_mode 'human' is not supported: fawtgym renders off screen only; valid: None, "
+                             "'rgb_array' (record a video with gymnasium.wrappers.RecordVideo)")
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(f"unknown render_mode {render_mode!r}; valid: {[None, *RENDER_MODES]}")
         if integrator not in INTEGRATORS:
@@ -140,6 +156,7 @@ class HoverEnv(gym.Env):
         self.n_substeps = int(round(ratio))
         self.physics_dt = 1.0 / physics_rate
         self.dt = self.n_substeps * self.physics_dt
+        self._render_fps = 1.0 / self.dt
         self.episode_seconds = _positive("episode_seconds", episode_seconds)
         self.max_steps = int(math.ceil(self.episode_seconds / self.dt - 1e-9))
         self.max_position_error = _positive("max_position_error", max_position_error)
@@ -160,7 +177,7 @@ class HoverEnv(gym.Env):
         self.sensor = SensorModel(make_sensor_spec(sensors), self.dt, self.physics_dt)
         self.render_mode = render_mode
         self._render_size = (int(render_height), int(render_width))
-        self._renderer: mujoco.Renderer | None = None
+        self._renderer: HoverRenderer | None = None
 
         self.model = mujoco.MjModel.from_xml_string(vehicle_mjcf(self.preset, self.physics_dt, integrator,
                                                                  render_width, render_height))
@@ -506,15 +523,10 @@ class HoverEnv(gym.Env):
             gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array' to gym.make")
             return None
         if self._renderer is None:
-            self._renderer = mujoco.Renderer(self.model, *self._render_size)
-            self._camera = mujoco.MjvCamera()
-            self._camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
-            self._camera.trackbodyid = self._body
-            self._camera.distance = 2.5
-            self._camera.azimuth = 120.0
-            self._camera.elevation = -20.0
-        self._renderer.update_scene(self.data, camera=self._camera)
-        return self._renderer.render()
+            height, width = self._render_size
+            self._renderer = HoverRenderer(self.model, width, height, self._body)
+        wind = getattr(self, "_disturbance", (None, None, (0.0, 0.0, 0.0)))[2]  # before the first reset: still air
+        return self._renderer.render(self.data, self.setpoint, np.asarray(wind, dtype=float))
 
     def close(self) -> None:
         if self._renderer is not None:
