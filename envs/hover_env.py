@@ -483,18 +483,18 @@ class HoverEnv(gym.Env):
              [lw if x > lw else -lw if x < -lw else x for x in e[6:9]]
         # the attitude entries of a rotation matrix and the (clipped) action are inside their bounds already
         obs = np.array([*ec[0:6], att[0], att[3], att[6], att[1], att[4], att[7], *ec[6:9], *action], dtype=np.float32)
-        if self._failure:
-            self._reward = -self.reward_weights["failure"]
-        else:
-            cos_phi = 0.5 * (att[0] + att[4] + att[8] - 1.0)
-            phi = math.acos(1.0 if cos_phi > 1.0 else -1.0 if cos_phi < -1.0 else cos_phi)
-            last = self._last_action
-            da = [action[0] - last[0], action[1] - last[1], action[2] - last[2], action[3] - last[3]]
-            wp, wv, wa, ww = self._reward_terms
-            cost = (wp * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]) + wv * (e[3] * e[3] + e[4] * e[4] + e[5] * e[5])
-                    + ww * (e[6] * e[6] + e[7] * e[7] + e[8] * e[8])
-                    + wa * (da[0] * da[0] + da[1] * da[1] + da[2] * da[2] + da[3] * da[3]))
-            self._reward = math.exp(-(cost + self._w_att * phi * phi))
+        cos_phi = 0.5 * (att[0] + att[4] + att[8] - 1.0)
+        phi = math.acos(1.0 if cos_phi > 1.0 else -1.0 if cos_phi < -1.0 else cos_phi)
+        last = self._last_action
+        da = [action[0] - last[0], action[1] - last[1], action[2] - last[2], action[3] - last[3]]
+        wp, wv, wa, ww = self._reward_terms
+        t_pos = wp * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+        t_vel = wv * (e[3] * e[3] + e[4] * e[4] + e[5] * e[5])
+        t_rate = ww * (e[6] * e[6] + e[7] * e[7] + e[8] * e[8])
+        t_action = wa * (da[0] * da[0] + da[1] * da[1] + da[2] * da[2] + da[3] * da[3])
+        t_att = self._w_att * phi * phi
+        t_failure = self.reward_weights["failure"] if self._failure else 0.0
+        self._reward = -t_failure if self._failure else math.exp(-(t_pos + t_vel + t_rate + t_action + t_att))
         t_rot = self._applied_thrusts
         (a0, a1, a2, a3), wind = self._alloc_rows, self._disturbance[2]
         force, torque = self._held_wrench()
@@ -510,6 +510,8 @@ class HoverEnv(gym.Env):
             "applied": {"thrust": wrench[0], "torque": f[27:30], "rotor_thrusts": f[30:34], "motor_speeds": f[34:38]},
             "truth": {M.POSITION: f[38:41], M.VELOCITY: f[41:44], M.ATTITUDE: f[44:53].reshape(3, 3),
                       M.ANGULAR_VELOCITY: f[53:56], "wind": f[56:59], "force": f[59:62], "torque": f[62:65]},
+            "reward_terms": {"pos": t_pos, "vel": t_vel, "att": t_att, "rate": t_rate, "action": t_action,
+                             "failure": t_failure},
             "setpoint": f[65:68],
             "action_clipped": action_clipped,
             "failure": self._failure,
