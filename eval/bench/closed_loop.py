@@ -7,7 +7,7 @@ One process, interleaved rounds, best round kept (least disturbed by other load 
 * its parts: the env stepping alone (hover action) and the agent + observer alone (on a recorded
   measurement), as real-time factors of the same simulated time;
 * the agent + observer vectorized over N vehicles (batch-first), as aggregate vehicle-seconds per
-  wall second.  Target (issue 6): closed loop >= 100x real time on one core.
+  wall second.  Target: closed loop >= 100x real time on one core.
 
 Batched (``--batch-sizes``, aggregate over N vehicles: vehicle-seconds simulated per wall second, one
 process, one thread: numpy's OpenBLAS is pinned to 1 thread and MuJoCo's rollout runs on the calling

@@ -1,4 +1,4 @@
-"""``fawtgym bench qb-sdp``: one QB-observer SDP (seed-001 eq. 31 at fixed alpha) and the runtime update.
+"""``fawtgym bench qb-sdp``: one QB-observer SDP (Cayero et al. (2019) eq. 31 at fixed alpha) and the runtime update.
 
 The SDP is the Sec. 4 design (r = 3: n = 24, LMI (7) of size 39, log-det over 6x6), timed from
 problem construction to solution (cvxpy compilation + solver), best of ``--rounds``.  The runtime

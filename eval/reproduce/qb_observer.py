@@ -494,8 +494,8 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
                         help="only design and save a gain for this vehicle preset (see fawtgym list)")
     parser.add_argument("--mu", type=float, default=0.5, help="trade-off mu for --design-for (default 0.5)")
     ns = parser.parse_args(list(argv) if argv is not None else None)
-    if not 0 < ns.mu < 1:
-        parser.error(f"--mu {ns.mu:g}: the trade-off mu must be between 0 and 1 (exclusive)")
+    if not 0 <= ns.mu <= 1:
+        parser.error(f"--mu {ns.mu:g}: the trade-off mu must be from 0 to 1")
     _check_solver(parser, ns.solver)
     if ns.design_for is not None:
         from fawtgym.envs.vehicles import make_vehicle
