@@ -156,6 +156,7 @@ def check_output_dir(parser: argparse.ArgumentParser, flag: str, path: str | Pat
     q = p
     while not q.exists():
         q = q.parent if q.parent != q else Path(".")
-    if not q.is_dir() or not os.access(q, os.W_OK):
-        parser.error(f"{flag} {path}: cannot be created or written (the nearest existing folder {q} is not a "
-                     "writable folder)")
+    if not q.is_dir():
+        parser.error(f"{flag} {path}: cannot be created, {q} is a file, not a folder")
+    if not os.access(q, os.W_OK):
+        parser.error(f"{flag} {path}: cannot be created or written, the folder {q} is not writable")

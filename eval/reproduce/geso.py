@@ -39,7 +39,7 @@ from fawtgym.agents.backstepping_quat import (
     euler_to_quat,
     quat_derivative,
 )
-from fawtgym.cli_parser import ArgumentParser, nonnegative_float, positive_float
+from fawtgym.cli_parser import ArgumentParser, check_output_dir, nonnegative_float, positive_float
 from fawtgym.envs.frames import quat_to_rot, rot_to_euler
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.observers import make_observer
@@ -429,6 +429,7 @@ def _run(argv: Sequence[str] | None) -> tuple[C.StudyOutcome, list[str]]:
                         help="start of the 'steady' RMS window [s]")
     parser.add_argument("--no-figures", action="store_true")
     ns = parser.parse_args(list(argv) if argv is not None else None)
+    check_output_dir(parser, "--out", ns.out)
     t_end = ns.t_end if ns.t_end is not None else (6.0 if ns.quick else 20.0)
     if not 0 <= ns.steady_from < t_end:
         parser.error(f"need 0 <= --steady-from < the horizon {t_end:g} s, got {ns.steady_from:g}")

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from fawtgym.cli_parser import ArgumentParser, positive_float, seed
+from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float, seed
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.observers import vector_attitude as va
 from fawtgym.observers.hc_eso_so3 import HcEsoGains, hc_eso_step
@@ -219,6 +219,7 @@ def _run(argv: Sequence[str] | None) -> tuple[C.StudyOutcome, list[str]]:
     parser.add_argument("--centered-noise", action="store_true", help="zero-mean uniform noise instead of 0.05 rand")
     parser.add_argument("--no-figures", action="store_true")
     ns = parser.parse_args(list(argv) if argv is not None else None)
+    check_output_dir(parser, "--out", ns.out)
     t_end = ns.t_end if ns.t_end is not None else (20.0 if ns.quick else 60.0)
     ns.out.mkdir(parents=True, exist_ok=True)
     res = run(t_end=t_end, h=ns.step, seed=ns.seed, centered_noise=ns.centered_noise)

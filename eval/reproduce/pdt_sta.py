@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from fawtgym.cli_parser import ArgumentParser, positive_float
+from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
 from fawtgym.cli_parser import seed as seed_arg
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.observers import pdt_sta as P
@@ -558,6 +558,7 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--no-figures", action="store_true")
     parser.add_argument("--seed", type=seed_arg, default=0, help="noise seed (Figs. 8-9)")
     ns = parser.parse_args(list(argv) if argv is not None else None)
+    check_output_dir(parser, "--out", ns.out)
     if ns.ts is not None and not ns.ts > 0:
         parser.error(f"--ts must be > 0, got {ns.ts:g}")
     if ns.t_final is not None and not ns.t_final > 1.75:

@@ -38,7 +38,7 @@ from scipy.interpolate import PchipInterpolator
 from scipy.linalg import sqrtm
 from scipy.optimize import minimize_scalar
 
-from fawtgym.cli_parser import ArgumentParser, positive_float
+from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.observers.qb_design import (
     AlphaSweep,
@@ -494,6 +494,7 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
                         help="only design and save a gain for this vehicle preset (see fawtgym list)")
     parser.add_argument("--mu", type=float, default=0.5, help="trade-off mu for --design-for (default 0.5)")
     ns = parser.parse_args(list(argv) if argv is not None else None)
+    check_output_dir(parser, "--out", ns.out)
     if not 0 <= ns.mu <= 1:
         parser.error(f"--mu {ns.mu:g}: the trade-off mu must be from 0 to 1")
     _check_solver(parser, ns.solver)

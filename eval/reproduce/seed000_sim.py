@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fawtgym.agents.lee_se3 import DesiredRateFilter, LeeSE3Controller
-from fawtgym.cli_parser import ArgumentParser, positive_float, seed
+from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float, seed
 from fawtgym.envs.frames import rot_to_euler
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce import seed000_plant as plant
@@ -479,6 +479,7 @@ def _run(argv: Sequence[str] | None) -> tuple[StudyResult, Path, list[Path], flo
     ap.add_argument("--quick", action="store_true", help=f"short run ({QUICK_SECONDS:g} s) unless --seconds is given")
     ap.add_argument("--seed", type=seed, default=0, help="noise RNG seed (default 0)")
     ns = ap.parse_args(list(argv) if argv is not None else None)
+    check_output_dir(ap, "--out", ns.out)
     seconds = ns.seconds if ns.seconds is not None else (QUICK_SECONDS if ns.quick else plant.DURATION)
     if not seconds > TRANSIENT:
         ap.error(f"--seconds must exceed the {TRANSIENT:g} s transient, got {seconds:g}")
