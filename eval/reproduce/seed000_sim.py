@@ -17,8 +17,9 @@ from __future__ import annotations
 import csv
 import dataclasses
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -59,8 +60,12 @@ class StudyResult:
 
 def run_study(seconds: float = plant.DURATION, trajectories: Sequence[str] = tuple(plant.TRAJECTORIES),
               noise_cases: Sequence[bool] = (False, True), observers: Sequence[str] = OBSERVERS,
-              seed: int = 0, decimate: int = 10, transient: float = TRANSIENT) -> StudyResult:
-    """Fly every (trajectory, noise) case as one batch and run every observer on it."""
+              seed: int = 0, decimate: int = 10, transient: float = TRANSIENT,
+              progress: Callable[[int], Any] | None = None) -> StudyResult:
+    """Fly every (trajectory, noise) case as one batch and run every observer on it.
+
+    ``progress``, if given, is called with 1 after every plant step (e.g. a progress bar's ``update``).
+    """
     if seconds <= transient:
         raise ValueError(f"seconds must exceed the {transient} s transient, got {seconds!r}")
     trajs = [tr for nc in noise_cases for tr in trajectories]
@@ -96,6 +101,8 @@ def run_study(seconds: float = plant.DURATION, trajectories: Sequence[str] = tup
     sq_track = np.zeros(n)
     wall = time.perf_counter()
     for k in range(steps):
+        if progress is not None:
+            progress(1)
         t = k * h
         meas = plant.measure(state, noisy, rng, h)
         b_d, v_d, a_d = ref(t)
@@ -477,6 +484,7 @@ def _run(argv: Sequence[str] | None) -> tuple[StudyResult, Path, list[Path], flo
     ap.add_argument("--noise", dest="noise", action="store_true", default=None, help="only the noisy cases")
     ap.add_argument("--no-noise", dest="noise", action="store_false", help="only the noise-free cases")
     ap.add_argument("--quick", action="store_true", help=f"short run ({QUICK_SECONDS:g} s) unless --seconds is given")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     ap.add_argument("--seed", type=seed, default=0, help="noise RNG seed (default 0)")
     ns = ap.parse_args(list(argv) if argv is not None else None)
     check_output_dir(ap, "--out", ns.out)
@@ -485,7 +493,11 @@ def _run(argv: Sequence[str] | None) -> tuple[StudyResult, Path, list[Path], flo
         ap.error(f"--seconds must exceed the {TRANSIENT:g} s transient, got {seconds:g}")
     cases = (False, True) if ns.noise is None else (bool(ns.noise),)
     ns.out.mkdir(parents=True, exist_ok=True)
-    res = run_study(seconds=seconds, noise_cases=cases, seed=ns.seed)
+    from tqdm.auto import tqdm
+
+    with tqdm(total=int(round(seconds / plant.STEP)), desc="seed000-sim", unit="step", leave=False,
+              disable=ns.no_progress, dynamic_ncols=True) as bar:
+        res = run_study(seconds=seconds, noise_cases=cases, seed=ns.seed, progress=bar.update)
     write_csv(res, ns.out / "seed000_rms.csv")
     figs = plot(res, ns.out)
     write_markdown(res, ns.out / "seed000_rms.md", figs, seconds)
