@@ -1,5 +1,20 @@
 """``HoverBatchEnv``: N independent ``fawtgym/Hover-v0`` vehicles in one batch-first vector env.
 
+``gym.make_vec("fawtgym/Hover-v0", num_envs=N, **options)`` or ``HoverBatchEnv(num_envs=N, **options)``.
+The tables of :mod:`fawtgym.envs.hover_env` (action, observation, reward terms, starting state, episode
+end) hold row by row; batched, they read:
+
+| item | batched form |
+| --- | --- |
+| ``action_space`` | ``Box`` (N, 4): HoverEnv's ``single_action_space`` per row |
+| ``observation_space`` | ``Box`` (N, 19) float32: HoverEnv's 19 entries per row |
+| ``reward``, ``terminated``, ``truncated`` | (N,) arrays |
+| ``info`` | HoverEnv's keys, each an (N, ...) array; ``info["reward_terms"]`` a dict of (N,) arrays |
+| ``reset(seed=s)`` | row i as ``HoverEnv.reset(seed=s + i)``; a list of N seeds also works |
+| arguments | HoverEnv's (``render_mode`` None), plus ``num_envs``, ``autoreset_mode``, ``randomizer`` (below) |
+
+Version history: v0 as HoverEnv's; ``info["reward_terms"]`` added within v0.
+
 Per vehicle (row) the semantics are exactly :class:`fawtgym.envs.hover_env.HoverEnv`'s (read its
 module docstring): the same options and their validation (a template ``HoverEnv`` is built from the
 same keyword arguments and its spaces, timing and reward weights are used), action checking and
