@@ -55,6 +55,9 @@ class HoverRenderer:
         self.camera.azimuth = 140.0
         self.camera.elevation = -30.0
         self._static = self._fan_array()
+        #: MuJoCo's shadows and floor reflections (off: they dominate the cost of CPU rendering)
+        self.shadows = False
+        self.reflections = False
 
     def _fan_array(self) -> list[tuple[int, NDArray, NDArray, NDArray, NDArray]]:
         """(type, size, pos, mat, rgba) of the frame and the 162 fans, built once."""
@@ -99,8 +102,8 @@ class HoverRenderer:
         self.camera.lookat[:] = 0.5 * (vehicle + FAN_FACE_MJ) + np.array([0.1, 0.0, -0.35])
         r.update_scene(data, camera=self.camera)
         scene = r.scene
-        scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
-        scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
+        scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = int(self.shadows)
+        scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = int(self.reflections)
         for geom in self._static:
             self._add(scene, *geom)
         # height: surveyor's pole beside the hover point, drop line and floor ring under the vehicle

@@ -46,6 +46,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "qb-sdp": ("fawtgym.eval.bench.qb_sdp:main", "one QB-observer SDP at fixed alpha"),
     "train": ("fawtgym.eval.bench.train:main", "PPO end-to-end env-steps/s beside the training env alone"),
     "eval": ("fawtgym.eval.bench.eval:main", "quick leaderboard: cells/min, vehicle-s per wall-s vs the env alone"),
+    "render": ("fawtgym.eval.bench.render:main", "HoverEnv.render() frames/s vs MuJoCo's default render quality"),
 }
 
 
