@@ -16,7 +16,7 @@ from fawtgym.cli_parser import ArgumentParser
 
 #: subcommand -> (module:function, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
-    "demo": ("fawtgym.eval.demo:main", "fly a short episode (PX4-style hover) and print what happened"),
+    "demo": ("fawtgym.eval.demo:main", "PX4 vs PX4+FFTS-ESO on the Table 4 hover, with Table 4's metric"),
     "list": ("fawtgym.cli:list_main", "list vehicles, wind presets, observers, env ids"),
     "wind": ("fawtgym.envs.wind.cli:main", "FAWT/Dryden wind, plotted and compared to Wang et al. (2024) Table 3"),
     "eval": ("fawtgym.eval.runner_cli:main", "fly agents x scenarios x seeds on the same wind; resumable result cells"),
@@ -28,7 +28,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
 
 #: reproduce <name> -> module:function
 REPRODUCTIONS: dict[str, tuple[str, str]] = {
-    "seed000-sim": ("fawtgym.eval.reproduce.seed000_sim:main", "FFTS-ESO vs LESO/FxTSDO/STO, Wang et al. 2024, Sec 6"),
+    "seed000-sim": ("fawtgym.eval.reproduce.seed000_sim:main", "FFTS-ESO vs 3 baselines, Wang et al. (2024) Sec. 6"),
     "table4": ("fawtgym.eval.reproduce.table4:main", "PX4 vs PX4+ESO hover in FAWT wind, Wang et al. (2024) Table 4"),
     "geso": ("fawtgym.eval.reproduce.geso:main", "GESO orders 1-3 with backstepping, Shi et al. (2018) Sec. VI-A"),
     "hc-eso": ("fawtgym.eval.reproduce.hc_eso:main", "HC-ESO on SO(3), Wang & Sanyal (2022) Sec. 6"),
@@ -74,6 +74,12 @@ def _call(target: str, argv: Sequence[str], prog: str = "fawtgym") -> int:
         return 2
     try:
         return int(getattr(module, func_name)(list(argv)) or 0)
+    except ModuleNotFoundError as exc:
+        if os.environ.get("FAWTGYM_TRACEBACK") or (exc.name or "").startswith("fawtgym"):
+            raise
+        print(f"{prog}: error: this command needs the Python package {exc.name!r}, which is not installed "
+              f"(pip install {exc.name}, or one of fawtgym's extras: see the README)", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
