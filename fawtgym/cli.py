@@ -28,7 +28,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
 
 #: reproduce <name> -> module:function
 REPRODUCTIONS: dict[str, tuple[str, str]] = {
-    "seed000-sim": ("fawtgym.eval.reproduce.seed000_sim:main", "FFTS-ESO vs 3 baselines, Wang et al. (2024) Sec. 6"),
+    "seed000-sim": ("fawtgym.eval.reproduce.seed000_sim:main", "FFTS-ESO vs LESO/FxTSDO/STO, Wang et al. 2024 Sec. 6"),
     "table4": ("fawtgym.eval.reproduce.table4:main", "PX4 vs PX4+ESO hover in FAWT wind, Wang et al. (2024) Table 4"),
     "geso": ("fawtgym.eval.reproduce.geso:main", "GESO orders 1-3 with backstepping, Shi et al. (2018) Sec. VI-A"),
     "hc-eso": ("fawtgym.eval.reproduce.hc_eso:main", "HC-ESO on SO(3), Wang & Sanyal (2022) Sec. 6"),
