@@ -1,6 +1,6 @@
 """Quaternion backstepping attitude tracking controller with disturbance feedforward.
 
-Source: ``geso_quadrotor_shi2018.txt`` (Shi, Wu, Chou, IEEE Access 2018), Secs. II-B, III-C and V.
+Source: Shi, Wu & Chou (2018), IEEE Access, Secs. II-B, III-C and V.
 
 Quaternions are Hamilton, scalar first ``(q0, q_v)`` = (w, x, y, z), body FRD -> world NED, with
 ``q' = 1/2 q (x) [0, omega]`` (eq. 5).  The controller computes

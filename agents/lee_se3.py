@@ -1,6 +1,6 @@
 """Geometric tracking controller on SE(3) (Lee, Leok, McClamroch, CDC 2010), batch-first.
 
-Model: seed-000 eq. (38) (``ffts_eso_tse3_fawt_wang2024.txt``), world NED, body FRD, thrust along
+Model: Wang et al. (2024) eq. (38), world NED, body FRD, thrust along
 -b3 -- the same sign convention as Lee et al. 2010 (``m v' = m g e3 - f R e3``).  Control law
 (Lee et al. 2010, eqs. 11-16)::
 
@@ -10,7 +10,7 @@ Model: seed-000 eq. (38) (``ffts_eso_tse3_fawt_wang2024.txt``), world NED, body 
     e_R  = vee(R_d^T R - R^T R_d) / 2,   e_W = W - R^T R_d W_d
     tau  = -kR e_R - kW e_W + W x J W - J (W^ R^T R_d W_d - R^T R_d W_d') (- tau_hat)
 
-``phi_hat``/``tau_hat`` are optional disturbance feedforward terms (seed-000 Sec. 7.2: F = F0 - phi_hat,
+``phi_hat``/``tau_hat`` are optional disturbance feedforward terms (Wang et al. (2024) Sec. 7.2: F = F0 - phi_hat,
 tau = tau0 - tau_hat; the sign here follows from the model where phi_D enters with a + sign).  The
 desired angular velocity W_d and acceleration W_d' are inputs; :class:`DesiredRateFilter` estimates
 them from the sequence of R_d by filtered differences.

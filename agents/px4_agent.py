@@ -2,7 +2,7 @@
 
 ``PX4Agent`` runs PX4's multicopter cascade (v1.13: mc_pos_control -> mc_att_control ->
 mc_rate_control -> control_allocator) on the env's measurements and outputs the env's ``"motors"``
-action.  ``PX4ObserverAgent`` adds the feedforward of seed-000 Sec. 7.2 (ffts_eso_tse3_fawt_wang2024.txt)
+action.  ``PX4ObserverAgent`` adds the feedforward of Wang et al. (2024) Sec. 7.2
 
     F = F0 - phi_hat       (position loop output: thr <- thr0 - phi_hat / thrust_scale, before thrust -> attitude)
     tau = tau0 - tau_hat   (rate loop output:     c_tau <- c_tau0 - tau_hat / torque_scale)
@@ -308,7 +308,7 @@ class PX4Agent(Agent):
 
 
 class PX4ObserverAgent(PX4Agent):
-    """PX4Agent + disturbance-observer feedforward F = F0 - phi_hat, tau = tau0 - tau_hat (seed-000 Sec. 7.2).
+    """PX4Agent + disturbance-observer feedforward F = F0 - phi_hat, tau = tau0 - tau_hat (Wang et al. (2024) Sec. 7.2).
 
     ``observer``: a registered observer name (built with the preset's mass and inertia and
     ``observer_kwargs``) or an :class:`fawtgym.observers.base.Observer`.  ``force_ff`` / ``torque_ff``

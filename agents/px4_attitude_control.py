@@ -142,7 +142,7 @@ class AttitudeControl:
 
 
 def principal_angle(attitude: ArrayLike, attitude_sp: ArrayLike) -> NDArray[np.float64]:
-    """Attitude error principal angle Phi = arccos((tr(R_e) - 1)/2), R_e = R_d^T R (seed-000 eq. 88, Sec. 7.5)."""
+    """Attitude error principal angle Phi = arccos((tr(R_e) - 1)/2), R_e = R_d^T R (Wang et al. 2024, eq. 88)."""
     r = np.asarray(attitude, dtype=float)
     rd = np.asarray(attitude_sp, dtype=float)
     tr = np.einsum("...ji,...ji->...", rd, r)

@@ -1,6 +1,6 @@
 """PX4 flight-control parameters by their PX4 names, with PX4's defaults, ranges and the S500 overrides.
 
-Seed-000 Sec. 7.2 (ffts_eso_tse3_fawt_wang2024.txt) flies PX4 v1.13.2 with "the flight control
+Wang et al. (2024), Sec. 7.2 flies PX4 v1.13.2 with "the flight control
 parameters of the multi-rotor frame S500" of PX4-Autopilot.  The defaults below are the PX4 v1.13
 parameter definitions (``mc_pos_control``, ``mc_att_control``, ``mc_rate_control``, ``sensors``
 modules) and the S500 airframe file ``ROMFS/px4fmu_common/init.d/airframes/4014_s500`` overrides

@@ -13,7 +13,7 @@ The law, as PX4 v1.13 implements it (re-derived, world NED, normalized thrust):
    horizontal tracking anti-windup (Rundqwist 1990) with gain ``2 / K_vp``; ``|i_z| <= g``.
 6. thrust vector + yaw -> attitude setpoint (``bodyz_to_attitude``).
 
-The observer feedforward of seed-000 Sec. 7.2 (F = F0 - phi_hat) is applied to this law's output
+The observer feedforward of Wang et al. (2024) Sec. 7.2 (F = F0 - phi_hat) is applied to this law's output
 thrust vector by the agent (:func:`apply_force_feedforward`), so the baseline law, its anti-windup and
 the hover-thrust estimator see exactly PX4's own F0.
 """
@@ -233,7 +233,7 @@ class PositionControl:
 
 def apply_force_feedforward(thrust_sp: ArrayLike, force_hat: ArrayLike, thrust_scale: float, max_tilt: float,
                             thr_min: float, thr_max: float) -> NDArray[np.float64]:
-    """F = F0 - phi_hat (seed-000 Sec. 7.2) on PX4's normalized thrust vector, then PX4's limits again.
+    """F = F0 - phi_hat (Wang et al. (2024) Sec. 7.2) on PX4's normalized thrust vector, then PX4's limits again.
 
     ``thrust_sp`` (N, 3) normalized NED thrust vector F0 / thrust_scale, ``force_hat`` (N, 3) the estimated
     disturbance force [N] world NED, ``thrust_scale`` [N per unit] (``4 T_max``).  The result is tilt-limited

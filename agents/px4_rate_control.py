@@ -12,7 +12,7 @@ acceleration (no derivative kick).  The integrator:
 * uses PX4's i-factor ``max(0, 1 - (e / 400 deg/s)^2)`` that reduces integration on large errors;
 * is clamped to ``+-MC_*_INT_LIM``.
 
-Observer feedforward (seed-000 Sec. 7.2, ffts_eso_tse3_fawt_wang2024.txt, tau = tau0 - tau_hat) is
+Observer feedforward (Wang et al. (2024) Sec. 7.2, tau = tau0 - tau_hat) is
 applied by the agent after this law, in normalized units (see :mod:`fawtgym.agents.px4_allocation`).
 """
 

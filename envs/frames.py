@@ -140,12 +140,12 @@ def rot_to_euler(r: ArrayLike) -> NDArray[np.float64]:
     return np.stack([roll, pitch, yaw], axis=-1)
 
 
-# ---- the fan-array wind tunnel (FAWT) frame of seed-000 Sec. 7.3 -------------------------------
+# ---- the fan-array wind tunnel (FAWT) frame of Wang et al. (2024) Sec. 7.3 -------------------------------
 #: Centre of the fan array in world NED [m]: the array centre is 1.5 m above the floor.
 FAWT_ORIGIN_NED: NDArray[np.float64] = np.array([0.0, 0.0, -1.5])
 #: Rotation taking FAWT-frame vectors (x stream-wise, y span-wise, z up) to NED: x -> N, y -> -E, z -> -D.
 R_FAWT_TO_NED: NDArray[np.float64] = np.diag([1.0, -1.0, -1.0])
-#: The seed-000 hover point, x = 1.5 m in front of the array at the section centre (FAWT y = z = 0).
+#: The Wang et al. (2024) hover point, x = 1.5 m in front of the array at the section centre (FAWT y = z = 0).
 FAWT_HOVER_POINT_NED: NDArray[np.float64] = FAWT_ORIGIN_NED + np.array([1.5, 0.0, 0.0])
 
 

@@ -1,5 +1,20 @@
 """``HoverBatchEnv``: N independent ``fawtgym/Hover-v0`` vehicles in one batch-first vector env.
 
+``gym.make_vec("fawtgym/Hover-v0", num_envs=N, **options)`` or ``HoverBatchEnv(num_envs=N, **options)``.
+The tables of :mod:`fawtgym.envs.hover_env` (action, observation, reward terms, starting state, episode
+end) hold row by row; batched, they read:
+
+| item | batched form |
+| --- | --- |
+| ``action_space`` | ``Box`` (N, 4): HoverEnv's ``single_action_space`` per row |
+| ``observation_space`` | ``Box`` (N, 19) float32: HoverEnv's 19 entries per row |
+| ``reward``, ``terminated``, ``truncated`` | (N,) arrays |
+| ``info`` | HoverEnv's keys, each an (N, ...) array; ``info["reward_terms"]`` a dict of (N,) arrays |
+| ``reset(seed=s)`` | row i as ``HoverEnv.reset(seed=s + i)``; a list of N seeds also works |
+| arguments | HoverEnv's (``render_mode`` None), plus ``num_envs``, ``autoreset_mode``, ``randomizer`` (below) |
+
+Version history: v0 as HoverEnv's; ``info["reward_terms"]`` added within v0.
+
 Per vehicle (row) the semantics are exactly :class:`fawtgym.envs.hover_env.HoverEnv`'s (read its
 module docstring): the same options and their validation (a template ``HoverEnv`` is built from the
 same keyword arguments and its spaces, timing and reward weights are used), action checking and
@@ -75,7 +90,9 @@ time as each single env would (a deterministic model reproduces the single envs 
 draws one stream set per cohort); cost grows with the number of distinct reset times alive.
 
 ``info`` holds batched arrays with HoverEnv's keys: ``measurement``/``applied``/``truth`` dicts of
-(N, ...) arrays, ``setpoint`` (N, 3), ``action_clipped`` (N,), ``failure`` (N,) str, ``time`` (N,).
+(N, ...) arrays, ``reward_terms`` (a dict of (N,) arrays: the reward's terms, HoverEnv's table),
+``setpoint`` (N, 3), ``action_clipped`` (N,), ``failure`` (N,) str, ``time`` (N,).  A row that
+autoresets in the next-step mode reports reward 0 and all terms 0 on its reset step.
 
 ``action_type="ctbr"``: the inner rate loop (:mod:`fawtgym.envs.ctbr`) runs at the physics rate on the
 true body rates, so the physics is one single-substep rollout per substep (``n_substeps`` calls per
@@ -601,7 +618,7 @@ class HoverBatchEnv(VectorEnv):
         self._reset_rows(np.arange(n))
         self._update_disturbance(np.ones(n, dtype=bool))
         info = self._info(np.zeros(n, dtype=bool))
-        obs, _ = self._observation_and_reward(info["measurement"], self._last_action)
+        obs, _, info["reward_terms"] = self._observation_and_reward(info["measurement"], self._last_action)
         return obs, info
 
     def _check_actions(self, actions: ArrayLike, stepping: NDArray[np.bool_]) -> NDArray[np.float64]:
@@ -664,12 +681,15 @@ class HoverBatchEnv(VectorEnv):
         self._failure[ok & ground] = "ground_contact"
         self._failure[ok & ~ground & out] = "out_of_bounds"
         info = self._info(action_clipped)
-        obs, reward = self._observation_and_reward(info["measurement"], clipped, self._last_action_prev)
+        obs, reward, terms = self._observation_and_reward(info["measurement"], clipped, self._last_action_prev)
         self._last_action = clipped
         terminated = self._failure != ""
         truncated = ~terminated & (self._steps >= self.max_steps)
         if any_reset:
             reward[resetting] = 0.0
+            for v in terms.values():
+                v[resetting] = 0.0
+        info["reward_terms"] = terms
         ended = terminated | truncated
         if not self._same_step:
             self._autoreset = ended
@@ -697,7 +717,7 @@ class HoverBatchEnv(VectorEnv):
             self._start_disturbance(rows)
             meas = self._measure_restarted(rows, sensor_rngs, info["measurement"])
         new_info = self._info(info["action_clipped"] & ~ended, meas)
-        new_obs, _ = self._observation_and_reward(new_info["measurement"], self._last_action)
+        new_obs, _, new_info["reward_terms"] = self._observation_and_reward(new_info["measurement"], self._last_action)
         new_info["final_obs"], new_info["_final_obs"] = final_obs, mask
         new_info["final_info"], new_info["_final_info"] = final_info, mask
         return new_obs, new_info
@@ -835,7 +855,8 @@ class HoverBatchEnv(VectorEnv):
     def _observation_and_reward(self, meas: Mapping[str, NDArray[np.float64]], action: NDArray[np.float64],
                                 prev_action: NDArray[np.float64] | None = None
                                 ) -> tuple[NDArray[np.float32], NDArray[np.float64]]:
-        """Observations (N, 19) and rewards (N,) (HoverEnv's layout and formula, row by row)."""
+        """Observations (N, 19), rewards (N,) and the reward's terms (dict of (N,)) (HoverEnv's layout and formula,
+        row by row; the terms are its module docstring's table)."""
         r = meas[M.ATTITUDE]
         x = np.concatenate([meas[M.POSITION] - self.setpoint, meas[M.VELOCITY], r[:, :, 0], r[:, :, 1],
                             meas[M.ANGULAR_VELOCITY], action], axis=1)
@@ -843,11 +864,16 @@ class HoverBatchEnv(VectorEnv):
         cos = np.clip(0.5 * (r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2] - 1.0), -1.0, 1.0)
         phi = np.arccos(cos)
         x[:, 15:] -= self._last_action if prev_action is None else prev_action
-        reward = np.exp(-((x * x) @ self._reward_w + self.reward_weights["att"] * phi * phi))
+        sq = x * x * self._reward_w
+        w = self.reward_weights
         failed = self._failure != ""
+        terms = {"pos": sq[:, 0:3].sum(axis=1), "vel": sq[:, 3:6].sum(axis=1), "att": w["att"] * phi * phi,
+                 "rate": sq[:, 12:15].sum(axis=1), "action": sq[:, 15:19].sum(axis=1),
+                 "failure": np.where(failed, w["failure"], 0.0)}
+        reward = np.exp(-(terms["pos"] + terms["vel"] + terms["rate"] + terms["action"] + terms["att"]))
         if failed.any():
-            reward[failed] = -self.reward_weights["failure"]
-        return obs, reward
+            reward[failed] = -w["failure"]
+        return obs, reward, terms
 
     def close_extras(self, **kwargs: Any) -> None:
         if getattr(self, "_rollout", None) is not None:

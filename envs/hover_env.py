@@ -1,4 +1,14 @@
-"""``fawtgym/Hover-v0``: a quad X hovering at a set point (by default in front of the fan array).
+"""``fawtgym/Hover-v0``: a quadrotor hovering at a set point, by default 1.5 m in front of a fan array.
+
+## Description
+
+A quad X (default the s500 of Wang et al. 2024, Sec. 7) hovers at a set point in world NED while
+wind pushes it: still air, the turbulent jet of the fan-array wind tunnel (FAWT) of Wang et al.
+(2024), Table 3, with the fan switched on and off on a schedule, MIL-F-8785C Dryden gusts, or a
+discrete gust.  The agent commands four motors (like PX4's actuator outputs) or collective thrust
+and body rates.  What it observes comes from modelled sensors (motion capture and an IMU, or exact
+state); the truth (state, wind, disturbance force and torque) is in ``info["truth"]`` for metrics
+only.  Frames: world NED, body FRD, SI units; rotation matrices map body to world.
 
 Physics: MuJoCo, one free body (:mod:`fawtgym.envs.mjcf`), default step 1 ms with MuJoCo's
 semi-implicit ``Euler`` integrator.  Why Euler: the vehicle is a single free rigid body whose only
@@ -20,23 +30,114 @@ One control step (period ``1 / control_rate``, which must divide the physics rat
    ``info["failure"] = "diverged"`` (the last finite state is returned);
 5. sensors (:mod:`.sensors`) produce ``info["measurement"]``; the observation is built from it.
 
-``info`` also carries ``"applied"`` (the known inputs: mean collective rotor thrust [N] and rotor
+## Action space
+
+``action_type="motors"`` (default): ``Box(0, 1, (4,), float32)``.
+
+| index | action | unit |
+| --- | --- | --- |
+| 0-3 | rotor i speed command, 0 = idle, 1 = maximum (PX4 actuator output order) | -- |
+
+``action_type="ctbr"``: ``Box([0, -1, -1, -1], [1, 1, 1, 1], (4,), float32)``.
+
+| index | action | unit |
+| --- | --- | --- |
+| 0 | collective thrust, fraction of the maximum (4 rotors at full speed) | -- |
+| 1-3 | body rate set points p, q, r (FRD), fractions of (220, 220, 200) deg/s | -- |
+
+``env.unwrapped.hover_action()`` is the action that holds a level hover in still air.
+
+## Observation space
+
+``Box(float32, (19,))``, from *measurements* (never the truth), clipped to the box:
+
+| index | observation | unit | bound |
+| --- | --- | --- | --- |
+| 0-2 | position error b^m - b_sp (NED) | m | +- (max_position_error + 1) |
+| 3-5 | velocity v^m (NED) | m/s | +- 30 |
+| 6-11 | columns 1 and 2 of the attitude R^m (body -> NED; Zhou et al. 2019) | -- | +- 1 |
+| 12-14 | body rate Omega^m (FRD) | rad/s | +- 40 |
+| 15-18 | the action just applied (at reset: the hover action) | -- | the action space |
+
+## Rewards
+
+Dense and bounded: ``reward = exp(-(pos + vel + att + rate + action))`` in (0, 1] on a normal step,
+``-failure`` (default -1) on the step that ends the episode by a failure.  The terms, computed on
+measurements, are reported in ``info["reward_terms"]`` (weights: ``reward_weights``, defaults in
+:data:`DEFAULT_REWARD_WEIGHTS`):
+
+| term | value | default weight |
+| --- | --- | --- |
+| ``pos`` | w_pos e.e, e = b^m - b_sp the position error | 2.0 |
+| ``vel`` | w_vel v^m.v^m | 0.2 |
+| ``att`` | w_att Phi^2, Phi the angle of R^m from the hover attitude (tilt and yaw) | 1.0 |
+| ``rate`` | w_rate Omega^m.Omega^m | 0.05 |
+| ``action`` | w_action (u - u_prev).(u - u_prev), the change of the action | 0.5 |
+| ``failure`` | w_failure on a failure step, else 0 | 1.0 |
+
+## Starting state
+
+The set point (default the FAWT hover point, 1.5 m in front of the fan array, 1.5 m above the
+floor), hovering: rotors at hover speed, plus independent uniform perturbations scaled by
+``init_noise`` (default 1): position +- 0.1 m, velocity +- 0.1 m/s, tilt (a rotation vector)
++- 3 deg per axis, body rate +- 0.1 rad/s.  ``init_noise=0`` starts exactly at the set point.
+``reset(options={"setpoint": ..., "init_noise": ...})`` changes either for the episode and after.
+
+## Episode end
+
+Termination (``info["failure"]`` names the rule): ``"ground_contact"`` (a hull corner or rotor hub
+at or below the floor, z_NED >= 0), ``"out_of_bounds"`` (``|b_i - b_sp,i| > max_position_error`` on
+any NED axis, default 2 m) or ``"diverged"`` (a non-finite state).  Truncation: at
+``episode_seconds`` (default 10 s).
+
+## Info
+
+``"measurement"`` (what the sensors give: position, velocity, attitude, body rate, specific force,
+gyro, magnetometer, time), ``"applied"`` (the known inputs: mean collective rotor thrust [N] and rotor
 torque [N m] over the step just taken, rotor thrusts and speeds), ``"truth"`` (true state, wind at the
-CoM, disturbance force NED and torque FRD exactly as applied; for metrics only), ``"setpoint"``
-(the NED position set point, a command), ``"action_clipped"``, ``"failure"`` and ``"time"``.
+CoM, disturbance force NED and torque FRD exactly as applied; for metrics only), ``"reward_terms"``,
+``"setpoint"`` (the NED position set point, a command), ``"action_clipped"``, ``"failure"`` and
+``"time"``.
 
-Observation (float32, shape (19,)), from *measurements*, never the truth:
-``[b^m - b_sp (3, NED m), v^m (3, NED m/s), R^m[:, 0], R^m[:, 1] (6, the continuous 6-D attitude
-representation of Zhou et al. 2019), Omega^m (3, FRD rad/s), the action just applied (4; at reset
-the hover action)]``, clipped to the box bounds.
+## Arguments
 
-Reward (dense, bounded in [-1, 1]): ``exp(-(w_pos |e_b|^2 + w_vel |v|^2 + w_att Phi^2 +
-w_rate |Omega|^2 + w_action |u - u_prev|^2))`` with Phi the attitude error angle (tilt + yaw) from
-the hover attitude (computed on measurements), and ``-w_failure`` (default 1) on a failure step.
+``gym.make("fawtgym/Hover-v0", **kwargs)``; ``fawtgym/HoverFAWT<duty>-v0`` (duty 30, 40, 50, 60, 70)
+is the same with ``wind="fawt-<duty>"``.  ``gym.make_vec(..., num_envs=N)`` gives
+:class:`fawtgym.envs.hover_batch_env.HoverBatchEnv` with the same arguments.  A bad value raises a
+one-line ``ValueError`` naming it and what is allowed.
 
-Termination: ground contact (a hull corner or rotor hub at or below the floor, z_NED >= 0), leaving
-the box ``|b_i - b_sp,i| <= max_position_error`` (default 2 m per NED axis), or divergence.  Truncation at
-``episode_seconds``.
+| argument | default | meaning |
+| --- | --- | --- |
+| ``vehicle`` | ``"s500"`` | ``s500``, ``pounds_x4``, ``shi_geso``, ``hummingbird``, ``x500``, or a preset/file |
+| ``wind`` | ``"calm"`` | wind name, ``{"name": ..., **options}`` (e.g. ``on_time``) or a ``WindModel`` |
+| ``action_type`` | ``"motors"`` | ``"motors"`` or ``"ctbr"`` (tables above) |
+| ``sensors`` | ``"none"`` | ``"none"`` (exact), ``"seed000"`` (Wang et al. 2024, Table 2 noise), ``"mocap_imu"`` |
+| ``control_rate`` | 100.0 | agent rate [Hz]; must divide ``physics_rate`` |
+| ``physics_rate`` | 1000.0 | MuJoCo rate [Hz] |
+| ``episode_seconds`` | 10.0 | truncation time [s] |
+| ``setpoint`` | FAWT hover point | NED position [m] |
+| ``init_noise`` | 1.0 | scale of the starting-state perturbation |
+| ``reward_weights`` | table above | overrides of any weight |
+| ``max_position_error`` | 2.0 | half-size of the termination box [m] |
+| ``integrator`` | ``"Euler"`` | MuJoCo integrator: ``Euler``, ``RK4``, ``implicit``, ``implicitfast`` |
+| ``render_mode`` | None | ``"rgb_array"`` only (``"human"`` is refused); see :mod:`fawtgym.envs.render` |
+| ``render_width``, ``render_height`` | 480, 480 | frame size [px] |
+
+## Rendering
+
+``render()`` returns an RGB frame of the vehicle in front of the fan array with the wind and a
+height cue (:mod:`fawtgym.envs.render`); ``metadata["render_fps"]`` is the control rate, so
+``gymnasium.wrappers.RecordVideo`` plays in real time.  Headless: ``MUJOCO_GL=egl`` (set by
+``import fawtgym`` when no display is present) or ``osmesa``.
+
+## Version history
+
+* v0 (fawtgym 0.1): first release.  Within v0: the observation carries the action just applied (not
+  the one before); the disturbance wrench enters through the free joint (same trajectories to 5e-14);
+  ``info["reward_terms"]``; ``render_fps`` follows the control rate and the frame shows the fan array.
+
+``"mocap_imu"`` sensors: motion-capture pose at 100 Hz (0.5 mm, 0.1 deg) and an IMU with turn-on
+biases, as the VICON-fed PX4 of Wang et al. (2024), Sec. 7 (:mod:`fawtgym.envs.sensors`).
 """
 
 from __future__ import annotations
@@ -59,6 +160,7 @@ from .ctbr import MAX_RATES, RateLoop
 from .frames import FAWT_HOVER_POINT_NED, rot_ned_to_quat_mj, vec_ned_to_mj
 from .mjcf import INTEGRATORS, hull_points, vehicle_mjcf
 from .motors import allocation_matrix, hover_command
+from .render import HoverRenderer
 from .sensors import SensorModel, make_sensor_spec
 from .vehicles import GRAVITY, VehiclePreset, make_vehicle
 from .wind import WindModel, make_wind
@@ -106,7 +208,7 @@ class HoverEnv(gym.Env):
         sensors: ``"none"``, ``"seed000"``, ``"mocap_imu"``, a SensorSpec or a mapping.
         control_rate, physics_rate: Hz; ``physics_rate / control_rate`` must be an integer.
         episode_seconds: truncation time.
-        setpoint: hover set point, world NED (default: the seed-000 FAWT point).
+        setpoint: hover set point, world NED (default: the FAWT hover point of Wang et al. 2024, Sec. 7.3).
         init_noise: scale of the random initial perturbation (0: start exactly hovering at the set point).
         reward_weights: overrides of :data:`DEFAULT_REWARD_WEIGHTS`.
         max_position_error: half-size of the termination box [m].
@@ -114,7 +216,19 @@ class HoverEnv(gym.Env):
         render_mode: ``None`` or ``"rgb_array"`` (headless via MUJOCO_GL=egl, set by default).
     """
 
-    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 50}
+    @property
+    def metadata(self) -> dict[str, Any]:  # type: ignore[override]
+        """``render_modes`` and ``render_fps``: one frame per control step, so a video plays in real time.
+
+        An instance property (not a class dict) so that the frame rate follows this env's control
+        rate, and so that ``gym.make(..., render_mode="human")`` reaches this env's own one-line error
+        instead of Gymnasium's pygame wrapper.
+        """
+        return {"render_modes": list(RENDER_MODES), "render_fps": self._render_fps}
+
+    @metadata.setter
+    def metadata(self, value: dict[str, Any]) -> None:
+        self._render_fps = value.get("render_fps", getattr(self, "_render_fps", None))
 
     def __init__(self, vehicle: str | VehiclePreset | Mapping[str, Any] = "s500",
                  wind: str | WindModel | Mapping[str, Any] | None = "calm", action_type: str = "motors",
@@ -127,6 +241,9 @@ class HoverEnv(gym.Env):
         self.preset = make_vehicle(vehicle)
         if action_type not in ACTION_TYPES:
             raise ValueError(f"unknown action_type {action_type!r}; valid: {list(ACTION_TYPES)}")
+        if render_mode == "human":
+            raise ValueError("render_mode 'human' is not supported: fawtgym renders off screen only; valid: None, "
+                             "'rgb_array' (record a video with gymnasium.wrappers.RecordVideo)")
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(f"unknown render_mode {render_mode!r}; valid: {[None, *RENDER_MODES]}")
         if integrator not in INTEGRATORS:
@@ -140,6 +257,7 @@ class HoverEnv(gym.Env):
         self.n_substeps = int(round(ratio))
         self.physics_dt = 1.0 / physics_rate
         self.dt = self.n_substeps * self.physics_dt
+        self._render_fps = 1.0 / self.dt
         self.episode_seconds = _positive("episode_seconds", episode_seconds)
         self.max_steps = int(math.ceil(self.episode_seconds / self.dt - 1e-9))
         self.max_position_error = _positive("max_position_error", max_position_error)
@@ -160,7 +278,7 @@ class HoverEnv(gym.Env):
         self.sensor = SensorModel(make_sensor_spec(sensors), self.dt, self.physics_dt)
         self.render_mode = render_mode
         self._render_size = (int(render_height), int(render_width))
-        self._renderer: mujoco.Renderer | None = None
+        self._renderer: HoverRenderer | None = None
 
         self.model = mujoco.MjModel.from_xml_string(vehicle_mjcf(self.preset, self.physics_dt, integrator,
                                                                  render_width, render_height))
@@ -466,18 +584,18 @@ class HoverEnv(gym.Env):
              [lw if x > lw else -lw if x < -lw else x for x in e[6:9]]
         # the attitude entries of a rotation matrix and the (clipped) action are inside their bounds already
         obs = np.array([*ec[0:6], att[0], att[3], att[6], att[1], att[4], att[7], *ec[6:9], *action], dtype=np.float32)
-        if self._failure:
-            self._reward = -self.reward_weights["failure"]
-        else:
-            cos_phi = 0.5 * (att[0] + att[4] + att[8] - 1.0)
-            phi = math.acos(1.0 if cos_phi > 1.0 else -1.0 if cos_phi < -1.0 else cos_phi)
-            last = self._last_action
-            da = [action[0] - last[0], action[1] - last[1], action[2] - last[2], action[3] - last[3]]
-            wp, wv, wa, ww = self._reward_terms
-            cost = (wp * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]) + wv * (e[3] * e[3] + e[4] * e[4] + e[5] * e[5])
-                    + ww * (e[6] * e[6] + e[7] * e[7] + e[8] * e[8])
-                    + wa * (da[0] * da[0] + da[1] * da[1] + da[2] * da[2] + da[3] * da[3]))
-            self._reward = math.exp(-(cost + self._w_att * phi * phi))
+        cos_phi = 0.5 * (att[0] + att[4] + att[8] - 1.0)
+        phi = math.acos(1.0 if cos_phi > 1.0 else -1.0 if cos_phi < -1.0 else cos_phi)
+        last = self._last_action
+        da = [action[0] - last[0], action[1] - last[1], action[2] - last[2], action[3] - last[3]]
+        wp, wv, wa, ww = self._reward_terms
+        t_pos = wp * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+        t_vel = wv * (e[3] * e[3] + e[4] * e[4] + e[5] * e[5])
+        t_rate = ww * (e[6] * e[6] + e[7] * e[7] + e[8] * e[8])
+        t_action = wa * (da[0] * da[0] + da[1] * da[1] + da[2] * da[2] + da[3] * da[3])
+        t_att = self._w_att * phi * phi
+        t_failure = self.reward_weights["failure"] if self._failure else 0.0
+        self._reward = -t_failure if self._failure else math.exp(-(t_pos + t_vel + t_rate + t_action + t_att))
         t_rot = self._applied_thrusts
         (a0, a1, a2, a3), wind = self._alloc_rows, self._disturbance[2]
         force, torque = self._held_wrench()
@@ -493,6 +611,8 @@ class HoverEnv(gym.Env):
             "applied": {"thrust": wrench[0], "torque": f[27:30], "rotor_thrusts": f[30:34], "motor_speeds": f[34:38]},
             "truth": {M.POSITION: f[38:41], M.VELOCITY: f[41:44], M.ATTITUDE: f[44:53].reshape(3, 3),
                       M.ANGULAR_VELOCITY: f[53:56], "wind": f[56:59], "force": f[59:62], "torque": f[62:65]},
+            "reward_terms": {"pos": t_pos, "vel": t_vel, "att": t_att, "rate": t_rate, "action": t_action,
+                             "failure": t_failure},
             "setpoint": f[65:68],
             "action_clipped": action_clipped,
             "failure": self._failure,
@@ -506,15 +626,10 @@ class HoverEnv(gym.Env):
             gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array' to gym.make")
             return None
         if self._renderer is None:
-            self._renderer = mujoco.Renderer(self.model, *self._render_size)
-            self._camera = mujoco.MjvCamera()
-            self._camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
-            self._camera.trackbodyid = self._body
-            self._camera.distance = 2.5
-            self._camera.azimuth = 120.0
-            self._camera.elevation = -20.0
-        self._renderer.update_scene(self.data, camera=self._camera)
-        return self._renderer.render()
+            height, width = self._render_size
+            self._renderer = HoverRenderer(self.model, width, height, self._body)
+        wind = getattr(self, "_disturbance", (None, None, (0.0, 0.0, 0.0)))[2]  # before the first reset: still air
+        return self._renderer.render(self.data, self.setpoint, np.asarray(wind, dtype=float))
 
     def close(self) -> None:
         if self._renderer is not None:

@@ -6,7 +6,7 @@ entry with an optional leading batch axis:
 ================== ========= ==========================================================
 key                shape     meaning
 ================== ========= ==========================================================
-``position``       (N, 3)    b^m, world NED [m] (seed-000 eq. 39)
+``position``       (N, 3)    b^m, world NED [m] (Wang et al. (2024) eq. 39)
 ``velocity``       (N, 3)    v^m, world NED [m/s]
 ``attitude``       (N, 3, 3) R^m, body FRD -> world NED
 ``angular_velocity`` (N, 3)  Omega^m, body FRD [rad/s] (estimator-grade, as PX4's vehicle_angular_velocity)

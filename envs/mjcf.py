@@ -15,8 +15,10 @@ The disturbance wrench goes straight into the free joint's generalized force ``d
 at the CoM and ``qfrc_applied[3:6]`` a torque in body axes (MuJoCo's free-joint rotational dofs are
 body-local), i.e. a body-fixed torque over a control step.  No Jacobian is needed (an ``xfrc_applied``
 force and three torque actuators cost MuJoCo ~15 % of a step for the same wrench).  Gravity is
-``GRAVITY`` along -z.  The body frame is the CoM frame (``inertial pos = 0``), principal or full inertia
-from the preset.
+``GRAVITY`` along -z.  The fan array and the other scene cues are drawn at render time only
+(:mod:`fawtgym.envs.render`); offscreen rendering asks for no multisampling and no shadow map (the
+two dominate the cost of CPU rendering).  The body frame is the CoM frame (``inertial pos = 0``),
+principal or full inertia from the preset.
 """
 
 from __future__ import annotations
@@ -70,17 +72,21 @@ def vehicle_mjcf(preset: VehiclePreset, physics_dt: float = 0.001, integrator: s
   <option timestep="{physics_dt:.9g}" integrator="{integrator}" gravity="0 0 {-GRAVITY:.9g}" density="0" viscosity="0">
     <flag contact="disable"/>
   </option>
-  <visual><global offwidth="{render_width}" offheight="{render_height}"/></visual>
+  <visual>
+    <global offwidth="{render_width}" offheight="{render_height}"/>
+    <quality offsamples="0" shadowsize="0" numslices="12" numstacks="2"/>
+    <headlight ambient="0.35 0.35 0.35" diffuse="0.5 0.5 0.5"/>
+  </visual>
   <asset>
-    <texture name="grid" type="2d" builtin="checker" rgb1="0.25 0.28 0.32" rgb2="0.35 0.38 0.42"
+    <texture name="sky" type="skybox" builtin="gradient" rgb1="0.72 0.8 0.9" rgb2="0.95 0.96 0.98"
+             width="64" height="64"/>
+    <texture name="grid" type="2d" builtin="checker" rgb1="0.62 0.64 0.66" rgb2="0.68 0.7 0.72"
              width="256" height="256"/>
-    <material name="grid" texture="grid" texrepeat="8 8"/>
+    <material name="grid" texture="grid" texrepeat="10 10"/>
   </asset>
   <worldbody>
     <light pos="0 0 6" dir="0 0 -1" directional="true"/>
-    <geom name="floor" type="plane" size="20 20 0.1" material="grid"/>
-    <geom name="fan_array" type="box" pos="-0.05 0 1.5" size="0.05 0.72 0.36" contype="0" conaffinity="0"
-          rgba="0.5 0.5 0.55 0.5"/>
+    <geom name="floor" type="plane" size="5 5 0.1" material="grid"/>
     <body name="vehicle" pos="0 0 1.5">
       <freejoint name="root"/>
       <inertial pos="0 0 0" mass="{preset.mass:.9g}" fullinertia="{full}"/>

@@ -2,8 +2,8 @@
 
 Every noise figure is given as a white-noise *density* ``d`` (unit/sqrt(Hz)), i.e. a one-sided
 power spectral density ``P = d^2``.  Sampled every ``dt`` seconds, white noise of density ``d``
-has per-sample standard deviation ``sigma = d / sqrt(dt)``; this is how seed-000 Table 2's PSDs
-(ffts_eso_tse3_fawt_wang2024.txt, eq. 39 noise model) become samples, independent of the rate.
+has per-sample standard deviation ``sigma = d / sqrt(dt)``; this is how Wang et al. (2024) Table 2's PSDs
+(the eq. 39 noise model) become samples, independent of the rate.
 
 Groups and what they produce (see :mod:`fawtgym.envs.measurement` for the keys):
 
@@ -18,9 +18,9 @@ Groups and what they produce (see :mod:`fawtgym.envs.measurement` for the keys):
 Presets:
 
 * ``"none"``: exact measurements, every control step.
-* ``"seed000"``: Table 2 of seed-000, P_b = 3e-8, P_v = 3e-7, P_R = 3e-8, P_Omega = 3e-7 (also used
+* ``"seed000"``: Table 2 of Wang et al. (2024), P_b = 3e-8, P_v = 3e-7, P_R = 3e-8, P_Omega = 3e-7 (also used
   for the gyro); accelerometer and magnetometer as ``"mocap_imu"``; no biases; pose every step.
-* ``"mocap_imu"``: a VICON-fed PX4 as in seed-000 Sec. 7: pose at 100 Hz with 0.5 mm / 0.1 deg
+* ``"mocap_imu"``: a VICON-fed PX4 as in Wang et al. (2024), Sec. 7: pose at 100 Hz with 0.5 mm / 0.1 deg
   noise (VICON marker-fit accuracy), velocity noise 0.01 m/s from the estimator; IMU noise
   densities chosen so that at 250 Hz the per-sample sigmas equal PX4's EKF2_GYR_NOISE (0.015 rad/s)
   and EKF2_ACC_NOISE (0.35 m/s^2) defaults; gyro turn-on bias sigma 0.003 rad/s, accel 0.05 m/s^2;

@@ -4,7 +4,7 @@ Same noise model, presets and rates as the single-vehicle model (the per-sample 
 from a :class:`~fawtgym.envs.sensors.SensorModel` built with the same spec, so the two can never
 disagree): pose group sample-and-hold every ``pose_every`` control steps (per vehicle, counted from
 that vehicle's own episode start), IMU group every step, constant turn-on biases drawn per vehicle
-at its reset, attitude noise ``R exp(Delta^x)`` (seed-000 eq. 39, ffts_eso_tse3_fawt_wang2024.txt).
+at its reset, attitude noise ``R exp(Delta^x)`` (Wang et al. (2024) eq. 39).
 
 Random streams.  Per-step noise for all N rows comes from one generator in fixed-size blocks
 (N, 21) per step, so one row's trajectory never changes how many numbers another row consumes

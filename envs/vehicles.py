@@ -144,7 +144,7 @@ class VehiclePreset:
 
 
 def _s500() -> VehiclePreset:
-    """S500 quad X of seed-000 Sec. 7 (ffts_eso_tse3_fawt_wang2024.txt: m = 1.0 kg, J = diag(0.03, 0.03, 0.06)).
+    """S500 quad X of Wang et al. (2024), Sec. 7 (m = 1.0 kg, J = diag(0.03, 0.03, 0.06)).
 
     Derived from public data for a T-Motor Air 2216 880 KV motor with 10x4.5" props on 4S:
     the manufacturer's tables give roughly 0.9 kg of thrust per motor at full throttle at about
@@ -171,17 +171,17 @@ def _s500() -> VehiclePreset:
         tau_up=0.030, tau_down=0.045, rotor_radius=0.127,
         rotor_drag=2.2e-4, rolling_moment=1.0e-6, body_drag=(0.017, 0.017, 0.030),
         cop_offset=(0.0, 0.0, -0.02),
-        source="seed-000 Sec. 7 (mass, inertia); T-Motor Air 2216 880KV + 10x4.5 public data (rotor)",
+        source="Wang et al. (2024), Sec. 7 (mass, inertia); T-Motor Air 2216 880KV + 10x4.5 public data (rotor)",
     )
 
 
 def _pounds_x4() -> VehiclePreset:
-    """Pounds X-4 simulation vehicle of seed-000 Sec. 6: m = 4.34 kg, J = diag(0.0820, 0.0845, 0.1377).
+    """Pounds X-4 simulation vehicle of Wang et al. (2024), Sec. 6: m = 4.34 kg, J = diag(0.0820, 0.0845, 0.1377).
 
     Rotor data from Pounds, Mahony, Corke (2010), "Modelling and control of a large quadrotor
     robot": arm 0.315 m, rotor radius 0.165 m, C_T = 0.0048 in T = C_T rho A R^2 w^2, hence
     k_T = C_T rho pi R^4 = 1.32e-5 N/(rad/s)^2 (rho = 1.184); max speed 1300 rad/s chosen for thrust-to-weight ~2.1.
-    Seed-000's simulation itself has no actuator dynamics (the seed-000 study bypasses motors).
+    The simulation of Wang et al. (2024) itself has no actuator dynamics (the Wang et al. (2024) study bypasses motors).
     Aerodynamics by the docs/wind.md rule: k_d = 0.40 * m / (4 omega_hover) = 4.8e-4, body drag
     scaled from the s500 by frontal area ~ m^(2/3): 0.017 * 4.34^(2/3) = 0.045.
     """
@@ -190,12 +190,12 @@ def _pounds_x4() -> VehiclePreset:
         k_thrust=1.32e-5, k_moment=0.02, omega_min=130.0, omega_max=1300.0,
         tau_up=0.05, tau_down=0.08, rotor_radius=0.165,
         rotor_drag=4.8e-4, rolling_moment=2.0e-6, body_drag=(0.045, 0.045, 0.08),
-        source="seed-000 Sec. 6 (mass, inertia); Pounds et al. 2010 (rotor)",
+        source="Wang et al. (2024), Sec. 6 (mass, inertia); Pounds et al. 2010 (rotor)",
     )
 
 
 def _shi_geso() -> VehiclePreset:
-    """GESO simulation vehicle, seed-004 Table 1 (geso_quadrotor_shi2018.txt).
+    """GESO simulation vehicle, Shi et al. (2018) Table 1.
 
     m = 1.79 kg, Jx = Jy = 1.335e-2, Jz = 2.465e-2 kg m^2, l = 0.18 m, k_T = 8.82e-6 N/(rad/s)^2,
     drag-torque coefficient k_D = 1.09e-7 N m/(rad/s)^2, hence k_M = k_D / k_T.  Max speed for
@@ -208,12 +208,12 @@ def _shi_geso() -> VehiclePreset:
         k_thrust=8.82e-6, k_moment=1.09e-7 / 8.82e-6, omega_min=100.0, omega_max=1000.0,
         tau_up=0.02, tau_down=0.03, rotor_radius=0.127,
         rotor_drag=2.5e-4, rolling_moment=1.0e-6, body_drag=(0.025, 0.025, 0.045),
-        source="seed-004 Table 1",
+        source="Shi et al. (2018) Table 1",
     )
 
 
 def _hummingbird() -> VehiclePreset:
-    """AscTec Hummingbird of seed-001 Sec. 4 (qb_observer_cayero2019.txt): m = 1.023 kg, J = diag(9.5, 9.5, 18.6)e-3.
+    """AscTec Hummingbird of Cayero et al. (2019) Sec. 4: m = 1.023 kg, J = diag(9.5, 9.5, 18.6)e-3.
 
     Rotor and drag numbers from rotorpy's Hummingbird model (k_eta = 5.57e-6, k_m = 1.36e-7,
     arm 0.17 m, rotor radius 0.1 m, max 1500 rad/s, rotor drag k_d = 1.19e-4, parasitic drag
@@ -224,7 +224,7 @@ def _hummingbird() -> VehiclePreset:
         k_thrust=5.57e-6, k_moment=1.36e-7 / 5.57e-6, omega_min=150.0, omega_max=1500.0,
         tau_up=0.005, tau_down=0.0075, rotor_radius=0.1,
         rotor_drag=1.19e-4, rolling_moment=0.0, body_drag=(0.5e-2, 0.5e-2, 1e-2),
-        source="seed-001 Sec. 4 (mass, inertia); rotorpy hummingbird_params (rotor, drag)",
+        source="Cayero et al. (2019) Sec. 4 (mass, inertia); rotorpy hummingbird_params (rotor, drag)",
     )
 
 

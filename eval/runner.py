@@ -76,8 +76,11 @@ def _wrench(info: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def fly_cell(agent_name: str, scenario: Mapping[str, Any], seeds: Sequence[int],
-             record_hz: float = DEFAULT_RECORD_HZ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+             record_hz: float = DEFAULT_RECORD_HZ, progress: Callable[[int], Any] | None = None
+             ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """Fly one cell; returns (result record, traces).  Picklable arguments: runs in any worker process.
+
+    ``progress``, if given, is called with 1 after every control step (e.g. a progress bar's ``update``).
 
     Raises :class:`CellError` if the agent cannot be built or raises an unexpected exception (a bug); a
     non-finite estimate or action (FloatingPointError) ends the alive rows' episodes as ``agent_error``.
@@ -118,6 +121,8 @@ def fly_cell(agent_name: str, scenario: Mapping[str, Any], seeds: Sequence[int],
             att_sp = getattr(agent, "attitude_setpoint", None)
             obs, _, terminated, truncated, info = env.step(action)
             rec.step(info["truth"], action, att_sp, estimate, w_prev, info["action_clipped"])
+            if progress is not None:
+                progress(1)
             if terminated.any():
                 rec.end(terminated, info["failure"])
             if not rec.alive.any():

@@ -8,7 +8,7 @@ ENV_NAMESPACE = "fawtgym"
 HOVER_ENTRY_POINT = "fawtgym.envs.hover_env:HoverEnv"
 #: batch-first vector env (``gym.make_vec(..., vectorization_mode="vector_entry_point")``, the default mode)
 HOVER_VECTOR_ENTRY_POINT = "fawtgym.envs.hover_batch_env:HoverBatchEnv"
-#: FAWT duty presets of seed-000 Table 3, registered as shortcut ids fawtgym/HoverFAWT<duty>-v0
+#: FAWT duty presets of Wang et al. (2024), Table 3, registered as shortcut ids fawtgym/HoverFAWT<duty>-v0
 FAWT_DUTIES = (30, 40, 50, 60, 70)
 
 

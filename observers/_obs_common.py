@@ -1,4 +1,4 @@
-"""Small helpers shared by the seed-000 observers (FFTS-ESO, LESO, FxTSDO, STO).
+"""Small helpers shared by the Wang et al. (2024) observers (FFTS-ESO, LESO, FxTSDO, STO).
 
 Not an observer itself (the leading underscore keeps it out of the auto-import/registry).
 """

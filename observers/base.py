@@ -1,6 +1,6 @@
 """The one interface every disturbance/state observer implements, and the observer registry.
 
-Model (seed-000 eq. 38, ffts_eso_tse3_fawt_wang2024.txt)::
+Model (Wang et al. (2024) eq. 38)::
 
     b' = v,   m v' = m g e3 - f R e3 + phi_D,   R' = R Omega^x,   J Omega' = J Omega x Omega + tau + tau_D
 

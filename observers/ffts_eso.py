@@ -1,6 +1,6 @@
-"""FFTS-ESO on TSE(3): fast finite-time stable extended state observer (seed-000 Sec. 5).
+"""FFTS-ESO on TSE(3): fast finite-time stable extended state observer (Wang et al. (2024) Sec. 5).
 
-Source: ``ffts_eso_tse3_fawt_wang2024.txt``.  Model eq. (38) (world NED, body FRD)::
+Source:.  Model eq. (38) (world NED, body FRD)::
 
     b' = v,  m v' = m g e3 - f R e3 + phi_D,  R' = R Omega^,  J Omega' = J Omega x Omega + tau + tau_D
 
@@ -107,7 +107,7 @@ def validate_gains(p: float, kt1: float, kt2: float, kt3: float, kappa_t: float,
     check_p(p)
     for name, val in (("kappa_t", kappa_t), ("kappa_a", kappa_a)):
         if not (np.isfinite(val) and val > 0.5):
-            raise ValueError(f"{name} must be > 1/2 (seed-000 eqs. 50/69), got {name}={val!r}")
+            raise ValueError(f"{name} must be > 1/2 (Wang et al. (2024) eqs. 50/69), got {name}={val!r}")
     hurwitz_matrix(kt1, kt2, "A_t (eq. 48)")
     hurwitz_matrix(ka1, ka2, "A_a (eq. 67)")
     for name, val in (("kt3", kt3), ("ka3", ka3)):
@@ -121,7 +121,7 @@ def validate_gains(p: float, kt1: float, kt2: float, kt3: float, kappa_t: float,
 
 @register_observer("ffts_eso")
 class FFTSESO(Observer):
-    """FFTS-ESO on TSE(3) (seed-000 Props. 1-2); estimates phi_D (world NED) and tau_D (body FRD)."""
+    """FFTS-ESO on TSE(3) (Wang et al. (2024) Props. 1-2); estimates phi_D (world NED) and tau_D (body FRD)."""
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, p: float = 1.2,
                  kt1: float = 3.0, kt2: float = 2.0, kt3: float = 6.0, kappa_t: float = 0.8,

@@ -1,6 +1,6 @@
-"""Fixed-time disturbance observer (FxTSDO), the seed-000 baseline of Liu et al. 2022.
+"""Fixed-time disturbance observer (FxTSDO), the Wang et al. (2024) baseline of Liu et al. 2022.
 
-Source of the comparison: ``ffts_eso_tse3_fawt_wang2024.txt`` Remark 2 and Sec. 6 (ref. [22], Liu et
+Source of the comparison: Remark 2 and Sec. 6 (ref. [22], Liu et
 al. 2022, Theorems 1-2).  As Remark 2 describes, the observer is driven by the velocities X_2 = v,
 Y_2 = Omega and their derivatives, which -- with no accelerometer model and no angular-acceleration
 sensor -- are obtained by finite differencing the measured velocities: a_fd = (v^m_k - v^m_{k-1}) / dt.
@@ -47,7 +47,7 @@ _STATE = ("v_prev", "w_prev", "dt_", "da")  # the state dict's entries, (N, 3) e
 
 @register_observer("fxtsdo")
 class FxTSDO(Observer):
-    """Fixed-time DO on finite-differenced velocities (Liu et al. 2022 as used in seed-000 Sec. 6, Remark 2)."""
+    """Fixed-time DO on finite-differenced velocities (Liu et al. 2022, as in Wang et al. 2024, Sec. 6)."""
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, k1: float = 5.0,
                  k2: float = 5.0, a1: float = 0.5, a2: float = 1.5) -> None:

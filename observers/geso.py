@@ -1,6 +1,6 @@
 """Generalized extended state observer (GESO) of order n, exact sampled-data form.
 
-Source: ``geso_quadrotor_shi2018.txt`` (Shi, Wu, Chou, IEEE Access 2018), Sec. IV.
+Source: (Shi, Wu, Chou, IEEE Access 2018), Sec. IV.
 
 Per channel and per axis the disturbance ``d`` is modelled as a time polynomial of degree n - 1
 (eq. 18), its derivatives ``xi = [d, d', ..., d^(n-1)]`` (eq. 19) are appended to the measured
@@ -50,7 +50,7 @@ from fawtgym.envs import measurement as M
 from ._obs_common import floats
 from .base import Observer, ObserverEstimate, register_observer
 
-#: orders the module supports (eqs. 18-23 for n = 1..4, as issue 5 asks)
+#: orders the module supports (eqs. 18-23 for n = 1..4)
 ORDERS = (1, 2, 3, 4)
 HOLDS = ("zoh", "foh")
 CHANNELS = ("force", "torque")

@@ -1,6 +1,6 @@
 """Gyroless attitude and angular-velocity estimation: QUEST + the (modified) super-twisting observer.
 
-Source: ``pdt_sta_attitude_silva2023.txt`` Sec. 4-5.
+Source: Sec. 4-5.
 
 * Gibbs-vector kinematics and dynamics (eqs. 45-55): attitude matrix D(g) (45), Gamma(g) (48),
   g' = 1/2 Gamma(g) omega (47), rigid body omega' = J^-1 (J omega x omega + u + d) (49),
@@ -129,7 +129,7 @@ def gibbs_accel(g: ArrayLike, g_dot: ArrayLike, omega: ArrayLike, inertia: Array
 
 
 def rigid_body_rhs(omega: ArrayLike, inertia: ArrayLike, torque: ArrayLike) -> NDArray[np.float64]:
-    """omega' = J^-1 (J omega x omega + tau) (eq. 49; seed-000 eq. 38 in FRD)."""
+    """omega' = J^-1 (J omega x omega + tau) (eq. 49; Wang et al. (2024) eq. 38 in FRD)."""
     J = np.asarray(inertia, dtype=float)
     w = np.asarray(omega, dtype=float)
     return np.einsum("ij,...j->...i", np.linalg.inv(J), np.cross(np.einsum("ij,...j->...i", J, w), w)

@@ -1,6 +1,6 @@
 """Hölder-continuous extended state observer (HC-ESO) on SO(3) from vector measurements.
 
-Source: ``hc_eso_so3_wang2022.txt`` (Wang and Sanyal, IFAC PapersOnLine 55-22, 2022), Prop. 3.
+Source: (Wang and Sanyal, IFAC PapersOnLine 55-22, 2022), Prop. 3.
 
 Model (eq. 6): ``R' = R Omega^x``, ``Omega' = J^-1 (J Omega x Omega + tau) + sigma``, ``sigma' = delta``
 with ``sigma = J^-1 tau_d``.  From the inertial vectors E, their body measurements U^m (through

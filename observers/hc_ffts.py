@@ -1,6 +1,6 @@
-"""Hölder-continuous fast finite-time stable differentiator (HC-FFTSD), seed-000 Theorem 1.
+"""Hölder-continuous fast finite-time stable differentiator (HC-FFTSD), Wang et al. (2024) Theorem 1.
 
-Source: ``ffts_eso_tse3_fawt_wang2024.txt`` (Wang, Hamrah, Sanyal, Glauser 2024), Sec. 3.
+Source: (Wang, Hamrah, Sanyal, Glauser 2024), Sec. 3.
 
 * :func:`phi1`, :func:`phi2` -- the output-injection maps of eq. (9); both are continuous at 0 and
   evaluated without NaN/inf there (the fractional power of ``e^T e`` is only taken where it is > 0).
@@ -35,7 +35,7 @@ DEFAULT_EPS = 1e-12
 def check_p(p: float) -> float:
     """Validate the Hölder exponent parameter p in ]1, 2[ (Theorem 1)."""
     if not (np.isfinite(p) and 1.0 < p < 2.0):
-        raise ValueError(f"p must lie in the open interval (1, 2) (seed-000 Theorem 1), got p={p!r}")
+        raise ValueError(f"p must lie in the open interval (1, 2) (Wang et al. (2024) Theorem 1), got p={p!r}")
     return float(p)
 
 

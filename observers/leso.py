@@ -1,6 +1,6 @@
-"""Linear extended state observer (LESO) with Euler-angle attitude, the seed-000 baseline of Shao et al. 2018.
+"""Linear extended state observer (LESO) with Euler-angle attitude, the Wang et al. (2024) baseline of Shao et al. 2018.
 
-Source of the comparison: ``ffts_eso_tse3_fawt_wang2024.txt`` Sec. 1 and Sec. 6 (ref. [36]: Shao, Liu,
+Source of the comparison: Sec. 1 and Sec. 6 (ref. [36]: Shao, Liu,
 Cao, Shen, Wang, "Robust dynamic surface trajectory tracking control for a quadrotor UAV via extended
 state observer", Int. J. Robust Nonlinear Control 28 (2018)).  Shao et al. write the quadrotor with
 position b and Z-Y-X Euler angles eta = (roll, pitch, yaw) and treat each channel as a double integrator
@@ -59,7 +59,7 @@ def bandwidth_gains(omega0: float) -> tuple[float, float, float]:
 
 @register_observer("leso")
 class LESO(Observer):
-    """Third-order LESO per axis on position and on Z-Y-X Euler angles (Shao et al. 2018 as used in seed-000 Sec. 6)."""
+    """Third-order LESO per axis on position and on Z-Y-X Euler angles (Shao et al. 2018, as in Wang et al. 2024)."""
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, omega_t: float = 10.0,
                  omega_a: float = 10.0) -> None:

@@ -1,6 +1,6 @@
 """Modified super-twisting algorithm (STA) with a predefined convergence time, scalar theory.
 
-Source: ``pdt_sta_attitude_silva2023.txt`` (Silva and Santos, "Attitude determination for multirotor
+Source: (Silva and Santos, "Attitude determination for multirotor
 aerial vehicles using a predefined-time super twisting algorithm"), Section 3.
 
 The modified STA (eqs. 20-22)::

@@ -1,6 +1,6 @@
 """Optimal quadratic-boundedness (QB) observer design by semidefinite programming.
 
-Seed: ``qb_observer_cayero2019.txt`` (Cayero, Rotondo, Morcego, Puig 2019), Sec. 2.
+Seed: (Cayero, Rotondo, Morcego, Puig 2019), Sec. 2.
 
 For a linear system (eq. 1)::
 
@@ -45,7 +45,7 @@ _DESIGN_HINT = "pip install 'fawtgym[design]'"
 
 
 class QBInfeasibleError(ValueError):
-    """The LMI problem (7) + (30) of seed-001 has no solution (or the solver failed on it)."""
+    """The LMI problem (7) + (30) of Cayero et al. (2019) has no solution (or the solver failed on it)."""
 
 
 def _mat(name: str, value: ArrayLike, rows: int | None = None, cols: int | None = None) -> NDArray[np.float64]:
@@ -63,7 +63,7 @@ def _mat(name: str, value: ArrayLike, rows: int | None = None, cols: int | None 
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class QBProblem:
-    """The data (A, B, C, D, W1, W2, Q, E1) of seed-001 eqs. 1-2; validated on construction.
+    """The data (A, B, C, D, W1, W2, Q, E1) of Cayero et al. (2019) eqs. 1-2; validated on construction.
 
     ``Q`` bounds ``eta_bar = (eta1, eta2)`` (eq. 2) and must be symmetric positive definite of size
     ``l1 + l2``.  ``E1`` (q x n) must have orthonormal rows (a part of a permutation matrix in the
@@ -103,7 +103,7 @@ class QBProblem:
         if e1.shape[0] >= n:
             raise ValueError(f"E1 must have fewer rows than n = {n} (a proper part of the state), got {e1.shape}")
         if not np.allclose(e1 @ e1.T, np.eye(e1.shape[0]), atol=1e-10):
-            raise ValueError("E1 must have orthonormal rows (seed-001 Appendix, eq. A2-A4)")
+            raise ValueError("E1 must have orthonormal rows (Cayero et al. (2019) Appendix, eq. A2-A4)")
         for name, val in (("A", a), ("B", b), ("C", c), ("D", d), ("W1", w1), ("W2", w2), ("Q", (q + q.T) / 2),
                           ("E1", e1)):
             object.__setattr__(self, name, val)
@@ -148,7 +148,7 @@ def orthogonal_complement(E1: ArrayLike) -> NDArray[np.float64]:
 
 
 def projection_matrix(P: ArrayLike, E1: ArrayLike) -> NDArray[np.float64]:
-    """P_z of seed-001 eq. 19: the projection of ``e^T P e <= 1`` onto the row space of E1.
+    """P_z of Cayero et al. (2019) eq. 19: the projection of ``e^T P e <= 1`` onto the row space of E1.
 
     ``P_z = E1 P E1^T - E1 P E2^T (E2 P E2^T)^{-1} E2 P E1^T`` with E2 any orthonormal complement
     (equal to ``(E1 P^{-1} E1^T)^{-1}``).  Raises ValueError if P is not symmetric positive definite.
@@ -171,7 +171,7 @@ def projection_matrix(P: ArrayLike, E1: ArrayLike) -> NDArray[np.float64]:
 
 
 def unit_ball_volume(q: int) -> float:
-    """B_q: volume of the unit ball of dimension q (seed-001 eq. 20)."""
+    """B_q: volume of the unit ball of dimension q (Cayero et al. (2019) eq. 20)."""
     if q < 1:
         raise ValueError(f"dimension q must be >= 1, got {q}")
     return math.pi ** (q / 2) / math.gamma(q / 2 + 1)
@@ -187,7 +187,7 @@ def ellipsoid_log_volume(M: ArrayLike) -> float:
 
 
 def ellipsoid_volume(M: ArrayLike) -> float:
-    """Vol(eps_M) = B_q / sqrt(det M) (seed-001 eq. 20)."""
+    """Vol(eps_M) = B_q / sqrt(det M) (Cayero et al. (2019) eq. 20)."""
     return float(math.exp(ellipsoid_log_volume(M)))
 
 
@@ -253,7 +253,7 @@ def _auto_scaling(problem: QBProblem, alpha: float) -> NDArray[np.float64]:
 
 def solve_qb_lmi(problem: QBProblem, alpha: float, solver: str | None = None, p_min: float = 0.0,
                  scale: bool = True, verbose: bool = False) -> QBSolution:
-    """Solve seed-001 eq. 31 (max log det X s.t. LMIs (7) and (30)) at a fixed ``alpha > 0``.
+    """Solve Cayero et al. (2019) eq. 31 (max log det X s.t. LMIs (7) and (30)) at a fixed ``alpha > 0``.
 
     ``solver``: a cvxpy solver name supporting SDP + exponential cone (``"CLARABEL"`` default, or
     ``"SCS"``).  ``scale=True`` solves the same problem in scaled coordinates (a diagonal congruence
@@ -335,7 +335,7 @@ def solve_qb_lmi(problem: QBProblem, alpha: float, solver: str | None = None, p_
 # ------------------------------------------------------- trade-off (eqs. 21-25) ----
 @dataclasses.dataclass(frozen=True, eq=False)
 class AlphaSweep:
-    """Vol(eps_X^+)(alpha) over a grid (seed-001 Fig. 4); grid points where eq. 31 failed are listed in
+    """Vol(eps_X^+)(alpha) over a grid (Cayero et al. (2019) Fig. 4); grid points where eq. 31 failed are listed in
     ``failed`` and left out of the arrays (never NaN)."""
 
     alphas: NDArray[np.float64]
@@ -367,7 +367,7 @@ def sweep_alpha(problem: QBProblem, alphas: Sequence[float] | NDArray[np.float64
 
 @dataclasses.dataclass(frozen=True)
 class ParetoAnchors:
-    """Ideal (*) and nadir (dagger) values of the two objectives (seed-001 eqs. 22-23, Miettinen 1999).
+    """Ideal (*) and nadir (dagger) values of the two objectives (Cayero et al. (2019) eqs. 22-23, Miettinen 1999).
 
     Objective 1 (volume) is best at ``alpha_nadir`` with ``vol_star``; objective 2 (alpha) is best
     at ``alpha_star`` (largest alpha considered) with volume ``vol_nadir``.
@@ -393,7 +393,7 @@ def anchors_from_sweep(sweep: AlphaSweep) -> ParetoAnchors:
 
 def j_mu(mu: float, alpha: float | NDArray[np.float64], volume: float | NDArray[np.float64],
          anchors: ParetoAnchors) -> NDArray[np.float64]:
-    """J_mu = mu J1 + (1 - mu) J2 (seed-001 eqs. 21-23), J1 the normalized volume, J2 the normalized alpha."""
+    """J_mu = mu J1 + (1 - mu) J2 (Cayero et al. 2019, eqs. 21-23): J1 the normalized volume, J2 the alpha."""
     if not (0.0 <= mu <= 1.0):
         raise ValueError(f"mu must be in [0, 1], got {mu!r}")
     j1 = (np.asarray(volume) - anchors.vol_star) / (anchors.vol_nadir - anchors.vol_star)  # eq. 22

@@ -1,4 +1,4 @@
-"""Runtime QB disturbance observer (seed-001, ``qb_observer_cayero2019.txt``): no cvxpy, no solver.
+"""Runtime QB disturbance observer (Cayero et al. (2019)): no cvxpy, no solver.
 
 The gain ``L`` is designed offline by the SDP of :mod:`fawtgym.observers.qb_design` (eqs. 7, 30, 31,
 line search of eq. 25) on the momentum model of :mod:`fawtgym.observers.qb_uav_model` and saved
@@ -65,7 +65,7 @@ _ARRAYS = ("A", "B", "C", "D", "W1", "W2", "Q", "E1", "L", "P")
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class QBGain:
-    """A designed QB observer: the gain L and every input of its design (seed-001 eqs. 1-2, 7, 31)."""
+    """A designed QB observer: the gain L and every input of its design (Cayero et al. (2019) eqs. 1-2, 7, 31)."""
 
     A: NDArray[np.float64]
     B: NDArray[np.float64]
@@ -165,7 +165,7 @@ def discretize(gain: QBGain, dt: float) -> tuple[NDArray[np.float64], ...]:
 
 @register_observer("qb")
 class QBObserver(Observer):
-    """Quadratic-boundedness optimal disturbance observer on the momentum model (seed-001 Secs. 2-4).
+    """Quadratic-boundedness optimal disturbance observer on the momentum model (Cayero et al. (2019) Secs. 2-4).
 
     ``make_observer("qb", mass, inertia)`` loads the shipped mu = 0.5, r = 3 gain designed for this
     mass/inertia if there is one (``qb_gain_<vehicle>_mu0p5.npz``: hummingbird, s500, x500,
@@ -388,7 +388,7 @@ def design_uav_gain(mass: float, inertia: ArrayLike, mu: float, r: int = 3,
     anchors = anchors_from_sweep(sweep)
     j = np.asarray(inertia, dtype=float)
     j = np.diag(j) if j.shape == (3,) else j
-    meta = {"model": "uav_momentum", "seed": "qb_observer_cayero2019.txt", "r": int(r), "mass": float(mass),
+    meta = {"model": "uav_momentum", "seed": "", "r": int(r), "mass": float(mass),
             "inertia": j.tolist(), "q1_scale": float(q1_scale), "vehicle": vehicle, "solver": sol.solver,
             "status": sol.status, "anchors": dataclasses.asdict(anchors),
             "equations": "LMI (7)+(30), max log det X (31), J_mu line search (21-25), Q of (58)-(59), E1 (60)"}

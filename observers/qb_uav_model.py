@@ -1,4 +1,4 @@
-"""The linear UAV model in momentum form of seed-001 Sec. 3-4 (``qb_observer_cayero2019.txt``).
+"""The linear UAV model in momentum form of Cayero et al. (2019) Sec. 3-4.
 
 State ``x = (p, d_v)`` with the world-frame lumped momentum ``p = (m v, R J Omega)`` (eq. 35) and the
 disturbance with its derivatives ``d_v = (d, d', ..., d^(r-1))`` (eq. 42)::
@@ -50,7 +50,7 @@ PAPER_ORDER = 3  #: r = 3 (Sec. 4)
 
 
 def paper_q2() -> NDArray[np.float64]:
-    """Q2 of seed-001 eq. 58 as a full symmetric matrix (the paper prints the upper triangle)."""
+    """Q2 of Cayero et al. (2019) eq. 58 as a full symmetric matrix (the paper prints the upper triangle)."""
     q = np.zeros((9, 9))
     for i, row in enumerate(_Q2_UPPER):
         q[i, i:] = row

@@ -1,6 +1,6 @@
 """QUEST (Shuster and Oh, 1981): least-squares attitude from >= 2 weighted vector pairs, batch-first.
 
-Source: ``pdt_sta_attitude_silva2023.txt`` Sec. 4.2, eqs. 56-66 (Wahba's loss (56), the K matrix
+Source: Sec. 4.2, eqs. 56-66 (Wahba's loss (56), the K matrix
 (57)-(63), its largest eigenvalue (64), the optimal Gibbs vector (65) and quaternion (66)), after
 Shuster and Oh, J. Guidance and Control 4(1), 1981.
 

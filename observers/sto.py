@@ -1,11 +1,11 @@
-"""Classic super-twisting observer (Davila, Fridman, Levant, IEEE TAC 50(11) 2005), a seed-000-style baseline.
+"""Classic super-twisting observer (Davila, Fridman, Levant, IEEE TAC 50(11) 2005), a Wang et al. (2024)-style baseline.
 
 Davila-Fridman-Levant (DFL) observe x1' = x2, x2' = F(t, x) + xi with the super-twisting injection::
 
     x1_hat' = x2_hat + lambda |x1 - x1_hat|^(1/2) sign(x1 - x1_hat),   x2_hat' = F + alpha sign(x1 - x1_hat)
 
 and recover the unknown input from the equivalent output injection.  Here the measured output is the
-velocity of each channel of seed-000 eq. (38) (``ffts_eso_tse3_fawt_wang2024.txt``)::
+velocity of each channel of Wang et al. (2024) eq. (38)::
 
     v' = g e3 - (f/m) R e3 + d_t,          Omega' = J^-1 (J Omega x Omega + tau) + d_a
 
@@ -19,7 +19,7 @@ is the bounded unknown; the super-twisting integral state *is* the continuous di
 
 Gains: Levant's rule (Levant 1998, "Robust exact differentiation via sliding mode technique",
 Automatica 34) lambda = 1.5 sqrt(L), alpha = 1.1 L with L a bound on |d'|.  Defaults L_t = 5 m/s^3,
-L_a = 5 rad/s^3: more than 5x the largest rate of change of the smooth parts of the seed-000 Sec. 6
+L_a = 5 rad/s^3: more than 5x the largest rate of change of the smooth parts of the Wang et al. (2024) Sec. 6
 disturbances (|phi_D'|/m <= 0.19 m/s^3, |J^-1 tau_D'| <= 0.96 rad/s^3 per axis); steps are outside any
 such bound by nature.  Explicit Euler at the update rate dt.
 """

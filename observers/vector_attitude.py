@@ -1,6 +1,6 @@
 """Attitude from vector measurements: the generalized Wahba cost and its Morse-function error terms.
 
-Source: ``hc_eso_so3_wang2022.txt`` (Wang and Sanyal, IFAC PapersOnLine 55-22, 2022), Secs. 3-5.
+Source: (Wang and Sanyal, IFAC PapersOnLine 55-22, 2022), Secs. 3-5.
 
 k >= 3 known inertial vectors ``E = [e_1 .. e_k]`` (eq. 7, rank 3) are measured in the body frame,
 ``U^m = R^T E + Xi`` (eq. 9).  With the generalized weight ``W`` of eq. 13 the Wahba cost (eq. 12)

@@ -50,3 +50,11 @@ def test_bench_train_prints_rates_and_targets(capsys):
     assert bench_train.main(["--steps", "4096", "--threads", "1"]) == 0
     out = capsys.readouterr().out
     assert "end to end" in out and "env alone" in out and "targets:" in out
+
+
+def test_bench_render_prints_both_rates_and_the_ratio(capsys):
+    from fawtgym.eval.bench import render
+
+    assert render.main(["--frames", "1", "--rounds", "1", "--width", "64", "--height", "48"]) == 0
+    out = capsys.readouterr().out
+    assert "env settings" in out and "MuJoCo defaults" in out and "ratio env / MuJoCo defaults" in out

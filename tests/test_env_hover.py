@@ -240,3 +240,39 @@ def test_external_wrench_has_its_physical_effect():
     # the reported wrench is the one held over the next step: the external part plus the drag of the new motion
     np.testing.assert_allclose(t1["force"] - t0["force"], force, rtol=0.02)
     np.testing.assert_allclose(t1["torque"] - t0["torque"], torque, rtol=0.02)
+
+
+def test_render_human_is_one_clear_error_through_gym_make():
+    """``gym.make(render_mode="human")`` reaches the env's own error (not Gymnasium's pygame wrapper)."""
+    with pytest.raises(ValueError, match="'human' is not supported.*rgb_array"):
+        gym.make("fawtgym/Hover-v0", render_mode="human")
+
+
+def test_render_fps_follows_the_control_rate():
+    for rate in (100.0, 200.0, 250.0):
+        env = gym.make("fawtgym/Hover-v0", control_rate=rate, render_mode="rgb_array")
+        assert env.metadata["render_fps"] == pytest.approx(rate)
+        env.close()
+
+
+def test_frame_shows_the_wind_only_when_it_blows():
+    """The wind arrows (sky-blue streaks, an orange arrow) appear in FAWT wind and not in still air.
+
+    Their hues are unlike everything else in the frame: the rotors are pure red/blue (green equal to
+    the weaker channel), the pole red and white, the rest grey.
+    """
+
+    def wind_pixels(wind):
+        env = make(render_mode="rgb_array", render_width=160, render_height=160, wind=wind, init_noise=0.0)
+        env.reset(seed=0)
+        env.step(env.unwrapped.hover_action())
+        img = env.render().astype(int)
+        env.close()
+        r, g, b = img[..., 0], img[..., 1], img[..., 2]
+        streaks = (g - r > 50) & (b > 150)
+        arrow = (r > 150) & (g - b > 60)
+        return int(streaks.sum()), int(arrow.sum())
+
+    assert wind_pixels("calm") == (0, 0)
+    streaks, arrow = wind_pixels({"name": "fawt-50", "on_time": 0.0})
+    assert streaks > 30 and arrow > 10

@@ -18,8 +18,10 @@ def test_cli_prints_table3_comparison_and_writes_plot(tmp_path, capsys):
 
 def test_cli_other_presets_and_bad_input(tmp_path):
     assert main(["--preset", "dryden-light", "--seconds", "2", "--dt", "0.01", "--plot", str(tmp_path / "d.png")]) == 0
-    assert main(["--preset", "fawt", "--duty", "0.45", "--seconds", "1"]) == 0
-    with pytest.raises(ValueError, match="duty"):
-        main(["--preset", "fawt", "--duty", "1.5", "--seconds", "1"])
-    with pytest.raises(ValueError, match="16 samples"):
-        main(["--preset", "fawt-30", "--seconds", "0.001"])
+    assert main(["--preset", "fawt", "--duty", "45", "--seconds", "1"]) == 0
+    assert main(["--preset", "fawt", "--duty", "45%", "--seconds", "1"]) == 0
+    for bad in (["--preset", "fawt", "--duty", "150"], ["--preset", "fawt", "--duty", "0.45"],
+                ["--preset", "fawt-30", "--seconds", "0.001"], ["--preset", "fawt-50", "--duty", "30"]):
+        with pytest.raises(SystemExit) as e:
+            main([*bad, "--seconds", "1"] if "--seconds" not in bad else bad)
+        assert e.value.code == 2

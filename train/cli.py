@@ -27,7 +27,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from fawtgym.cli_parser import ArgumentParser
+from fawtgym.cli_parser import ArgumentParser, check_output_dir
 
 from .config import ACTION_MODES, ALGOS, OBS_MODES, TrainConfig, freeze, load_hyperparams, parse_literal
 
@@ -205,6 +205,7 @@ def run_sweep(ns: Any) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     ns = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
+    check_output_dir(parser, "--out", ns.out)
     for flag in ("steps", "checkpoint_every", "eval_seeds", "workers"):
         if getattr(ns, flag) < 1:
             parser.error(f"--{flag.replace('_', '-')} must be >= 1, got {getattr(ns, flag)}")

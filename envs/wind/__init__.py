@@ -3,7 +3,7 @@
 Registered names (``make_wind(name)`` or ``make_wind({"name": ..., **options})``):
 
 * ``calm``: still air.
-* ``fawt-30`` ... ``fawt-70``: the seed-000 Table 3 FAWT presets (duty 30-70 %); ``fawt`` takes
+* ``fawt-30`` ... ``fawt-70``: the Wang et al. (2024) Table 3 FAWT presets (duty 30-70 %); ``fawt`` takes
   ``duty`` as a fraction in [0, 1] (interpolated inside [0.3, 0.7], policy outside, see
   :mod:`.fawt`).  Options: ``on_time``, ``off_time``, ``spin_tau``, ``spin_down_tau``,
   ``length_scale``, ``form``, ``rates``, ``span``, ``turbulence``, ``discretization``.

@@ -4,7 +4,7 @@ Example::
 
     fawtgym wind --preset fawt-50 --seconds 60 --plot wind.png
 
-samples the wind at the hot-wire point of seed-000 Sec. 7.4 (FAWT x = 1.2 m; ``--point hover`` for
+samples the wind at the hot-wire point of Wang et al. (2024), Sec. 7.4 (FAWT x = 1.2 m; ``--point hover`` for
 the 1.5 m hover point), prints the mean, variance and TI of the stream-wise component next to the
 Table 3 row, and plots the time series and its Welch PSD with the analytic Dryden PSD.  The Table 3
 row is the preset's calibration (its mean and sigma are set from it), so the comparison checks the
@@ -13,7 +13,6 @@ generator, not the model; the output says so.
 
 from __future__ import annotations
 
-import argparse
 import math
 from collections.abc import Sequence
 
@@ -58,21 +57,45 @@ def analytic_psd(wind: object, point: np.ndarray, freq: np.ndarray, mean: float)
     return dryden_psd(params, "u", freq, speed)
 
 
+#: most samples x fields one call keeps in memory (8 bytes each: 400 MB)
+MAX_SAMPLES = 50_000_000
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="fawtgym wind", description=__doc__.split("\n")[0])
-    parser.add_argument("--preset", default="fawt-50", choices=wind_names(), help="wind name (default fawt-50)")
-    parser.add_argument("--duty", type=float, default=None, help="duty fraction for --preset fawt")
-    parser.add_argument("--seconds", type=float, default=60.0, help="length of the series [s] (default 60)")
-    parser.add_argument("--dt", type=float, default=0.001, help="time step [s] (default 0.001)")
-    parser.add_argument("--fields", type=int, default=1, help="independent fields averaged (default 1)")
-    parser.add_argument("--seed", type=int, default=0)
+    from fawtgym.cli_parser import ArgumentParser, check_output_file, duty_percent, positive_float, positive_int, seed
+
+    parser = ArgumentParser(prog="fawtgym wind", description=__doc__.split("\n")[0],
+                            epilog="The FAWT duty is in percent, as in the names fawt-30 ... fawt-70.")
+    parser.add_argument("--preset", default="fawt-50", choices=wind_names(),
+                        help=f"wind name (default fawt-50): {', '.join(wind_names())}")
+    parser.add_argument("--duty", type=duty_percent(30.0, 100.0), default=None,
+                        help="FAWT duty in percent, 30 to 100, only with --preset fawt (e.g. 55): Table 3 measured "
+                             "30-70; above 70 the model extrapolates to the paper's 12 m/s at 100")
+    parser.add_argument("--seconds", type=positive_float, default=60.0, help="length of the series [s] (default 60)")
+    parser.add_argument("--dt", type=positive_float, default=0.001, help="time step [s] (default 0.001)")
+    parser.add_argument("--fields", type=positive_int, default=1, help="independent fields averaged (default 1)")
+    parser.add_argument("--seed", type=seed, default=0, help="random seed, 0 to 4294967295 (default 0)")
     parser.add_argument("--point", choices=["hotwire", "hover"], default="hotwire",
                         help="FAWT x = 1.2 m (Table 3 hot wire) or the 1.5 m hover point")
-    parser.add_argument("--plot", default=None, help="write the figure to this .png")
+    parser.add_argument("--plot", default=None, help="write the figure to this file (.png, .pdf or .svg)")
     ns = parser.parse_args(argv)
-    if not (ns.dt > 0 and math.isfinite(ns.dt)):
-        raise ValueError(f"--dt must be a finite positive step, got {ns.dt}")
-    wind, t, point, u = generate(ns.preset, ns.seconds, ns.dt, ns.seed, ns.fields, ns.point, ns.duty)
+    if ns.duty is not None and ns.preset != "fawt":
+        parser.error(f"--duty {ns.duty:g} goes with --preset fawt only; {ns.preset} has its own duty "
+                     "(use --preset fawt --duty N)")
+    n_steps = int(round(ns.seconds / ns.dt))
+    if n_steps < 16:
+        parser.error(f"--seconds {ns.seconds:g} / --dt {ns.dt:g} gives {n_steps} samples; at least 16 are needed")
+    if n_steps * ns.fields > MAX_SAMPLES:
+        parser.error(f"--seconds {ns.seconds:g} / --dt {ns.dt:g} x --fields {ns.fields} is {n_steps * ns.fields:.3g} "
+                     f"samples; at most {MAX_SAMPLES:.0e} fit in memory")
+    check_output_file(parser, "--plot", ns.plot, (".png", ".pdf", ".svg"))
+    if ns.plot:
+        import importlib.util
+
+        if importlib.util.find_spec("matplotlib") is None:
+            parser.error("--plot needs matplotlib: pip install 'fawtgym[plot]'")
+    duty = None if ns.duty is None else ns.duty / 100.0
+    wind, t, point, u = generate(ns.preset, ns.seconds, ns.dt, ns.seed, ns.fields, ns.point, duty)
     mean, var = float(u.mean()), float(u.var(axis=0).mean())
     ti = math.sqrt(var) / mean if mean > 0 else float("nan")
     print(f"wind {ns.preset}: {u.shape[0]} steps of {ns.dt:g} s x {ns.fields} field(s) at NED {np.round(point, 3)}")

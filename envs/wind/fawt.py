@@ -1,4 +1,4 @@
-"""The fan-array wind tunnel (FAWT) of seed-000 Sec. 7 (ffts_eso_tse3_fawt_wang2024.txt).
+"""The fan-array wind tunnel (FAWT) of Wang et al. (2024) Sec. 7.
 
 The tunnel: 162 fans in a 1.44 m x 0.72 m array (18 x 9, 80 mm pitch), up to 12 m/s, run in
 steady uniform mode at 30-70 % duty; hot-wire statistics at x = 1.2 m on the axis (Table 3); the
@@ -57,7 +57,7 @@ from .base import WindModel
 from .dryden import FORMS, DrydenParams, DrydenProcess
 from .schedule import DEFAULT_SPIN_TAU, FanSchedule
 
-#: seed-000 Table 3: duty -> (U [m/s], variance [(m/s)^2], Re_lambda, TI), hot wire at x = 1.2 m.
+#: Wang et al. (2024) Table 3: duty -> (U [m/s], variance [(m/s)^2], Re_lambda, TI), hot wire at x = 1.2 m.
 TABLE3: dict[float, tuple[float, float, float, float]] = {
     0.3: (5.472, 0.061, 98.0, 0.0451),
     0.4: (6.876, 0.082, 102.0, 0.0417),
@@ -65,7 +65,7 @@ TABLE3: dict[float, tuple[float, float, float, float]] = {
     0.6: (9.590, 0.168, 127.0, 0.0427),
     0.7: (10.920, 0.237, 148.0, 0.0446),
 }
-FAWT_MAX_SPEED = 12.0  #: [m/s] "capable of generating wind speeds up to 12 m/s" (seed-000 Sec. 7.1)
+FAWT_MAX_SPEED = 12.0  #: [m/s] "capable of generating wind speeds up to 12 m/s" (Wang et al. (2024) Sec. 7.1)
 HALF_SPAN = 0.72  #: a [m], half of the 1.44 m array width (FAWT y)
 HALF_HEIGHT = 0.36  #: b [m], half of the 0.72 m array height (FAWT z)
 FAN_PITCH = 0.08  #: M [m], 1.44 m / 18 fans = 0.72 m / 9 fans
@@ -193,7 +193,7 @@ def check_points(points_ned: NDArray[np.float64], velocity_ned: NDArray[np.float
 
 
 class FawtWind(WindModel):
-    """Turbulent FAWT wind at ``duty`` (fraction of maximum), seed-000 Sec. 7 / Table 3.
+    """Turbulent FAWT wind at ``duty`` (fraction of maximum), Wang et al. (2024) Sec. 7 / Table 3.
 
     Options: ``on_time``/``off_time``/``spin_tau``/``spin_down_tau`` (fan schedule; none: running and
     spun up at t = 0), ``length_scale`` [m] (default from Table 3 Re_lambda), ``form`` (``"8785c"`` |

@@ -4,7 +4,7 @@ The fan-speed level ``s`` (0 = off, 1 = running at the commanded duty) follows
 ``ds/dt = (target(t) - s) / tau``, with ``tau = spin_tau`` while spinning up and ``spin_down_tau``
 while spinning down, and ``target = 1`` between ``on_time`` and ``off_time``.  The FAWT's mean
 speed and turbulence intensity both scale with ``s`` (the fan law: flow speed proportional to fan
-speed; Table 3 of seed-000, ffts_eso_tse3_fawt_wang2024.txt, has TI nearly constant across duty).
+speed; Table 3 of Wang et al. (2024), has TI nearly constant across duty).
 
 Default ``spin_tau = 1.0 s`` (95 % in 3 tau = 3.0 s): an assumption, the paper gives no number.  It
 is of the order of the spin-up of small axial fans (80 mm class, the 1.44 m x 0.72 m / 162 fans

@@ -7,7 +7,7 @@ One process, interleaved rounds, best round kept (least disturbed by other load 
 * its parts: the env stepping alone (hover action) and the agent + observer alone (on a recorded
   measurement), as real-time factors of the same simulated time;
 * the agent + observer vectorized over N vehicles (batch-first), as aggregate vehicle-seconds per
-  wall second.  Target (issue 6): closed loop >= 100x real time on one core.
+  wall second.  Target: closed loop >= 100x real time on one core.
 
 Batched (``--batch-sizes``, aggregate over N vehicles: vehicle-seconds simulated per wall second, one
 process, one thread: numpy's OpenBLAS is pinned to 1 thread and MuJoCo's rollout runs on the calling
@@ -30,6 +30,8 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+
+from fawtgym.cli_parser import ArgumentParser, positive_float, positive_int
 
 
 def _make_env(control_rate: float) -> Any:
@@ -182,16 +184,16 @@ def measure(steps: int = 1000, rounds: int = 3, control_rate: float = 200.0,
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="fawtgym bench closed-loop", description=__doc__,
+    parser = ArgumentParser(prog="fawtgym bench closed-loop", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--steps", type=int, default=1000, help="control steps per round")
-    parser.add_argument("--rounds", type=int, default=3)
-    parser.add_argument("--control-rate", type=float, default=200.0,
+    parser.add_argument("--steps", type=positive_int, default=1000, help="control steps per round")
+    parser.add_argument("--rounds", type=positive_int, default=3, help="timing rounds (default 3)")
+    parser.add_argument("--control-rate", type=positive_float, default=200.0,
                         help="agent rate [Hz] (a multiple of the 100 Hz mocap pose rate)")
-    parser.add_argument("--batch", type=int, default=1024, help="N for the vectorized agent + observer")
-    parser.add_argument("--batch-sizes", type=int, nargs="*", default=[64, 256, 1024],
+    parser.add_argument("--batch", type=positive_int, default=1024, help="N for the vectorized agent + observer")
+    parser.add_argument("--batch-sizes", type=positive_int, nargs="*", default=[64, 256, 1024],
                         help="N of the batched closed loop (HoverBatchEnv); none to skip")
-    parser.add_argument("--vehicle-steps", type=int, default=51200,
+    parser.add_argument("--vehicle-steps", type=positive_int, default=51200,
                         help="control steps x N per batched round")
     args = parser.parse_args(argv)
     pinned = pin_blas_one_thread()

@@ -20,6 +20,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
+from fawtgym.cli_parser import ArgumentParser, positive_float, positive_int
 from fawtgym.envs.hover_env import HoverEnv
 
 
@@ -91,13 +92,14 @@ def measure(control_rate: float = 100.0, physics_rate: float = 1000.0, steps: in
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="fawtgym bench env", description=__doc__,
+    parser = ArgumentParser(prog="fawtgym bench env", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--steps", type=int, default=2000, help="control steps per round")
-    parser.add_argument("--rounds", type=int, default=5)
-    parser.add_argument("--control-rate", type=float, default=100.0)
-    parser.add_argument("--physics-rate", type=float, default=1000.0)
-    parser.add_argument("--integrator", default="Euler")
+    parser.add_argument("--steps", type=positive_int, default=2000, help="control steps per round")
+    parser.add_argument("--rounds", type=positive_int, default=5, help="timing rounds (default 5)")
+    parser.add_argument("--control-rate", type=positive_float, default=100.0, help="control rate [Hz] (default 100)")
+    parser.add_argument("--physics-rate", type=positive_float, default=1000.0, help="physics rate [Hz] (default 1000)")
+    parser.add_argument("--integrator", default="Euler", choices=["Euler", "RK4", "implicit", "implicitfast"],
+                        help="MuJoCo integrator (default Euler)")
     parser.add_argument("--action-type", default="motors", choices=["motors", "ctbr"],
                         help="ctbr: the inner rate loop runs at the physics rate (the targets are for motors)")
     args = parser.parse_args(argv)

@@ -3,7 +3,7 @@
 ``fawtgym bench observers [--repeats R] [--n N ...] [--only NAME ...]``
 
 Every observer is built from the registry with its documented defaults (``make_observer(name, m, J)``,
-seed-000 vehicle m = 4.34 kg, J = diag(0.082, 0.0845, 0.1377)) and updated with a hover-like measurement.
+Wang et al. (2024) vehicle m = 4.34 kg, J = diag(0.082, 0.0845, 0.1377)) and updated with a hover-like measurement.
 The unit of comparison is one MuJoCo physics step (``mj_step``) of a 4-rotor free body built inline and
 measured in the same run.  Times are process CPU time (``time.process_time``, best of a few repeats), so
 that other jobs on a shared machine inflate them less (a VM's steal time still counts); the ratios are
@@ -13,11 +13,12 @@ N = 1024 cheaper than one mj_step.
 
 from __future__ import annotations
 
-import argparse
 import time
 from collections.abc import Sequence
 
 import numpy as np
+
+from fawtgym.cli_parser import ArgumentParser, positive_int
 
 MASS = 4.34
 INERTIA = np.diag([0.0820, 0.0845, 0.1377])
@@ -101,9 +102,9 @@ def time_observer(name: str, n: int, repeats: int, rng: np.random.Generator) -> 
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="fawtgym bench observers", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--repeats", type=int, default=3, help="best-of repeats per measurement")
-    ap.add_argument("--n", type=int, nargs="+", default=[1, 1024], help="batch sizes")
+    ap = ArgumentParser(prog="fawtgym bench observers", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeats", type=positive_int, default=3, help="best-of repeats per measurement")
+    ap.add_argument("--n", type=positive_int, nargs="+", default=[1, 1024], help="batch sizes")
     ap.add_argument("--only", nargs="*", default=None, help="observer names (default: all registered)")
     ns = ap.parse_args(list(argv) if argv is not None else None)
     if ns.repeats < 1 or any(n < 1 for n in ns.n):
@@ -137,7 +138,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             results[(name, n)] = sec
             row += f"{sec * 1e6:>20.1f}{sec / n / step:>22.3f}"
         print(row)
-    # targets (issue 4, and issue 5 for the observers it adds): < 50 us per single update, < 1 mj_step per
+    # targets: < 50 us per single update, < 1 mj_step per
     # vehicle at the largest N
     singles = {name: results[(name, 1)] * 1e6 for name in names if (name, 1) in results}
     if singles:

@@ -1,4 +1,4 @@
-"""``fawtgym bench qb-sdp``: one QB-observer SDP (seed-001 eq. 31 at fixed alpha) and the runtime update.
+"""``fawtgym bench qb-sdp``: one QB-observer SDP (Cayero et al. (2019) eq. 31 at fixed alpha) and the runtime update.
 
 The SDP is the Sec. 4 design (r = 3: n = 24, LMI (7) of size 39, log-det over 6x6), timed from
 problem construction to solution (cvxpy compilation + solver), best of ``--rounds``.  The runtime
@@ -16,6 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from fawtgym.cli_parser import ArgumentParser, positive_float, positive_int
 from fawtgym.observers.lie import exp_so3
 from fawtgym.observers.qb_design import lmi_residuals, solve_qb_lmi
 from fawtgym.observers.qb_observer import QBObserver
@@ -60,14 +61,17 @@ def time_update(n: int, steps: int, rounds: int) -> float:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="fawtgym bench qb-sdp", description=__doc__,
+    parser = ArgumentParser(prog="fawtgym bench qb-sdp", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--alpha", type=float, default=5.0)
-    parser.add_argument("--order", type=int, default=3, help="disturbance order r (paper: 3)")
+    parser.add_argument("--alpha", type=positive_float, default=5.0, help="decay rate alpha (default 5)")
+    parser.add_argument("--order", type=positive_int, default=3, help="disturbance order r (paper: 3)")
     parser.add_argument("--solver", default=None, help="CLARABEL (default) or SCS")
-    parser.add_argument("--rounds", type=int, default=3)
-    parser.add_argument("--steps", type=int, default=500, help="update calls per timing round")
+    parser.add_argument("--rounds", type=positive_int, default=3, help="timing rounds (default 3)")
+    parser.add_argument("--steps", type=positive_int, default=500, help="update calls per timing round")
     ns = parser.parse_args(list(argv) if argv is not None else None)
+    from fawtgym.eval.reproduce.qb_observer import _check_solver
+
+    _check_solver(parser, ns.solver)
     sdp = time_sdp(ns.alpha, ns.order, ns.solver, ns.rounds)
     t1 = time_update(1, ns.steps, ns.rounds)
     tn = time_update(1024, max(ns.steps // 10, 10), ns.rounds)
@@ -79,7 +83,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"  runtime update, N = 1024         {tn * 1e6:10.1f} us  ({tn / 1024 * 1e6:.2f} us per vehicle)")
     print(f"  ratio per-vehicle cost N=1024 / N=1   {tn / 1024 / t1:8.4f}")
     print(f"  ratio SDP / one N=1 update            {sdp['seconds'] / t1:10.3g}")
-    print(f"  target: one SDP in seconds on this machine (issue 5); load average now "
+    print(f"  target: one SDP in seconds on this machine ; load average now "
           f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     return 0 if np.isfinite(sdp["seconds"]) else 1
 

@@ -19,12 +19,12 @@ warm-up (it fills the Dryden step-matrix table for the airspeeds met) and is not
 
 from __future__ import annotations
 
-import argparse
 import time
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from fawtgym.cli_parser import ArgumentParser, positive_int
 from fawtgym.envs.aero import AeroModel
 from fawtgym.envs.frames import FAWT_HOVER_POINT_NED
 from fawtgym.envs.vehicles import make_vehicle
@@ -135,13 +135,13 @@ def batch_env_costs(n: int, steps: int, blocks: int) -> dict[str, float]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="fawtgym bench wind", description=__doc__.split("\n")[0])
-    parser.add_argument("--calls", type=int, default=2000, help="calls per timing repeat for N = 1")
-    parser.add_argument("--batch", type=int, default=1024, help="batched N (default 1024)")
-    parser.add_argument("--env-steps", type=int, default=200, help="env steps per block")
-    parser.add_argument("--env-blocks", type=int, default=5, help="interleaved blocks per wind")
+    parser = ArgumentParser(prog="fawtgym bench wind", description=__doc__.split("\n")[0])
+    parser.add_argument("--calls", type=positive_int, default=2000, help="calls per timing repeat for N = 1")
+    parser.add_argument("--batch", type=positive_int, default=1024, help="batched N (default 1024)")
+    parser.add_argument("--env-steps", type=positive_int, default=200, help="env steps per block")
+    parser.add_argument("--env-blocks", type=positive_int, default=5, help="interleaved blocks per wind")
     parser.add_argument("--no-env", action="store_true", help="skip the env comparisons")
-    parser.add_argument("--env-batch", type=int, default=256, help="N of the batched env comparison")
+    parser.add_argument("--env-batch", type=positive_int, default=256, help="N of the batched env comparison")
     ns = parser.parse_args(argv)
     a, b = np.zeros((1, 3)), np.ones((1, 3))
     ref = _best_per_call(lambda: a + b, 20000)

@@ -23,7 +23,6 @@ Outputs in ``--out``: ``geso_rms.csv``, ``geso_summary.md`` (RMS tables + claims
 
 from __future__ import annotations
 
-import argparse
 import csv
 import dataclasses
 import math
@@ -40,6 +39,7 @@ from fawtgym.agents.backstepping_quat import (
     euler_to_quat,
     quat_derivative,
 )
+from fawtgym.cli_parser import ArgumentParser, check_output_dir, nonnegative_float, positive_float
 from fawtgym.envs.frames import quat_to_rot, rot_to_euler
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.observers import make_observer
@@ -455,14 +455,16 @@ def _md_table(rows: list[dict[str, object]]) -> list[str]:
 
 
 def _run(argv: Sequence[str] | None) -> tuple[C.StudyOutcome, list[str]]:
-    parser = argparse.ArgumentParser(prog="fawtgym reproduce geso", description=__doc__.splitlines()[0])
+    parser = ArgumentParser(prog="fawtgym reproduce geso", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("results/geso"), help="output folder")
     parser.add_argument("--quick", action="store_true", help="6 s instead of 20 s")
-    parser.add_argument("--t-end", type=float, default=None, help="horizon [s] (default 20, quick 6)")
-    parser.add_argument("--dt", type=float, default=1e-3, help="control/observer period [s]")
-    parser.add_argument("--steady-from", type=float, default=2.0, help="start of the 'steady' RMS window [s]")
+    parser.add_argument("--t-end", type=positive_float, default=None, help="horizon [s] (default 20, quick 6)")
+    parser.add_argument("--dt", type=positive_float, default=1e-3, help="control/observer period [s]")
+    parser.add_argument("--steady-from", type=nonnegative_float, default=2.0,
+                        help="start of the 'steady' RMS window [s]")
     parser.add_argument("--no-figures", action="store_true")
     ns = parser.parse_args(list(argv) if argv is not None else None)
+    check_output_dir(parser, "--out", ns.out)
     t_end = ns.t_end if ns.t_end is not None else (6.0 if ns.quick else 20.0)
     if not 0 <= ns.steady_from < t_end:
         parser.error(f"need 0 <= --steady-from < the horizon {t_end:g} s, got {ns.steady_from:g}")

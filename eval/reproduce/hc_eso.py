@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
+from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.observers import vector_attitude as va
 from fawtgym.observers.hc_eso_so3 import HcEsoGains, hc_eso_step
@@ -313,16 +314,17 @@ def _row(label: str, nb: dict[str, float], nb0: dict[str, float], key: str, scal
 
 
 def _run(argv: Sequence[str] | None) -> tuple[C.StudyOutcome, list[str]]:
-    parser = argparse.ArgumentParser(prog="fawtgym reproduce hc-eso", description=__doc__.splitlines()[0])
+    parser = ArgumentParser(prog="fawtgym reproduce hc-eso", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("results/hc_eso"), help="output folder")
     parser.add_argument("--quick", action="store_true", help="20 s instead of 60 s")
-    parser.add_argument("--t-end", type=float, default=None, help="horizon [s] (default 60, quick 20)")
-    parser.add_argument("--step", type=float, default=0.01, help="integration/measurement step h [s]")
+    parser.add_argument("--t-end", type=positive_float, default=None, help="horizon [s] (default 60, quick 20)")
+    parser.add_argument("--step", type=positive_float, default=0.01, help="integration/measurement step h [s]")
     parser.add_argument("--seeds", type=_seed_list, default=NOISE_SEEDS,
                         help="noise seeds; verdicts on the median, spread printed (default 0,1,2,3,4)")
     parser.add_argument("--centered-noise", action="store_true", help="zero-mean uniform noise instead of 0.05 rand")
     parser.add_argument("--no-figures", action="store_true")
     ns = parser.parse_args(list(argv) if argv is not None else None)
+    check_output_dir(parser, "--out", ns.out)
     t_end = ns.t_end if ns.t_end is not None else (20.0 if ns.quick else 60.0)
     ns.out.mkdir(parents=True, exist_ok=True)
     runs = [run(t_end=t_end, h=ns.step, seed=s, centered_noise=ns.centered_noise) for s in ns.seeds]

@@ -38,6 +38,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
+from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
+from fawtgym.cli_parser import seed as seed_arg
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.observers import pdt_sta as P
 from fawtgym.observers.gyroless_attitude import (
@@ -667,19 +669,21 @@ def run_all(out: pathlib.Path, quick: bool = False, omega_source: str = "forcing
 
 
 def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="fawtgym reproduce pdt-sta", description=__doc__.split("\n")[0])
+    parser = ArgumentParser(prog="fawtgym reproduce pdt-sta", description=__doc__.split("\n")[0])
     parser.add_argument("--out", default="runs/reproduce/pdt_sta", help="output folder")
     parser.add_argument("--quick", action="store_true", help="T_s = 1e-3 s, t_f = 2 s, two figures (for tests)")
-    parser.add_argument("--ts", type=float, default=None,
+    parser.add_argument("--ts", type=positive_float, default=None,
                         help=f"Sec. 5 step T_s [s] (default: the paper's {PAPER_TS:g}; quick {QUICK_TS:g})")
-    parser.add_argument("--t-final", type=float, default=None, help="Sec. 5 horizon t_f [s] (default 3; quick 2)")
+    parser.add_argument("--t-final", type=positive_float, default=None,
+                        help="Sec. 5 horizon t_f [s] (default 3; quick 2)")
     parser.add_argument("--omega", choices=("forcing", "estimate"), default="forcing",
                         help="angular velocity used in eq. 76: the paper's omega(t) or the estimate (eq. 80)")
     parser.add_argument("--no-figures", action="store_true")
-    parser.add_argument("--seed", type=int, default=0, help="noise seed of the table and figures (Figs. 8-9)")
+    parser.add_argument("--seed", type=seed_arg, default=0, help="noise seed of the table and figures (Figs. 8-9)")
     parser.add_argument("--seeds", type=str, default=None,
                         help="noise seeds deciding Figs. 8-9, comma-separated (default 0,1,2,3,4; quick 0,1,2)")
     ns = parser.parse_args(list(argv) if argv is not None else None)
+    check_output_dir(parser, "--out", ns.out)
     if ns.ts is not None and not ns.ts > 0:
         parser.error(f"--ts must be > 0, got {ns.ts:g}")
     if ns.t_final is not None and not ns.t_final > 1.75:

@@ -38,6 +38,7 @@ from scipy.interpolate import PchipInterpolator
 from scipy.linalg import sqrtm
 from scipy.optimize import minimize_scalar
 
+from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.observers.qb_design import (
     AlphaSweep,
@@ -542,17 +543,42 @@ def design_for(preset: str, mu: float, out: Path, solver: str | None = None, qui
 
 
 def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="fawtgym reproduce qb", description=__doc__.splitlines()[0])
+    parser = ArgumentParser(prog="fawtgym reproduce qb", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("results/qb_observer"), help="output folder")
     parser.add_argument("--quick", action="store_true", help=f"{QUICK_GRID.size}-point alpha grid instead of "
                         f"{FULL_GRID.size}")
     parser.add_argument("--solver", default=None, help="cvxpy SDP solver (default CLARABEL; SCS works)")
-    parser.add_argument("--t-end", type=float, default=None, help="Fig. 7 horizon [s] (default 50)")
+    parser.add_argument("--t-end", type=positive_float, default=None, help="Fig. 7 horizon [s] (default 50)")
     parser.add_argument("--no-figures", action="store_true")
     parser.add_argument("--design-for", default=None, metavar="PRESET",
                         help="only design and save a gain for this vehicle preset (see fawtgym list)")
     parser.add_argument("--mu", type=float, default=0.5, help="trade-off mu for --design-for (default 0.5)")
-    return parser.parse_args(list(argv) if argv is not None else None)
+    ns = parser.parse_args(list(argv) if argv is not None else None)
+    check_output_dir(parser, "--out", ns.out)
+    if not 0 <= ns.mu <= 1:
+        parser.error(f"--mu {ns.mu:g}: the trade-off mu must be from 0 to 1")
+    _check_solver(parser, ns.solver)
+    if ns.design_for is not None:
+        from fawtgym.envs.vehicles import make_vehicle
+
+        try:
+            make_vehicle(ns.design_for)
+        except (ValueError, TypeError, OSError) as exc:
+            parser.error(f"--design-for {ns.design_for}: {exc}")
+    return ns
+
+
+def _check_solver(parser: argparse.ArgumentParser, solver: str | None) -> None:
+    """Refuse an SDP solver cvxpy does not have, before any work (one line naming the installed ones)."""
+    if solver is None:
+        return
+    try:
+        import cvxpy as cp
+    except ImportError:
+        parser.error("the QB design needs cvxpy: pip install 'fawtgym[design]'")
+    if solver.upper() not in cp.installed_solvers():
+        installed = ", ".join(cp.installed_solvers())
+        parser.error(f"--solver {solver}: not an installed cvxpy solver; installed: {installed}")
 
 
 FIGURES = ("qb_fig4.png", "qb_fig5.png", "qb_fig6.png", "qb_fig7.png")

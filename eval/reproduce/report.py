@@ -20,7 +20,6 @@ the studies' default lengths (tens of minutes: Table 4 alone flies 5 duties x 5 
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import dataclasses
 import datetime
@@ -33,8 +32,8 @@ import time
 import traceback
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn
 
+from fawtgym.cli_parser import ArgumentParser
 from fawtgym.eval.html_page import HtmlPage
 from fawtgym.eval.reproduce import claims as C
 
@@ -137,14 +136,10 @@ class StudyRun:
         return self.outcome.claims if self.outcome is not None else []
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse with one-line errors (no usage block) and exit status 2."""
-
-    def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
+_Parser = ArgumentParser  # one-line errors, exit status 2, plain-text help (fawtgym.cli_parser)
 
 
-def _parser() -> _Parser:
+def _parser() -> ArgumentParser:
     names = ", ".join(s.name for s in STUDIES)
     p = _Parser(prog=PROG, description=__doc__.split("\n\n")[0],
                 epilog=f"studies: {names}")

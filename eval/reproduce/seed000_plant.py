@@ -1,6 +1,6 @@
-"""The seed-000 Sec. 6 simulation setup: vehicle, trajectories (Table 1), disturbances, noise (Table 2), Heun plant.
+"""Wang et al. (2024), Sec. 6 simulation setup: vehicle, trajectories (Table 1), disturbances, noise (Table 2), plant.
 
-Source: ``ffts_eso_tse3_fawt_wang2024.txt`` Sec. 6.  Everything is batch-first over N simulated vehicles.
+Source: Sec. 6.  Everything is batch-first over N simulated vehicles.
 
 * vehicle m = 4.34 kg, J = diag(0.0820, 0.0845, 0.1377) kg m^2 (Pounds et al.), no actuator dynamics or
   saturation;

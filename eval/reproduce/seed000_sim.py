@@ -14,17 +14,18 @@ against these numbers (:func:`paper_claims`, verdict thresholds as module consta
 
 from __future__ import annotations
 
-import argparse
 import csv
 import dataclasses
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from fawtgym.agents.lee_se3 import DesiredRateFilter, LeeSE3Controller
+from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float, seed
 from fawtgym.envs.frames import rot_to_euler
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce import seed000_plant as plant
@@ -59,8 +60,12 @@ class StudyResult:
 
 def run_study(seconds: float = plant.DURATION, trajectories: Sequence[str] = tuple(plant.TRAJECTORIES),
               noise_cases: Sequence[bool] = (False, True), observers: Sequence[str] = OBSERVERS,
-              seed: int = 0, decimate: int = 10, transient: float = TRANSIENT) -> StudyResult:
-    """Fly every (trajectory, noise) case as one batch and run every observer on it."""
+              seed: int = 0, decimate: int = 10, transient: float = TRANSIENT,
+              progress: Callable[[int], Any] | None = None) -> StudyResult:
+    """Fly every (trajectory, noise) case as one batch and run every observer on it.
+
+    ``progress``, if given, is called with 1 after every plant step (e.g. a progress bar's ``update``).
+    """
     if seconds <= transient:
         raise ValueError(f"seconds must exceed the {transient} s transient, got {seconds!r}")
     trajs = [tr for nc in noise_cases for tr in trajectories]
@@ -96,6 +101,8 @@ def run_study(seconds: float = plant.DURATION, trajectories: Sequence[str] = tup
     sq_track = np.zeros(n)
     wall = time.perf_counter()
     for k in range(steps):
+        if progress is not None:
+            progress(1)
         t = k * h
         meas = plant.measure(state, noisy, rng, h)
         b_d, v_d, a_d = ref(t)
@@ -638,18 +645,20 @@ QUICK_SECONDS = 14.0
 
 
 def _run(argv: Sequence[str] | None) -> tuple[StudyResult, Path, list[Path], float, list[C.Claim]]:
-    ap = argparse.ArgumentParser(prog="fawtgym reproduce seed000-sim", description=__doc__.split("\n\n")[0])
+    ap = ArgumentParser(prog="fawtgym reproduce seed000-sim", description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, default=Path("out/seed000"), help="output directory")
-    ap.add_argument("--seconds", type=float, default=None,
+    ap.add_argument("--seconds", type=positive_float, default=None,
                     help=f"simulated duration T [s] (paper and default: {plant.DURATION:g}; quick: {QUICK_SECONDS:g})")
     ap.add_argument("--noise", dest="noise", action="store_true", default=None, help="only the noisy cases")
     ap.add_argument("--no-noise", dest="noise", action="store_false", help="only the noise-free cases")
     ap.add_argument("--quick", action="store_true", help=f"short run ({QUICK_SECONDS:g} s) unless --seconds is given")
-    ap.add_argument("--seed", type=int, default=0, help="noise RNG seed of the tables and figures")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ap.add_argument("--seed", type=seed, default=0, help="noise RNG seed of the tables and figures (default 0)")
     ap.add_argument("--noise-seeds", type=int, default=None,
                     help="number of noise seeds (seed, seed + 1, ...) the noisy claims are decided over; the extra "
                          "seeds fly only the noisy cases (default 3; quick 1)")
     ns = ap.parse_args(list(argv) if argv is not None else None)
+    check_output_dir(ap, "--out", ns.out)
     n_seeds = ns.noise_seeds if ns.noise_seeds is not None else (1 if ns.quick else 3)
     if n_seeds < 1:
         ap.error(f"--noise-seeds must be >= 1, got {n_seeds}")
@@ -658,7 +667,11 @@ def _run(argv: Sequence[str] | None) -> tuple[StudyResult, Path, list[Path], flo
         ap.error(f"--seconds must exceed the {TRANSIENT:g} s transient, got {seconds:g}")
     cases = (False, True) if ns.noise is None else (bool(ns.noise),)
     ns.out.mkdir(parents=True, exist_ok=True)
-    res = run_study(seconds=seconds, noise_cases=cases, seed=ns.seed)
+    from tqdm.auto import tqdm
+
+    with tqdm(total=int(round(seconds / plant.STEP)), desc="seed000-sim", unit="step", leave=False,
+              disable=ns.no_progress, dynamic_ncols=True) as bar:
+        res = run_study(seconds=seconds, noise_cases=cases, seed=ns.seed, progress=bar.update)
     seeds = [ns.seed] + ([ns.seed + k for k in range(1, n_seeds)] if True in cases else [])
     results = [res] + [with_noisy_cases_of(res, run_study(seconds=seconds, noise_cases=(True,), seed=sd))
                        for sd in seeds[1:]]

@@ -1,0 +1,48 @@
+"""``info["reward_terms"]``: the reward's terms, the same in the single and the batched env (row by row)."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import fawtgym  # noqa: F401  (registers the ids)
+from fawtgym.envs.hover_batch_env import HoverBatchEnv
+
+TERMS = ("pos", "vel", "att", "rate", "action", "failure")
+OPTIONS = {"wind": "calm", "sensors": "none", "episode_seconds": 0.5, "init_noise": 1.0}
+
+
+def test_reward_is_built_from_its_terms_in_both_envs():
+    env = gym.make("fawtgym/Hover-v0", **OPTIONS)
+    batch = HoverBatchEnv(num_envs=3, **OPTIONS)
+    _, info = env.reset(seed=4)
+    _, binfo = batch.reset(seed=4)
+    assert set(info["reward_terms"]) == set(TERMS) == set(binfo["reward_terms"])
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        a = env.unwrapped.hover_action() + rng.uniform(-0.05, 0.05, 4).astype(np.float32)
+        _, reward, term, _, info = env.step(a)
+        _, breward, bterm, _, binfo = batch.step(np.vstack([a, batch.hover_action()[1:]]))
+        t = info["reward_terms"]
+        assert all(v >= 0.0 for v in t.values())
+        expected = -t["failure"] if term else math.exp(-sum(t[k] for k in TERMS[:5]))
+        assert reward == pytest.approx(expected, rel=1e-12)
+        for k in TERMS:  # row 0 of the batch is the single env (same seed, same actions)
+            assert binfo["reward_terms"][k].shape == (3,)
+            assert binfo["reward_terms"][k][0] == pytest.approx(t[k], rel=1e-9, abs=1e-15)
+        bt = binfo["reward_terms"]
+        np.testing.assert_allclose(breward[~bterm], np.exp(-sum(bt[k] for k in TERMS[:5]))[~bterm], rtol=1e-12)
+    batch.close()
+    env.close()
+
+
+def test_failure_term_is_the_penalty():
+    env = gym.make("fawtgym/Hover-v0", wind="calm", init_noise=0.0, max_position_error=0.05,
+                   reward_weights={"failure": 3.0})
+    env.reset(seed=0)
+    term = False
+    while not term:
+        _, reward, term, trunc, info = env.step(np.zeros(4, dtype=np.float32))  # motors off: it falls
+        assert not trunc
+    assert info["failure"] and reward == -3.0 and info["reward_terms"]["failure"] == 3.0
