@@ -6,6 +6,7 @@ a disconnect, heartbeat loss, an abort) prints one line ``<prog>: <reason>`` on 
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 import threading
@@ -14,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from fawtgym.cli_parser import ArgumentParser
+from fawtgym.cli_parser import ArgumentParser, bounded_int, seed
 
 from .mavio import SitlError
 
@@ -44,9 +45,25 @@ def _wind_spec(name: str) -> Any:
                      f"{', '.join(scenario_names())}")
 
 
+_LINK_KINDS = ("udp", "udpin", "udpout", "udpbcast", "tcp", "tcpin")
+
+
+def connect_address(text: str) -> str:
+    """A pymavlink connection string: ``KIND:HOST:PORT`` (KIND one of :data:`_LINK_KINDS`) or a serial device."""
+    kind, _, rest = text.partition(":")
+    if kind in _LINK_KINDS:
+        host, _, port = rest.rpartition(":")
+        if host and port.isdigit() and 0 < int(port) < 65536:
+            return text
+    elif text.startswith("/dev/") or text.upper().startswith("COM"):
+        return text
+    raise argparse.ArgumentTypeError(f"expected {', '.join(k + ':HOST:PORT' for k in _LINK_KINDS)} or a serial device "
+                                     f"(/dev/..., COMn), got {text!r}")
+
+
 def _replay_args(parser: ArgumentParser, connect_default: str | None) -> None:
     g = parser.add_argument_group("replay (OFFBOARD agent)")
-    g.add_argument("--connect", default=connect_default,
+    g.add_argument("--connect", default=connect_default, type=connect_address,
                    help=f"autopilot MAVLink address, pymavlink syntax (default {DEFAULT_CONNECT}: PX4 SITL's offboard "
                         "link; udp: listens)")
     g.add_argument("--agent", default=None, required=connect_default is not None,
@@ -111,12 +128,13 @@ def sitl_main(argv: Sequence[str]) -> int:
                             "HIL_ACTUATOR_CONTROLS in, lockstep); airframe 10016 none_iris. See docs/sitl.md.")
     parser.add_argument("autopilot", choices=["px4"], help="the autopilot to simulate for")
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
-    parser.add_argument("--port", type=int, default=4560, help="TCP port PX4 connects to (default 4560)")
+    parser.add_argument("--port", type=bounded_int(0, 65535), default=4560,
+                        help="TCP port PX4 connects to (default 4560)")
     parser.add_argument("--wind", default="calm", help="wind preset (fawt-50, dryden-moderate, ...) or a scenario "
                                                        "name whose wind and fan schedule are used (table4-50, ...)")
     parser.add_argument("--sensors", default="seed000", help="env sensor preset for the IMU/GPS noise (default "
                                                              "seed000; its pose rate must divide 250 Hz)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the wind and sensor noise (default 0)")
+    parser.add_argument("--seed", type=seed, default=0, help="seed of the wind and sensor noise (default 0)")
     parser.add_argument("--home", default=None, metavar="LAT,LON,ALT",
                         help="where our NED origin is (default PX4's SITL home 47.397742,8.545594,488)")
     parser.add_argument("--start", default=None, metavar="N,E,D",

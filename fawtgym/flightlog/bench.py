@@ -1,4 +1,4 @@
-"""``fawtgym bench flightlog``: ``fawtgym observe`` on a synthetic 20-minute PX4 log, one observer.
+"""Benchmark: fawtgym observe on a synthetic 20-minute PX4 log, one observer.
 
 The log is built by tiling a real one (``tests/data/flight_logs/sample_px4_events.ulg``, PX4 SITL, 31 s,
 every topic) end to end with shifted timestamps until it spans ``--minutes`` (pyulog's writer), so parsing
@@ -10,7 +10,6 @@ this machine, memory bounded (the child holds only the topics the estimation rea
 
 from __future__ import annotations
 
-import argparse
 import subprocess
 import sys
 import tempfile
@@ -64,10 +63,15 @@ def tiled_log(source: Path, minutes: float, dest: Path) -> float:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="fawtgym bench flightlog", description=__doc__.split("\n\n")[0])
-    p.add_argument("--minutes", type=float, default=20.0, help="length of the synthetic log (default 20)")
+    from fawtgym.cli_parser import ArgumentParser, positive_float
+    from fawtgym.observers import observer_names
+
+    p = ArgumentParser(prog="fawtgym bench flightlog", description=__doc__.split("\n\n")[0])
+    p.add_argument("--minutes", type=positive_float, default=20.0, help="length of the synthetic log (default 20)")
     p.add_argument("--observer", default="ffts_eso", help="observer to run (default ffts_eso)")
     args = p.parse_args(list(sys.argv[1:] if argv is None else argv))
+    if args.observer not in observer_names():
+        p.error(f"--observer: unknown observer {args.observer!r}; known: {', '.join(observer_names())}")
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "tiled.ulg"
         tiled_log(SOURCE, args.minutes, path)
