@@ -31,9 +31,11 @@ from typing import Any
 
 import numpy as np
 
-#: evaluation scenarios: in the training range (30, 50 %), held out (70 %: a duty not trained on; outdoor Dryden)
-EVAL_SCENARIOS = ("table4-50", "table4-30", "table4-70", "dryden-moderate")
-HELD_OUT = ("table4-70", "dryden-moderate")
+#: evaluation scenarios: the Table-4 hovers in the training range (30, 50 %); held out: 70 % (a duty not trained on,
+#: flown as the 20 s switching hover: both transients at a tenth of the cost of the 75 s Table-4 hover, which the
+#: study's budget could not afford for 20 agents on a shared 2-core machine) and outdoor Dryden turbulence
+EVAL_SCENARIOS = ("table4-50", "table4-30", "fawt-70-switching", "dryden-moderate")
+HELD_OUT = ("fawt-70-switching", "dryden-moderate")
 BASELINES = ("px4", "px4+ffts_eso")
 KEEP = ("model.zip", "vecnormalize.pkl", "metadata.json", "evals.jsonl")
 
@@ -222,7 +224,7 @@ def _answers(groups: dict[str, list[Path]], per_seed: Any) -> list[str]:
         g_eso = g_state.replace(" state ", " state+eso ")
         if g_eso not in groups:
             continue
-        for sc in ("table4-50", "table4-70"):
+        for sc in ("table4-50", "fawt-70-switching"):
             a = [per_seed(f"sb3:{r}", sc) for r in groups[g_eso]]
             b = [per_seed(f"sb3:{r}", sc) for r in groups[g_state]]
             d, lo, hi = _diff_ci(a, b)
