@@ -27,7 +27,10 @@ VehicleAngularVelocity; the velocity D term uses a 5 Hz (``MPC_VELD_LP``) filter
 Hover thrust.  Initialized from the preset, ``Th = m g / (4 T_max)`` (0.275 for the s500; pass
 ``hover_thrust=`` for another value, e.g. ``params["MPC_THR_HOVER"]``) and, with ``MPC_USE_HTE = 1``
 (PX4's default), re-estimated online by PX4's hover-thrust EKF (:mod:`fawtgym.agents.px4_hover_thrust`)
-from the accelerometer and the baseline thrust setpoint.
+from the accelerometer and the baseline thrust setpoint; the initial value is also the EKF's ``MPC_THR_HOVER``
+(bounds ``+- HTE_THR_RANGE``), and only estimates PX4 flags valid reach the position controller.
+``px4_version`` ("1.13", the paper's, or "1.14") selects the position law's version differences
+(:mod:`fawtgym.agents.px4_position_control`).
 """
 
 from __future__ import annotations
@@ -107,7 +110,8 @@ class PX4Agent(Agent):
                  params: PX4Params | Mapping[str, Any] | str | None = None, control_rate: float = 250.0,
                  rate_loop_rate: float | None = None, attitude_rate: float | None = None,
                  position_rate: float | None = None, setpoint: ArrayLike | None = None, yaw_setpoint: float = 0.0,
-                 hover_thrust: float | None = None, gyro_key: str = "angular_velocity") -> None:
+                 hover_thrust: float | None = None, gyro_key: str = "angular_velocity",
+                 px4_version: str = "1.13") -> None:
         self.preset = make_vehicle(vehicle)
         self.params = PX4Params.coerce(params)
         if not (isinstance(control_rate, (int, float)) and math.isfinite(control_rate) and control_rate > 0):
@@ -119,7 +123,7 @@ class PX4Agent(Agent):
         self.position_rate = _rate("position_rate", position_rate, min(100.0, self.control_rate), self.control_rate)
         self.allocation = QuadXAllocation(self.preset)
         th = self.preset.mass * GRAVITY / self.allocation.thrust_scale if hover_thrust is None else hover_thrust
-        self.position_control = PositionControl(self.params, hover_thrust=th)
+        self.position_control = PositionControl(self.params, hover_thrust=th, px4_version=px4_version)
         self.use_hte = bool(self.params["MPC_USE_HTE"])
         self.hover_thrust_estimator = HoverThrustEstimator(self.params, hover_thrust=th)
         self.attitude_control = AttitudeControl(self.params)
@@ -267,8 +271,11 @@ class PX4Agent(Agent):
                 # vertical acceleration (up positive) from the accelerometer: a = R f_sp + g e3
                 acc_up = -(np.einsum("nj,nj->n", meas["attitude"][:, 2, :], meas["specific_force"]) + GRAVITY)
                 hte_rows = None if hte.all() else hte
-                th = self.hover_thrust_estimator.update(acc_up, -self._thr0[:, 2], vel, pos_dt, rows=hte_rows)
-                self.position_control.update_hover_thrust(th, rows=hte_rows)
+                hte_est = self.hover_thrust_estimator
+                th = hte_est.update(acc_up, -self._thr0[:, 2], vel, pos_dt, rows=hte_rows)
+                apply = hte_est.valid if hte_rows is None else hte_est.valid & hte_rows
+                if apply.any():  # PX4 applies only valid estimates
+                    self.position_control.update_hover_thrust(th, rows=None if apply.all() else apply)
             vel_dot = self._vel_deriv.update(vel, pos_dt, rows=rows)
             thr0 = self.position_control.update(meas["position"], vel, vel_dot, self._setpoint, pos_dt, rows=rows)
             self._thr0 = masked(self._thr0, thr0, rows)
