@@ -148,7 +148,10 @@ def fly(column: str, rows: Sequence[tuple[float, int]], hover: float, on: float,
         fail_time = np.full(n, np.nan)
         up, down = np.zeros(n), np.zeros(n)
         pos_tr, att_tr = np.full((steps, n), np.nan), np.full((steps, n), np.nan)
+        restarted = np.zeros(n, dtype=bool)  # rows the env ended last step (it restarts them: so does the agent)
         for k in range(steps):
+            if restarted.any():
+                agent.reset(info, rows=restarted)
             action = agent.act(obs, info)
             r_d = agent.attitude_setpoint
             obs, _, terminated, _, info = env.step(action)
@@ -161,7 +164,8 @@ def fly(column: str, rows: Sequence[tuple[float, int]], hover: float, on: float,
             pos_tr[k] = np.where(alive, np.linalg.norm(err, axis=1), np.nan)
             att_tr[k] = np.where(alive, np.arccos(np.clip((tr - 1.0) / 2.0, -1.0, 1.0)), np.nan)
             wall_hit = alive & (-along >= crash_upstream)
-            ended = alive & np.asarray(terminated)
+            restarted = np.asarray(terminated, dtype=bool).copy()
+            ended = alive & restarted
             new_fail = wall_hit | ended
             if new_fail.any():
                 reasons = np.where(wall_hit, "upstream_wall", np.asarray(info["failure"], dtype=object))
