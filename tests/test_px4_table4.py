@@ -138,3 +138,26 @@ def test_demo_smoke(capsys) -> None:
     assert demo.main(["--seconds", "1.0", "--fan-on", "0.5"]) == 0
     out = capsys.readouterr().out
     assert "PX4+FFTS-ESO" in out and "held hover" in out
+
+
+def test_sensitivity_varies_each_assumption_alone(monkeypatch: pytest.MonkeyPatch) -> None:
+    from fawtgym.eval.reproduce.table4_flight import SENSITIVITY_RANGES, Assumptions
+
+    seen = []
+
+    def fake(columns, duties, seeds, hover, on, off, a, sensors, rate, box, progress=False):
+        seen.append(a)
+        return {(c, d): {"mean_position_error": np.array([0.1 if c == "px4" else 0.04]),
+                         "paper_position_error": np.array([0.1 if c == "px4" else 0.04]), "failures": [""]}
+                for c in columns for d in duties}
+
+    monkeypatch.setattr(table4, "fly_study", fake)
+    base = Assumptions()
+    rows = table4.run_sensitivity(["px4", "px4+ffts_eso"], [50], [0], 75.0, 5.0, 50.0, base, "mocap_imu", 200.0,
+                                  False)
+    assert len(rows) == sum(len(v) for v in SENSITIVITY_RANGES.values())
+    for a, row in zip(seen, rows, strict=True):
+        changed = {f for f in vars(base) if getattr(a, f) != getattr(base, f)}
+        assert changed == {row["name"]} and getattr(a, row["name"]) == row["value"]
+    text = "\n".join(table4.sensitivity_lines(rows, ["px4", "px4+ffts_eso"]))
+    assert "| linear_drag_per_kg | 0.26 | 50 % | 0.1000 | 0.0400 | 60 % | 0/1 | 0/1 |" in text
