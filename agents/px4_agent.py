@@ -27,7 +27,16 @@ VehicleAngularVelocity; the velocity D term uses a 5 Hz (``MPC_VELD_LP``) filter
 Hover thrust.  Initialized from the preset, ``Th = m g / (4 T_max)`` (0.275 for the s500; pass
 ``hover_thrust=`` for another value, e.g. ``params["MPC_THR_HOVER"]``) and, with ``MPC_USE_HTE = 1``
 (PX4's default), re-estimated online by PX4's hover-thrust EKF (:mod:`fawtgym.agents.px4_hover_thrust`)
-from the accelerometer and the baseline thrust setpoint.
+from the accelerometer and the baseline thrust setpoint; the initial value is also the EKF's ``MPC_THR_HOVER``
+(bounds ``+- HTE_THR_RANGE``), and only estimates PX4 flags valid reach the position controller.
+``px4_version`` ("1.13", the paper's, or "1.14") selects the position law's version differences
+(:mod:`fawtgym.agents.px4_position_control`).
+
+What the controller knows (:mod:`fawtgym.agents.observer_inputs`).  ``pose_latency`` [s] delays the pose
+(position, velocity, attitude) it sees, as a motion-capture link does (default 0: the env's pose as is).
+``observer_inputs`` chooses the observer's known thrust and torque: ``"applied"`` (default; the env's exact
+applied wrench after motor lag, truth) or ``"commanded"`` (the controller's own commanded rotor thrusts
+through its thrust model, off by the relative ``thrust_model_error``), what a real flight controller has.
 """
 
 from __future__ import annotations
@@ -41,9 +50,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.rows import check_row_mask, masked
 from fawtgym.envs.frames import FAWT_HOVER_POINT_NED
+from fawtgym.envs.motors import allocation_matrix
 from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
 
 from .base import Agent, match_batch, measurement_from_info, observer_step
+from .observer_inputs import OBSERVER_INPUTS, PoseDelay, check_thrust_model_error, commanded_wrench, latency_steps
 from .px4_allocation import QuadXAllocation
 from .px4_attitude_control import AttitudeControl
 from .px4_filters import Butterworth2, FilteredDerivative
@@ -101,13 +112,20 @@ class PX4Agent(Agent):
     yaw_setpoint: heading [rad].
     hover_thrust: normalized hover thrust, or None to derive ``m g / (4 T_max)`` from the preset.
     gyro_key: measurement key of the (bias-corrected, unfiltered) gyro fed to the filters.
+    px4_version: "1.13" (the paper's) or "1.14" (position-law differences, module docstring).
+    pose_latency: delay [s] of the pose the controller sees (a multiple of the control period).
+    observer_inputs: "applied" (exact applied wrench) or "commanded" (commanded thrust through a thrust model).
+    thrust_model_error: relative error of that thrust model (the controller believes (1 + e) times its
+        commanded rotor thrusts).
     """
 
     def __init__(self, vehicle: str | VehiclePreset | Mapping[str, Any] = "s500",
                  params: PX4Params | Mapping[str, Any] | str | None = None, control_rate: float = 250.0,
                  rate_loop_rate: float | None = None, attitude_rate: float | None = None,
                  position_rate: float | None = None, setpoint: ArrayLike | None = None, yaw_setpoint: float = 0.0,
-                 hover_thrust: float | None = None, gyro_key: str = "angular_velocity") -> None:
+                 hover_thrust: float | None = None, gyro_key: str = "angular_velocity",
+                 px4_version: str = "1.13", pose_latency: float = 0.0, observer_inputs: str = "applied",
+                 thrust_model_error: float = 0.0) -> None:
         self.preset = make_vehicle(vehicle)
         self.params = PX4Params.coerce(params)
         if not (isinstance(control_rate, (int, float)) and math.isfinite(control_rate) and control_rate > 0):
@@ -118,8 +136,15 @@ class PX4Agent(Agent):
         self.attitude_rate = _rate("attitude_rate", attitude_rate, self.control_rate, self.control_rate)
         self.position_rate = _rate("position_rate", position_rate, min(100.0, self.control_rate), self.control_rate)
         self.allocation = QuadXAllocation(self.preset)
+        if observer_inputs not in OBSERVER_INPUTS:
+            raise ValueError(f"observer_inputs must be one of {list(OBSERVER_INPUTS)}, got {observer_inputs!r}")
+        self.observer_inputs = observer_inputs
+        self.thrust_model_error = check_thrust_model_error(thrust_model_error)
+        self.pose_latency = float(pose_latency) if isinstance(pose_latency, (int, float)) else pose_latency
+        self._pose_delay = PoseDelay(latency_steps(pose_latency, self.dt))
+        self._alloc_matrix = allocation_matrix(self.preset)
         th = self.preset.mass * GRAVITY / self.allocation.thrust_scale if hover_thrust is None else hover_thrust
-        self.position_control = PositionControl(self.params, hover_thrust=th)
+        self.position_control = PositionControl(self.params, hover_thrust=th, px4_version=px4_version)
         self.use_hte = bool(self.params["MPC_USE_HTE"])
         self.hover_thrust_estimator = HoverThrustEstimator(self.params, hover_thrust=th)
         self.attitude_control = AttitudeControl(self.params)
@@ -170,6 +195,8 @@ class PX4Agent(Agent):
                 self._reset_rows(info, meas, mask, seed)
             return
         self._n = n
+        self._pose_delay.reset(meas)
+        self._rotor = np.full((n, 4), self.position_control.initial_hover_thrust)
         self.position_control.reset(n)
         self.hover_thrust_estimator.reset(n)
         self._thr0 = np.zeros((n, 3))
@@ -198,6 +225,8 @@ class PX4Agent(Agent):
                     seed: int | None) -> None:
         """The full reset's state, written into ``rows`` only (masked writes)."""
         n = self._n
+        self._pose_delay.reset(meas, rows=rows)
+        self._rotor = masked(self._rotor, np.full((n, 4), self.position_control.initial_hover_thrust), rows)
         self.position_control.reset(n, rows=rows)
         self.hover_thrust_estimator.reset(n, rows=rows)
         self._has_thr0 = self._has_thr0 & ~rows
@@ -233,6 +262,7 @@ class PX4Agent(Agent):
         n = meas["position"].shape[0]
         if n != self._n:
             raise ValueError(f"act() got {n} vehicles but reset() saw {self._n}; call reset() first")
+        meas = self._pose_delay(meas)
         dt = self.dt
         sp = info.get("setpoint")
         if sp is not None and not self._setpoint_override:
@@ -267,8 +297,11 @@ class PX4Agent(Agent):
                 # vertical acceleration (up positive) from the accelerometer: a = R f_sp + g e3
                 acc_up = -(np.einsum("nj,nj->n", meas["attitude"][:, 2, :], meas["specific_force"]) + GRAVITY)
                 hte_rows = None if hte.all() else hte
-                th = self.hover_thrust_estimator.update(acc_up, -self._thr0[:, 2], vel, pos_dt, rows=hte_rows)
-                self.position_control.update_hover_thrust(th, rows=hte_rows)
+                hte_est = self.hover_thrust_estimator
+                th = hte_est.update(acc_up, -self._thr0[:, 2], vel, pos_dt, rows=hte_rows)
+                apply = hte_est.valid if hte_rows is None else hte_est.valid & hte_rows
+                if apply.any():  # PX4 applies only valid estimates
+                    self.position_control.update_hover_thrust(th, rows=None if apply.all() else apply)
             vel_dot = self._vel_deriv.update(vel, pos_dt, rows=rows)
             thr0 = self.position_control.update(meas["position"], vel, vel_dot, self._setpoint, pos_dt, rows=rows)
             self._thr0 = masked(self._thr0, thr0, rows)
@@ -294,6 +327,7 @@ class PX4Agent(Agent):
         missed = np.einsum("ni,ni->n", unallocated[:, :3], unallocated[:, :3]) >= _SAT_EPS
         self.rate_control.set_saturation(missed[:, None] & (unallocated[:, :3] > _SAT_EPS),
                                          missed[:, None] & (unallocated[:, :3] < -_SAT_EPS))
+        self._rotor = rotor
         action = self.allocation.motor_commands(rotor)
         if not np.all(np.isfinite(action)):
             bad = np.flatnonzero(~np.isfinite(action).all(axis=1)).tolist()
@@ -343,9 +377,18 @@ class PX4ObserverAgent(PX4Agent):
         else:
             self.observer.reset(meas, rows=rows)
 
+    def known_inputs(self, info: Mapping[str, Any]) -> Mapping[str, Any]:
+        """The info whose ``"applied"`` the observer reads: the env's (exact applied wrench) or, with
+        ``observer_inputs="commanded"``, the wrench commanded over the step just taken through the thrust model."""
+        if self.observer_inputs == "applied":
+            return info
+        thrust, torque = commanded_wrench(self._rotor, self.allocation.max_rotor_thrust, self._alloc_matrix,
+                                          self.thrust_model_error)
+        return {"applied": {"thrust": thrust, "torque": torque}}
+
     def _estimate(self, meas: dict[str, NDArray[np.float64]], info: Mapping[str, Any],
                   dt: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
-        force, tau = observer_step(self.observer, meas, info, dt, self.preset.mass * GRAVITY)
+        force, tau = observer_step(self.observer, meas, self.known_inputs(info), dt, self.preset.mass * GRAVITY)
         self.raw_estimate = (force, tau)
         return (force if self.force_ff else None), (tau if self.torque_ff else None)
 

@@ -68,8 +68,10 @@ PARAM_SPECS: dict[str, ParamSpec] = {
     "HTE_HT_NOISE": ParamSpec(0.0036, 0.0001, 1.0, "norm", "hover-thrust process noise"),
     "HTE_ACC_GATE": ParamSpec(3.0, 1.0, 10.0, "SD", "gate size of the acceleration innovation"),
     "HTE_HT_ERR_INIT": ParamSpec(0.1, 0.0, 1.0, "norm", "initial 1-sigma hover-thrust uncertainty"),
-    "HTE_VXY_THR": ParamSpec(10.0, 1.0, 20.0, "m/s", "horizontal speed above which the estimator pauses"),
-    "HTE_VZ_THR": ParamSpec(2.0, 1.0, 10.0, "m/s", "vertical speed above which the estimator pauses"),
+    "HTE_VXY_THR": ParamSpec(10.0, 1.0, 20.0, "m/s",
+                            "horizontal speed above which the measurement noise is inflated"),
+    "HTE_VZ_THR": ParamSpec(2.0, 1.0, 10.0, "m/s", "vertical speed above which the measurement noise is inflated"),
+    "HTE_THR_RANGE": ParamSpec(0.2, 0.01, 0.4, "norm", "max deviation of the estimate from MPC_THR_HOVER"),
     # ---- mc_att_control: attitude loop -----------------------------------------------------
     "MC_ROLL_P": ParamSpec(6.5, 0.0, 12.0, "1/s", "roll attitude P gain"),
     "MC_PITCH_P": ParamSpec(6.5, 0.0, 12.0, "1/s", "pitch attitude P gain"),

@@ -11,6 +11,16 @@ The law, as PX4 v1.13 implements it (re-derived, world NED, normalized thrust):
 4. thrust limits with vertical priority keeping ``MPC_THR_XY_MARG`` of horizontal thrust; ``|thr| <= MPC_THR_MAX``.
 5. anti-windup: vertical integrator frozen when the thrust is saturated in the error's direction;
    horizontal tracking anti-windup (Rundqwist 1990) with gain ``2 / K_vp``; ``|i_z| <= g``.
+6. hover thrust: ``updateHoverThrust`` shifts the z integrator so the thrust stays continuous.
+
+Version (``px4_version``).  The paper flew PX4 v1.13.2 (seed-000 Sec. 7.2), so ``"1.13"`` is the default:
+its ``|i_z| <= g`` clamp is applied *after* the integration step and the hover thrust is stored in
+``[0.1, 0.9]`` while ``updateHoverThrust`` computes the integrator shift from the unclamped new value
+(``PositionControl.cpp/.hpp`` of the release/1.13 branch, as quoted in PX4 PR #21372).  PX4 v1.14 (after its
+issue #20275, PR #21380) clamps ``i_z`` at the *start* of the velocity step, i.e. after a hover-thrust shift,
+and constrains the hover thrust to ``[0.05, 0.9]`` before computing the shift: ``"1.14"``.  The two differ
+only while the integrator sits at ``+-g`` or the hover thrust leaves ``[0.1, 0.9]``; neither happens in the
+FAWT study (|i_z| stays below 2 m/s^2, the estimate within ``MPC_THR_HOVER +- HTE_THR_RANGE``), which a test checks.
 6. thrust vector + yaw -> attitude setpoint (``bodyz_to_attitude``).
 
 The observer feedforward of Wang et al. (2024) Sec. 7.2 (F = F0 - phi_hat) is applied to this law's output
@@ -32,6 +42,8 @@ from .px4_attitude_control import _cross
 from .px4_params import PX4Params
 
 _EPS = 1.1920929e-07  # FLT_EPSILON, as PX4 uses single precision
+#: PX4 version -> (hover-thrust bounds, vertical integrator clamped before the velocity step)
+PX4_VERSIONS: dict[str, tuple[tuple[float, float], bool]] = {"1.13": ((0.1, 0.9), False), "1.14": ((0.05, 0.9), True)}
 
 
 def _norm(v: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -105,8 +117,13 @@ class PositionControl:
     thrust as a fraction of the maximum, pointing along -body_z).
     """
 
-    def __init__(self, params: PX4Params | None = None, hover_thrust: float | None = None) -> None:
+    def __init__(self, params: PX4Params | None = None, hover_thrust: float | None = None,
+                 px4_version: str = "1.13") -> None:
         p = params if params is not None else PX4Params.s500()
+        if px4_version not in PX4_VERSIONS:
+            raise ValueError(f"px4_version must be one of {sorted(PX4_VERSIONS)}, got {px4_version!r}")
+        self.px4_version = px4_version
+        self.hover_thrust_bounds, self.clamp_before = PX4_VERSIONS[px4_version]
         self.gain_pos_p = np.array([p["MPC_XY_P"], p["MPC_XY_P"], p["MPC_Z_P"]])
         self.gain_vel_p = np.array([p["MPC_XY_VEL_P_ACC"], p["MPC_XY_VEL_P_ACC"], p["MPC_Z_VEL_P_ACC"]])
         self.gain_vel_i = np.array([p["MPC_XY_VEL_I_ACC"], p["MPC_XY_VEL_I_ACC"], p["MPC_Z_VEL_I_ACC"]])
@@ -121,7 +138,7 @@ class PositionControl:
         ht = p["MPC_THR_HOVER"] if hover_thrust is None else hover_thrust
         if not (math.isfinite(ht) and 0.0 < ht < 1.0):
             raise ValueError(f"hover_thrust must be in (0, 1) (normalized collective thrust), got {ht!r}")
-        self.initial_hover_thrust = float(ht)
+        self.initial_hover_thrust = float(np.clip(ht, *self.hover_thrust_bounds))
         #: hover thrust per vehicle (N,)
         self.hover_thrust = np.full(1, self.initial_hover_thrust)
         self.vel_int = np.zeros((1, 3))
@@ -145,16 +162,19 @@ class PositionControl:
         """PositionControl::updateHoverThrust: new hover thrust (N,), integrator shifted so the thrust is continuous.
 
         From ``T = a Th / g - Th``: ``a' = (a - g) Th / Th' + g``, and ``a' - a`` is added to the z integrator.
-        Only the rows of ``rows`` (N,) if given.
+        The stored hover thrust is constrained to the version's bounds; v1.13 computes the shift from the
+        unconstrained ``Th'``, v1.14 from the constrained one (module docstring).  Only the rows of ``rows`` (N,).
         """
         new = np.broadcast_to(np.asarray(hover_thrust_new, dtype=float), self.hover_thrust.shape)
         ok = np.isfinite(new) & (new > _EPS)
         if rows is not None:
             ok &= rows
+        stored = np.clip(new, *self.hover_thrust_bounds)
+        divisor = stored if self.clamp_before else new
         a_z = self.acc_sp[:, 2]
-        shift = (a_z - GRAVITY) * self.hover_thrust / np.where(ok, new, 1.0) + GRAVITY - a_z
+        shift = (a_z - GRAVITY) * self.hover_thrust / np.where(ok, divisor, 1.0) + GRAVITY - a_z
         self.vel_int[:, 2] += np.where(ok, shift, 0.0)
-        self.hover_thrust = np.where(ok, new, self.hover_thrust)
+        self.hover_thrust = np.where(ok, stored, self.hover_thrust)
 
     def update(self, position: ArrayLike, velocity: ArrayLike, velocity_dot: ArrayLike, position_sp: ArrayLike,
                dt: float | ArrayLike, velocity_ff: ArrayLike | None = None,
@@ -182,9 +202,13 @@ class PositionControl:
         vel_sp_xy = constrain_xy(vel_sp_pos[:, :2], (vel_sp - vel_sp_pos)[:, :2], self.lim_vel_horizontal)
         vel_sp = np.concatenate([vel_sp_xy, np.clip(vel_sp[:, 2:], -self.lim_vel_up, self.lim_vel_down)], axis=1)
 
-        # ---- velocity PID (PositionControl::_velocityControl)
+        # ---- velocity PID (PositionControl::_velocityControl); v1.14 clamps |i_z| <= g here, before use
+        vel_int_now = self.vel_int
+        if self.clamp_before:
+            vel_int_now = self.vel_int.copy()
+            vel_int_now[:, 2] = np.clip(vel_int_now[:, 2], -GRAVITY, GRAVITY)
         vel_err = vel_sp - vel
-        acc_sp = a_ff + vel_err * self.gain_vel_p + self.vel_int - vel_dot * self.gain_vel_d
+        acc_sp = a_ff + vel_err * self.gain_vel_p + vel_int_now - vel_dot * self.gain_vel_d
         thr_sp = self._acceleration_control(acc_sp)
 
         # vertical anti-windup: freeze when saturated in the error's direction
@@ -211,8 +235,9 @@ class PositionControl:
         vel_err[:, :2] = vel_err[:, :2] - arw_gain * (acc_xy - acc_limited_xy)
 
         vel_err = np.where(np.isfinite(vel_err), vel_err, 0.0)
-        vel_int = self.vel_int + vel_err * self.gain_vel_i * per_row(dt, 2)
-        vel_int[:, 2] = np.clip(vel_int[:, 2], -GRAVITY, GRAVITY)
+        vel_int = vel_int_now + vel_err * self.gain_vel_i * per_row(dt, 2)
+        if not self.clamp_before:  # v1.13.2: |i_z| <= g after integrating
+            vel_int[:, 2] = np.clip(vel_int[:, 2], -GRAVITY, GRAVITY)
 
         self.vel_int = masked(self.vel_int, vel_int, rows)
         self.vel_sp = masked(self.vel_sp, vel_sp, rows) if self.vel_sp.shape == vel_sp.shape else vel_sp

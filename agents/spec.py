@@ -39,7 +39,7 @@ FFTS_ESO_FLIGHT_GAINS: dict[str, float] = dict(p=1.2, kt1=6.0, kt2=3.0, kt3=1.0,
 DEFAULT_OBSERVER_KWARGS: dict[str, dict[str, Any]] = {"ffts_eso": FFTS_ESO_FLIGHT_GAINS}
 #: keyword arguments of PX4Agent / PX4ObserverAgent a spec may set (others are PX4 parameters or observer gains)
 _AGENT_OPTIONS = ("rate_loop_rate", "attitude_rate", "position_rate", "yaw_setpoint", "hover_thrust", "gyro_key",
-                  "force_ff", "torque_ff")
+                  "force_ff", "torque_ff", "px4_version", "pose_latency", "observer_inputs", "thrust_model_error")
 _PX4_PARAM = re.compile(r"[A-Z][A-Z0-9_]*")
 _HEAD = re.compile(r"\s*([^()]+?)\s*(?:\((.*)\))?\s*")
 GRAMMAR = "px4, px4+<observer>, px4+<observer>(key=value, ...), module:Class, sb3:PATH"
