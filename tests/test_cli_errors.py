@@ -16,8 +16,6 @@ import pytest
 
 from fawtgym.cli import main
 
-TABLE4 = pytest.mark.xfail(strict=False, reason="table4 flags: issue 13 branch")
-
 CASES = [
     # the dispatcher
     ["nosuch"],
@@ -88,10 +86,10 @@ CASES = [
     ["reproduce", "qb", "--out", "a_file/x"],
     ["reproduce", "pdt-sta", "--out", "a_file/x"],
     ["reproduce", "all", "--out", "a_file/x"],
-    pytest.param(["reproduce", "table4", "--sensors", "foo"], marks=TABLE4),
-    pytest.param(["reproduce", "table4", "--control-rate", "333"], marks=TABLE4),
-    pytest.param(["reproduce", "table4", "--quick", "--duties", "120"], marks=TABLE4),
-    pytest.param(["reproduce", "table4", "--seeds", "0"], marks=TABLE4),
+    ["reproduce", "table4", "--sensors", "foo"],
+    ["reproduce", "table4", "--control-rate", "333"],
+    ["reproduce", "table4", "--quick", "--duties", "120"],
+    ["reproduce", "table4", "--seeds", "0"],
     # flight logs, SITL and replay
     ["observe", "/nonexistent/log.ulg", "--observer", "ffts_eso", "--vehicle", "s500"],
     ["observe", "a_file", "--observer", "ffts_eso", "--vehicle", "s500"],
@@ -154,7 +152,7 @@ def _help_argvs() -> list[object]:
     out += [[c, "--help"] for c in COMMANDS]
     for name in REPRODUCTIONS:
         argv = ["reproduce", name, "--help"]
-        out.append(pytest.param(argv, marks=TABLE4) if name == "table4" else argv)
+        out.append(argv)
     out += [["bench", name, "--help"] for name in BENCHMARKS]
     return out
 
