@@ -3,11 +3,14 @@
 A scenario is everything the env needs to fly an episode, so that every agent of a leaderboard meets
 the same conditions.  Built-in names (``scenario_names()``; ``fawtgym eval --help`` lists them):
 
-* ``table4-30`` ... ``table4-70``: the hover of Wang et al. (2024), Sec. 7.3 / Table 4, as
-  ``fawtgym reproduce table4`` flies it: s500 at the FAWT hover point, motion-capture pose at 100 Hz
-  with a 250 Hz IMU (``sensors="mocap_imu"``), 200 Hz control, the fan array at the duty switched on
+* ``table4-30`` ... ``table4-70``: the hover of Wang et al. (2024), Sec. 7.3 / Table 4 on the compressed
+  schedule of ``fawtgym reproduce table4 --quick``: s500 at the FAWT hover point, motion-capture pose at
+  100 Hz with a 250 Hz IMU (``sensors="mocap_imu"``), 200 Hz control, the fan array at the duty switched on
   at 5 s and off at 50 s of a 75 s hover (the paper's 210 s hover with the fan on 20-170 s, with the
-  calm and steady parts shortened; the transients are flown in full), no initial offset.
+  calm and steady parts shortened; the transients are flown in full), no initial offset.  Unlike
+  ``reproduce table4`` (docs/fidelity.md) the leaderboard keeps the idealised agent inputs (applied
+  wrench, no pose latency), the s500 preset's rotor drag and the env's +-2 m failure box, so that its
+  cells stay comparable with earlier results; an agent can opt into the realistic inputs by name.
 * ``fawt-<duty>-steady`` (any integer duty 30-70): the same hover with the fan settled from t = 0
   (stationary turbulence only), 30 s.
 * ``fawt-<duty>-switching`` (any integer duty 30-70): the same hover, fan on at 2 s and off at 12 s of a
@@ -36,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-#: the compressed Table 4 schedule (hover, fan on, fan off) [s], as ``fawtgym reproduce table4`` flies it
+#: the compressed Table 4 schedule (hover, fan on, fan off) [s], as ``fawtgym reproduce table4 --quick`` flies it
 TABLE4_SCHEDULE = (75.0, 5.0, 50.0)
 TABLE4_DUTIES = (30, 40, 50, 60, 70)
 _STEADY = re.compile(r"fawt-(\d+)-steady")
