@@ -117,6 +117,8 @@ def sitl_main(argv: Sequence[str]) -> int:
     parser.add_argument("--sensors", default="seed000", help="env sensor preset for the IMU/GPS noise (default "
                                                              "seed000; its pose rate must divide 250 Hz)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the wind and sensor noise (default 0)")
+    parser.add_argument("--baro-noise", type=float, default=None, metavar="PA",
+                        help="barometer white noise [Pa RMS] (default 1, as Gazebo; 0 makes PX4 flag it STALE)")
     parser.add_argument("--home", default=None, metavar="LAT,LON,ALT",
                         help="where our NED origin is (default PX4's SITL home 47.397742,8.545594,488)")
     parser.add_argument("--start", default=None, metavar="N,E,D",
@@ -133,7 +135,7 @@ def sitl_main(argv: Sequence[str]) -> int:
     _replay_args(parser, None)
     ns = parser.parse_args(list(argv))
     from .bridge import Px4Bridge
-    from .convert import Home, parse_home
+    from .convert import BARO_NOISE_PA, Home, parse_home
     from .plant import SitlVehicle
 
     log = lambda text: print(f"sitl px4: {text}", flush=True)
@@ -151,6 +153,7 @@ def sitl_main(argv: Sequence[str]) -> int:
                                                                                              flush=True))
         bridge = Px4Bridge(vehicle, home, ns.host, ns.port, realtime=ns.realtime or replay is not None,
                            accept_timeout=ns.accept_timeout, actuator_timeout=ns.actuator_timeout,
+                           baro_noise=BARO_NOISE_PA if ns.baro_noise is None else ns.baro_noise, seed=ns.seed,
                            tlog=ns.bridge_tlog, log_dir=ns.log, log=log)
     except ValueError as exc:
         parser.error(" ".join(str(exc).split()))
