@@ -103,7 +103,7 @@ class AutopilotPeer(threading.Thread):
 
     def __init__(self, companion_port: int, stop_heartbeat_after_arm: float | None = None,
                  stop_telemetry_after_arm: float | None = None, garbage_only: bool = False,
-                 ardupilot: bool = False, lifetime: float = 20.0, honor_heartbeat_interval: bool = True) -> None:
+                 ardupilot: bool = False, lifetime: float = 20.0) -> None:
         super().__init__(daemon=True)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
@@ -112,8 +112,6 @@ class AutopilotPeer(threading.Thread):
         self.mav.robust_parsing = True
         self.hb_stop, self.tm_stop, self.garbage_only = stop_heartbeat_after_arm, stop_telemetry_after_arm, garbage_only
         self.lifetime = lifetime
-        # PX4 sends HEARTBEAT at 1 Hz and, like any stream, at the interval a SET_MESSAGE_INTERVAL asks for
-        self.hb_period, self.honor_hb_interval = 1.0, honor_heartbeat_interval
         # PX4: autopilot 12, OFFBOARD = custom main mode 6 (custom_mode bits 16-23), AUTO.LAND main 4 sub 6;
         # ArduCopter: autopilot 3, GUIDED_NOGPS = custom_mode 20, LAND = 9
         self.autopilot = 3 if ardupilot else 12
@@ -140,9 +138,6 @@ class AutopilotPeer(threading.Thread):
             return
         self.events.append((now, f"cmd{msg.command}", (msg.param1, msg.param2)))
         result = 0
-        if msg.command == 511 and int(msg.param1) == 0 and self.honor_hb_interval and msg.param2 > 0:
-            self.hb_period = msg.param2 / 1e6  # SET_MESSAGE_INTERVAL of HEARTBEAT (message 0), interval in us
-            self.hb_rescheduled = True
         if msg.command == 176:  # DO_SET_MODE: OFFBOARD needs a second of setpoints first (PX4)
             streamed = [t for t, _ in self.setpoints]
             wanted = 20 if self.autopilot == 3 else 6
@@ -184,10 +179,8 @@ class AutopilotPeer(threading.Thread):
             elif self.armed:
                 self.landed_state = 2  # in air
             since_arm = None if self.arm_time is None else now - self.arm_time
-            if getattr(self, "hb_rescheduled", False):
-                next_hb, self.hb_rescheduled = min(next_hb, now + self.hb_period), False
             if now >= next_hb:
-                next_hb = now + self.hb_period
+                next_hb = now + 0.1
                 if self.hb_stop is None or since_arm is None or since_arm < self.hb_stop:
                     base = 1 | (128 if self.armed else 0)
                     self.send(mavlink.MAVLink_heartbeat_message(2, self.autopilot, base, self.custom_mode, 4, 3))

@@ -4,11 +4,8 @@ The companion-computer side of an OFFBOARD flight, one thread, every wait bounde
 
 1. connect (``udp:HOST:PORT`` listens, as PX4 SITL's offboard link sends to 14540; ``tcp:``/``udpout:``/serial
    as pymavlink accepts) and wait for the autopilot's HEARTBEAT (``connect_timeout``);
-2. ask for ATTITUDE_QUATERNION, LOCAL_POSITION_NED and HIGHRES_IMU at the setpoint rate and for HEARTBEAT
-   every ``heartbeat_timeout / 4`` (at most 0.1 s) with SET_MESSAGE_INTERVAL, and wait for the telemetry.  PX4
-   sends HEARTBEAT at 1 Hz unless asked: with a 1 s loss limit that aborts on ordinary gaps (1.000-1.011 s
-   were seen against PX4 v1.14.0 SITL).  If the heartbeats during the pre-stream still come slower than every
-   ``heartbeat_timeout / 2``, the replay stops before arming and says so;
+2. ask for ATTITUDE_QUATERNION, LOCAL_POSITION_NED and HIGHRES_IMU at the setpoint rate (SET_MESSAGE_INTERVAL)
+   and wait for them;
 3. stream SET_ATTITUDE_TARGET (level at the current heading, zero thrust) for ``prestream`` > 1 s, switch to
    OFFBOARD (PX4: MAV_CMD_DO_SET_MODE, custom main mode 6) or GUIDED_NOGPS (ArduPilot: custom mode 20), arm
    (MAV_CMD_COMPONENT_ARM_DISARM), each confirmed by the HEARTBEAT;
@@ -59,7 +56,6 @@ ARDUCOPTER_GUIDED_NOGPS = 20
 MAV_CMD_DO_SET_MODE, MAV_CMD_COMPONENT_ARM_DISARM, MAV_CMD_NAV_LAND = 176, 400, 21
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MSG_IDS = {"ATTITUDE_QUATERNION": 31, "LOCAL_POSITION_NED": 32, "HIGHRES_IMU": 105}
-MSG_ID_HEARTBEAT = 0
 ARMED_FLAG, CUSTOM_MODE_FLAG = 128, 1
 MAV_LANDED_STATE_ON_GROUND = 1
 
@@ -155,7 +151,6 @@ class Replay:
         self.last_time: dict[str, float] = {}
         self.target: tuple[int, int] | None = None
         self.acks: dict[int, int] = {}
-        self.heartbeat_times: list[float] = []  # monotonic arrival times of the autopilot's heartbeats
 
     def _send(self, msg: Any) -> None:
         self.conn.mav.send(msg)
@@ -182,7 +177,6 @@ class Replay:
                     self.autopilot = int(msg.autopilot)
                 elif (msg.get_srcSystem(), msg.get_srcComponent()) != self.target:
                     continue
-                self.heartbeat_times.append(time.monotonic())
             elif kind == "COMMAND_ACK":
                 self.acks[msg.command] = msg.result
             self.last[kind] = msg
@@ -281,7 +275,6 @@ class Replay:
         self.log(f"autopilot {self.target[0]}/{self.target[1]} ({'ArduPilot' if self.autopilot == 3 else 'PX4'})")
         for msg_id in MSG_IDS.values():
             self._command(MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / self.rate)
-        self._command(MAV_CMD_SET_MESSAGE_INTERVAL, MSG_ID_HEARTBEAT, 1e6 * self.heartbeat_interval)
         self.phase = "telemetry"
         self._wait("no ATTITUDE_QUATERNION, LOCAL_POSITION_NED and HIGHRES_IMU/SCALED_IMU telemetry",
                    self.command_timeout, lambda: self._telemetry_ready())
@@ -289,9 +282,7 @@ class Replay:
         yaw = float(rot_to_euler(self._measurement()["attitude"])[2])
         neutral = (euler_to_rot(0.0, 0.0, yaw), None, 0.0)
         self.phase = "prestream"
-        t_pre = time.monotonic()
         self._stream(self.prestream, lambda t: neutral)
-        self._check_heartbeat_period(t_pre)
         mode = "GUIDED_NOGPS" if self.autopilot == MAV_AUTOPILOT_ARDUPILOTMEGA else "OFFBOARD"
         custom = ARDUCOPTER_GUIDED_NOGPS if self.autopilot == MAV_AUTOPILOT_ARDUPILOTMEGA else PX4_MAIN_OFFBOARD
         self._stream(self.command_timeout, lambda t: neutral, until=lambda: self.in_offboard,
@@ -321,22 +312,6 @@ class Replay:
         self._land()
 
     final_error: float | None = None
-
-    @property
-    def heartbeat_interval(self) -> float:
-        """The HEARTBEAT interval asked of the autopilot [s]: a quarter of the loss limit, at most 0.1 s."""
-        return min(0.1, self.heartbeat_timeout / 4.0)
-
-    def _check_heartbeat_period(self, since: float) -> None:
-        """Before arming: the heartbeats must come often enough that the loss limit is not an ordinary gap."""
-        times = np.array([t for t in self.heartbeat_times if t >= since])
-        end = time.monotonic()
-        gap = float(np.diff(np.append(times, end)).max()) if times.size >= 2 else end - since
-        if gap > self.heartbeat_timeout / 2.0:
-            raise SitlError(f"the autopilot's heartbeats came {gap:.2f} s apart during the pre-stream (asked "
-                            f"for every {self.heartbeat_interval:g} s with SET_MESSAGE_INTERVAL): a heartbeat "
-                            f"timeout of {self.heartbeat_timeout:g} s would abort on ordinary gaps; raise "
-                            f"--heartbeat-timeout above {2.0 * gap:.1f} s")
 
     def _telemetry_ready(self) -> bool:
         return all(k in self.last for k in ("ATTITUDE_QUATERNION", "LOCAL_POSITION_NED")) and \
