@@ -24,7 +24,7 @@ pytest.importorskip("pymavlink")
 from _sitl_peers import AutopilotPeer
 
 from fawtgym.eval.sitl.mavio import SitlError
-from fawtgym.eval.sitl.replay import Replay, resolve_agent
+from fawtgym.eval.sitl.replay import HEARTBEAT_PERIOD, Replay, resolve_agent
 
 ORIGIN = [1.5, 0.0, -0.03]
 
@@ -84,7 +84,7 @@ def test_offboard_sequence_rate_land_and_tlog(tmp_path):
     counts = Counter(line.split()[2] for line in res.stdout.splitlines() if len(line.split()) > 2)
     assert counts["SET_ATTITUDE_TARGET"] == len(peer.setpoints)
     assert counts["COMMAND_LONG"] >= 6 and counts["COMMAND_ACK"] >= 3  # intervals, mode, arm, land
-    assert counts["HEARTBEAT"] >= 20 and counts["ATTITUDE_QUATERNION"] >= 200
+    assert counts["HEARTBEAT"] >= 4 and counts["ATTITUDE_QUATERNION"] >= 200  # 1 Hz heartbeats, as PX4
 
 
 def test_ardupilot_guided_nogps():
@@ -121,8 +121,26 @@ def test_abort_on_link_loss(loss, reason):
     assert land, "an abort in the air must command LAND"
     assert not [t for t, _ in peer.setpoints if t > land[0] + 0.05], "streaming must stop on abort"
     lost_at = peer.arm_time + 0.3
-    limit = replay.heartbeat_timeout if loss == "heartbeat" else replay.telemetry_timeout
+    limit = HEARTBEAT_PERIOD + replay.heartbeat_timeout if loss == "heartbeat" else replay.telemetry_timeout
     assert land[0] - lost_at < limit + 1.0  # + heartbeat period, a tick and scheduling slack
+
+
+def test_px4s_1hz_heartbeat_is_not_a_loss():
+    """Found by the hand test against PX4 v1.14.0: PX4 sends HEARTBEAT at a fixed 1 Hz (gaps of 1.000-1.011 s
+    seen) and refuses SET_MESSAGE_INTERVAL for it, so a bare 1 s limit aborted a healthy hover.  Against the
+    peer's 1 Hz heartbeats a 4 s hover (several heartbeat periods) must fly to the end with the default 1 s."""
+    port = free_udp_port()
+    replay = make_replay(port, duration=4.0)
+    assert replay.heartbeat_timeout == 1.0
+    peer = AutopilotPeer(port)
+    peer.start()
+    try:
+        summary = replay.run()
+    finally:
+        peer.stop_event.set()
+        peer.join(5)
+    assert summary["final_position_error"] is not None, "the hover must end normally"
+    assert not peer.armed and [name for _, name, _ in peer.events].count("cmd21") >= 1
 
 
 def test_malformed_bytes_and_silence_give_clear_errors():

@@ -62,8 +62,8 @@ def _replay_args(parser: ArgumentParser, connect_default: str | None) -> None:
     g.add_argument("--climb-speed", type=float, default=0.5, help="set point speed from the start to the hover "
                                                                    "point [m/s] (default 0.5)")
     g.add_argument("--tlog", default="replay.tlog", help="MAVLink log of the replay (default replay.tlog)")
-    g.add_argument("--heartbeat-timeout", type=float, default=1.0, help="abort after this long without a "
-                                                                       "heartbeat [s] (default 1)")
+    g.add_argument("--heartbeat-timeout", type=float, default=1.0, help="abort when a heartbeat is this much "
+                   "overdue [s], i.e. none for 1 s (MAVLink's heartbeat period, fixed in PX4) + this (default 1)")
     g.add_argument("--telemetry-timeout", type=float, default=0.5, help="abort after this long without telemetry "
                                                                        "[s] (default 0.5)")
     g.add_argument("--connect-timeout", type=float, default=30.0, help="wait this long for the first heartbeat "

@@ -23,7 +23,10 @@ motor command), body rates + thrust for ``ctbr`` agents.  The torque feedforward
 on our side of the rate loop only; SET_ATTITUDE_TARGET carries no torque, so the autopilot's own rate loop
 flies without it.
 
-Safety: heartbeat loss (> ``heartbeat_timeout``, 1 s), telemetry older than ``telemetry_timeout``, Ctrl-C or
+Safety: heartbeat loss (a heartbeat more than ``heartbeat_timeout``, 1 s, overdue: no HEARTBEAT for
+:data:`HEARTBEAT_PERIOD` + ``heartbeat_timeout``; PX4 sends HEARTBEAT at a fixed 1 Hz and refuses
+SET_MESSAGE_INTERVAL for it, so a bare 1 s limit aborted a healthy hover against PX4 v1.14.0 SITL on gaps of
+1.000-1.011 s), telemetry older than ``telemetry_timeout`` (the fast check of a dead link), Ctrl-C or
 any exception stop the setpoint stream, command LAND if the vehicle may be airborne (else disarm) and raise
 :class:`~fawtgym.eval.sitl.mavio.SitlError` with the one-line reason.  Everything sent and received goes to
 the ``.tlog``.
@@ -56,6 +59,9 @@ ARDUCOPTER_GUIDED_NOGPS = 20
 MAV_CMD_DO_SET_MODE, MAV_CMD_COMPONENT_ARM_DISARM, MAV_CMD_NAV_LAND = 176, 400, 21
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MSG_IDS = {"ATTITUDE_QUATERNION": 31, "LOCAL_POSITION_NED": 32, "HIGHRES_IMU": 105}
+#: MAVLink's nominal heartbeat period [s]: PX4 v1.14 sends HEARTBEAT at a constant 1 Hz (mavlink_main.cpp
+#: "HEARTBEAT is constant rate stream"; MavlinkReceiver::set_message_interval rejects message 0)
+HEARTBEAT_PERIOD = 1.0
 ARMED_FLAG, CUSTOM_MODE_FLAG = 128, 1
 MAV_LANDED_STATE_ON_GROUND = 1
 
@@ -208,9 +214,9 @@ class Replay:
     def _check_health(self) -> None:
         now = time.monotonic()
         age = now - self.last_time.get("HEARTBEAT", now)
-        if age > self.heartbeat_timeout:
-            raise SitlError(f"heartbeat lost: none from the autopilot for {age:.1f} s (limit "
-                            f"{self.heartbeat_timeout:g} s) during {self.phase}{self._garbage_note()}")
+        if age > HEARTBEAT_PERIOD + self.heartbeat_timeout:
+            raise SitlError(f"heartbeat lost: none from the autopilot for {age:.1f} s (its {HEARTBEAT_PERIOD:g} s "
+                            f"period + {self.heartbeat_timeout:g} s) during {self.phase}{self._garbage_note()}")
         if self.phase in ("prestream", "climb", "hover"):
             for kind in ("ATTITUDE_QUATERNION", "LOCAL_POSITION_NED", self.imu_type):
                 age = now - self.last_time.get(kind, now)
