@@ -125,7 +125,8 @@ class Replay:
         self.env = HoverEnv(vehicle=self.preset, action_type=self.action_type, control_rate=rate,
                             setpoint=self.hover_point, sensors="none")
         self.agent = make_agent(spec, self.env)
-        if self.action_type != "ctbr" and not hasattr(type(self.agent), "attitude_setpoint"):
+        if self.action_type != "ctbr" and not (hasattr(type(self.agent), "attitude_setpoint")
+                                                and hasattr(type(self.agent), "collective_thrust")):
             raise ValueError(f"agent {spec.name!r} commands motors and exposes no attitude set point; replay sends "
                              "SET_ATTITUDE_TARGET, so it flies PX4-cascade agents (px4, px4+<observer>) and ctbr "
                              "agents")
@@ -376,7 +377,14 @@ class Replay:
             collective = float(np.clip(action[0], 0.0, 1.0)) * 4.0 * self.preset.max_thrust_per_rotor
             self._command_state = (collective, np.zeros(3))
             return None, np.clip(action[1:4], -1.0, 1.0) * MAX_RATES, C.px4_thrust(self.preset, collective)
-        collective, torque = C.applied_from_motors(self.preset, action)
+        # The thrust sent is the cascade's collective set point, not the collective of its motor commands: those
+        # come from its own rate loop and allocator, which cut the collective when the torque saturates (PX4's
+        # allocator does the same on PX4's side).  In the hand test against PX4 v1.14.0 the observer's torque
+        # estimate saturated our (unused) rate loop, pinned the motor-derived thrust at 0.68 and the vehicle sank
+        # 1.3 m while the set point asked for full thrust.  The torque of our rate loop stays the observer's known
+        # torque input (PX4 flies its own rate loop; SET_ATTITUDE_TARGET carries no torque).
+        collective = float(np.asarray(self.agent.collective_thrust, dtype=float).reshape(-1)[0])
+        _, torque = C.applied_from_motors(self.preset, action)
         self._command_state = (collective, torque)
         attitude = np.asarray(self.agent.attitude_setpoint, dtype=float).reshape(-1, 3, 3)[0]
         return attitude, None, C.px4_thrust(self.preset, collective)
