@@ -340,6 +340,12 @@ class PX4Agent(Agent):
         """The current attitude setpoint R_d (N, 3, 3) (for the principal-angle metric)."""
         return self._att_sp
 
+    @property
+    def collective_thrust(self) -> NDArray[np.float64]:
+        """The current collective thrust set point [N] (N,): |thrust vector set point| * ``thrust_scale``, the
+        thrust that goes with :attr:`attitude_setpoint` to an autopilot's attitude loop (SET_ATTITUDE_TARGET)."""
+        return np.sqrt(np.einsum("ni,ni->n", self._thr_sp, self._thr_sp)) * self.allocation.thrust_scale
+
 
 class PX4ObserverAgent(PX4Agent):
     """PX4Agent + disturbance-observer feedforward F = F0 - phi_hat, tau = tau0 - tau_hat (Wang et al. (2024) Sec. 7.2).

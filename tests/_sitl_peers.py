@@ -180,7 +180,7 @@ class AutopilotPeer(threading.Thread):
                 self.landed_state = 2  # in air
             since_arm = None if self.arm_time is None else now - self.arm_time
             if now >= next_hb:
-                next_hb = now + 0.1
+                next_hb = now + 1.0  # PX4: HEARTBEAT at a constant 1 Hz (it refuses SET_MESSAGE_INTERVAL for it)
                 if self.hb_stop is None or since_arm is None or since_arm < self.hb_stop:
                     base = 1 | (128 if self.armed else 0)
                     self.send(mavlink.MAVLink_heartbeat_message(2, self.autopilot, base, self.custom_mode, 4, 3))

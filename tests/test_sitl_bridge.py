@@ -58,7 +58,7 @@ def isa_pressure_hpa(h: float) -> float:
 
 def test_units_frames_bits_lockstep_time_gps():
     vehicle = SitlVehicle(sensors="none", seed=1)  # exact sensors: the numbers below are physics, not noise
-    bridge = Px4Bridge(vehicle, port=0, accept_timeout=10, actuator_timeout=5, boot_wait=2.0)
+    bridge = Px4Bridge(vehicle, port=0, accept_timeout=10, actuator_timeout=5, boot_wait=2.0, baro_noise=0.0)
     th, out = start(bridge, duration=1.2)
     peer = Px4SimPeer(bridge.port)
     peer.hello(interval_us=5000)
@@ -113,9 +113,44 @@ def test_units_frames_bits_lockstep_time_gps():
     assert truth[-1].attitude_quaternion[0] == pytest.approx(1.0, abs=1e-6)
 
 
+def test_barometer_is_noisy_by_default_so_px4_does_not_flag_it_stale():
+    """Found by the hand test against PX4 v1.14.0: an exact (constant) pressure at rest made PX4's sensor
+    validator report "BARO #0 failed: STALE!" (more than 100 equal values in a row) and EKF2 fly on GPS height.
+    By default the bridge adds Gazebo-classic's 1 Pa RMS white noise to the pressure."""
+    vehicle = SitlVehicle(sensors="none", seed=3)
+    bridge = Px4Bridge(vehicle, port=0, accept_timeout=10, actuator_timeout=5, boot_wait=2.0)
+    th, out = start(bridge, duration=1.2)
+    peer = Px4SimPeer(bridge.port)
+    peer.hello()
+    sensors = []
+    try:
+        for _ in range(300):
+            s = peer.next_sensor()
+            sensors.append(s)
+            peer.answer(s)
+    finally:
+        result = finish(th, out)
+        peer.close()
+    assert "error" not in result, result.get("error")
+    rest = sensors[150:]  # on the ground: the true altitude is constant
+    pa = np.array([s.abs_pressure for s in rest]) * 100.0  # hPa -> Pa
+    alt = np.array([s.pressure_alt for s in rest])
+    longest, run = 1, 1
+    for a, b in zip(pa[:-1], pa[1:], strict=True):
+        run = run + 1 if abs(a - b) < 1e-6 else 1
+        longest = max(longest, run)
+    assert longest < 100, f"{longest} equal pressures in a row: PX4 flags the barometer STALE after 100"
+    assert 0.7 < pa.std() < 1.3, f"pressure noise {pa.std():.2f} Pa RMS, expected 1 Pa"
+    truth = isa_pressure_hpa(HOME_ALT + 0.03) * 100.0
+    assert abs(pa.mean() - truth) < 4 * 1.0 / math.sqrt(pa.size) + 0.5, "noise must be zero-mean around ISA"
+    # pressure_alt is the ISA altitude of the noisy pressure: dh/dp = -1/(rho g) ~ -0.09 m/Pa near 500 m
+    slope = np.polyfit(pa, alt, 1)[0]
+    assert slope == pytest.approx(-0.09, rel=0.1)
+
+
 def test_hover_holds_altitude_10s_and_px4_motor_order():
     vehicle = SitlVehicle(sensors="none", start=[0.0, 0.0, -10.0])
-    bridge = Px4Bridge(vehicle, port=0, accept_timeout=10, actuator_timeout=5, boot_wait=2.0)
+    bridge = Px4Bridge(vehicle, port=0, accept_timeout=10, actuator_timeout=5, boot_wait=2.0, baro_noise=0.0)
     th, out = start(bridge, duration=2560 * 0.004)  # the 2560 samples answered below
     peer = Px4SimPeer(bridge.port)
     peer.hello()

@@ -24,7 +24,7 @@ pytest.importorskip("pymavlink")
 from _sitl_peers import AutopilotPeer
 
 from fawtgym.eval.sitl.mavio import SitlError
-from fawtgym.eval.sitl.replay import Replay, resolve_agent
+from fawtgym.eval.sitl.replay import HEARTBEAT_PERIOD, Replay, resolve_agent
 
 ORIGIN = [1.5, 0.0, -0.03]
 
@@ -84,7 +84,7 @@ def test_offboard_sequence_rate_land_and_tlog(tmp_path):
     counts = Counter(line.split()[2] for line in res.stdout.splitlines() if len(line.split()) > 2)
     assert counts["SET_ATTITUDE_TARGET"] == len(peer.setpoints)
     assert counts["COMMAND_LONG"] >= 6 and counts["COMMAND_ACK"] >= 3  # intervals, mode, arm, land
-    assert counts["HEARTBEAT"] >= 20 and counts["ATTITUDE_QUATERNION"] >= 200
+    assert counts["HEARTBEAT"] >= 4 and counts["ATTITUDE_QUATERNION"] >= 200  # 1 Hz heartbeats, as PX4
 
 
 def test_ardupilot_guided_nogps():
@@ -106,7 +106,8 @@ def test_ardupilot_guided_nogps():
 def test_abort_on_link_loss(loss, reason):
     port = free_udp_port()
     replay = make_replay(port, duration=20.0)
-    peer = AutopilotPeer(port, **{f"stop_{loss}_after_arm": 0.3})
+    stop_after = 1.5 if loss == "heartbeat" else 0.3  # 1 Hz heartbeats: the replay sees "armed" within 1 s
+    peer = AutopilotPeer(port, **{f"stop_{loss}_after_arm": stop_after})
     peer.start()
     t0 = time.monotonic()
     try:
@@ -115,14 +116,32 @@ def test_abort_on_link_loss(loss, reason):
     finally:
         peer.stop_event.set()
         peer.join(5)
-    assert time.monotonic() - t0 < 8.0
+    assert time.monotonic() - t0 < 10.0
     assert "\n" not in str(info.value) and "LAND commanded" in str(info.value)
     land = [t for t, name, _ in peer.events if name == "cmd21"]
     assert land, "an abort in the air must command LAND"
     assert not [t for t, _ in peer.setpoints if t > land[0] + 0.05], "streaming must stop on abort"
-    lost_at = peer.arm_time + 0.3
-    limit = replay.heartbeat_timeout if loss == "heartbeat" else replay.telemetry_timeout
+    lost_at = peer.arm_time + stop_after
+    limit = HEARTBEAT_PERIOD + replay.heartbeat_timeout if loss == "heartbeat" else replay.telemetry_timeout
     assert land[0] - lost_at < limit + 1.0  # + heartbeat period, a tick and scheduling slack
+
+
+def test_px4s_1hz_heartbeat_is_not_a_loss():
+    """Found by the hand test against PX4 v1.14.0: PX4 sends HEARTBEAT at a fixed 1 Hz (gaps of 1.000-1.011 s
+    seen) and refuses SET_MESSAGE_INTERVAL for it, so a bare 1 s limit aborted a healthy hover.  Against the
+    peer's 1 Hz heartbeats a 4 s hover (several heartbeat periods) must fly to the end with the default 1 s."""
+    port = free_udp_port()
+    replay = make_replay(port, duration=4.0)
+    assert replay.heartbeat_timeout == 1.0
+    peer = AutopilotPeer(port)
+    peer.start()
+    try:
+        summary = replay.run()
+    finally:
+        peer.stop_event.set()
+        peer.join(5)
+    assert summary["final_position_error"] is not None, "the hover must end normally"
+    assert not peer.armed and [name for _, name, _ in peer.events].count("cmd21") >= 1
 
 
 def test_malformed_bytes_and_silence_give_clear_errors():
@@ -165,3 +184,29 @@ def test_cli_errors_are_one_line(capsys):
         err = capsys.readouterr().err
         assert exc.value.code == 2, argv
         assert err.count("\n") == 1 and text in err, err
+
+
+def test_thrust_sent_is_the_cascade_set_point_even_when_its_own_rate_loop_saturates():
+    """Found by the hand test against PX4 v1.14.0: the replay derived the thrust from the cascade's motor commands;
+    the observer's torque estimate (PX4 flies the rates, so our rate loop's torque never acts) saturated our
+    allocator, which cut the collective: the thrust sent stayed at 0.68 while the vehicle sank 1.3 m and the
+    cascade's set point asked for full thrust.  The thrust sent must be the cascade's collective set point."""
+    from fawtgym.eval.sitl import convert as C
+
+    replay = Replay("udp:127.0.0.1:9", "px4+ffts_eso", hover_point=[1.5, 0.0, -1.5], origin=ORIGIN)
+    hover = C.px4_thrust(replay.preset, replay.preset.mass * 9.80665)
+    replay._first, replay._command_state = True, None
+    sent = []
+    for k in range(100):  # 1 s at 100 Hz: 1 m below the set point, sinking, spinning hard in roll
+        meas = {"position": np.array([1.5, 0.0, -0.5 + 0.008 * k]), "velocity": np.array([0.0, 0.0, 0.8]),
+                "attitude": np.eye(3), "angular_velocity": np.array([4.0, 0.0, 0.0]),
+                "specific_force": np.array([0.0, 0.0, -9.0]), "gyro": np.array([4.0, 0.0, 0.0]),
+                "magnetometer": np.array([0.21, 0.01, 0.43]), "time": np.asarray(0.01 * k)}
+        replay._measurement = lambda meas=meas: meas
+        attitude, rates, thrust = replay._agent_target(replay.hover_point)
+        assert rates is None and attitude.shape == (3, 3)
+        collective = float(replay.agent.collective_thrust[0])
+        assert thrust == pytest.approx(C.px4_thrust(replay.preset, collective), abs=1e-12)
+        assert replay._command_state[0] == pytest.approx(collective)  # the observer's known thrust input
+        sent.append(thrust)
+    assert np.mean(sent[50:]) > hover + 0.1, f"sinking 1 m low: thrust {np.mean(sent[50:]):.3f}, hover {hover:.3f}"

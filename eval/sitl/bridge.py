@@ -17,6 +17,9 @@ expects of a simulator, and what :class:`Px4Bridge` does:
 * HIL_SENSOR every step: accelerometer (specific force, FRD), gyroscope, magnetometer and barometer from the
   env's sensor model (its noise preset applies), the field at the home position, ISA pressure and temperature
   (:mod:`.convert`); ``fields_updated`` = accel 0x7 | gyro 0x38 | mag 0x1C0 | baro 0x1A00.
+* The barometer carries white noise, ``baro_noise`` Pa RMS (default 1 Pa, Gazebo-classic's barometer plugin):
+  a constant pressure is flagged STALE by PX4 and EKF2 then drops the barometer (the hand test against PX4
+  v1.14.0 showed it).  Its draws come from their own generator, seeded by ``seed``.
 * HIL_GPS at 10 Hz: 3D fix, 12 satellites, position and velocity from the env's (noisy) position sensor mapped
   onto the home point.
 
@@ -62,13 +65,17 @@ class Px4Bridge:
     def __init__(self, vehicle: SitlVehicle, home: C.Home | None = None, host: str = "127.0.0.1", port: int = 4560,
                  realtime: bool = False, gps_rate: float = 10.0, accept_timeout: float = 120.0,
                  actuator_timeout: float = 5.0, boot_timeout: float = 120.0, boot_wait: float | None = None,
-                 tlog: str | Path | None = None,
+                 baro_noise: float = C.BARO_NOISE_PA, seed: int = 0, tlog: str | Path | None = None,
                  log_dir: str | Path | None = None, log: Callable[[str], None] | None = None) -> None:
         for name, value in (("gps_rate", gps_rate), ("accept_timeout", accept_timeout),
                             ("actuator_timeout", actuator_timeout), ("boot_timeout", boot_timeout)):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
+        if not (isinstance(baro_noise, (int, float)) and math.isfinite(baro_noise) and baro_noise >= 0):
+            raise ValueError(f"baro_noise must be a number of Pa RMS >= 0, got {baro_noise!r}")
         self.vehicle = vehicle
+        self.baro_noise = float(baro_noise)
+        self._baro_rng = np.random.default_rng([int(seed), 0xBA20])
         self.home = home or C.Home()
         self.realtime = bool(realtime)
         self.step_us = int(round(vehicle.dt * 1e6))
@@ -187,7 +194,8 @@ class Px4Bridge:
         alt = home.alt - float(truth[M.POSITION][2])
         mag = C.home_magnetometer(meas, truth[M.ATTITUDE], home)
         L = self._mavlink
-        self._send(L.MAVLink_hil_sensor_message(**C.hil_sensor_fields(meas, mag, alt, t_us)))
+        noise = self.baro_noise * float(self._baro_rng.standard_normal()) if self.baro_noise else 0.0
+        self._send(L.MAVLink_hil_sensor_message(**C.hil_sensor_fields(meas, mag, alt, t_us, pressure_noise_pa=noise)))
         if self.steps % self.gps_every == 0:
             self._send(L.MAVLink_hil_gps_message(**C.hil_gps_fields(home, meas[M.POSITION], meas[M.VELOCITY], t_us)))
         if self._gt_interval_us is not None and t_us >= self._next_gt_us:
@@ -257,7 +265,8 @@ class Px4Bridge:
                 "home": {"lat": self.home.lat, "lon": self.home.lon, "alt": self.home.alt,
                          "mag_ned_gauss": list(self.home.mag_ned)},
                 "start_ned": self.vehicle.truth[M.POSITION].tolist(), "step_us": self.step_us,
-                "gps_rate_hz": 1.0 / (self.gps_every * self.vehicle.dt), "realtime": self.realtime,
+                "gps_rate_hz": 1.0 / (self.gps_every * self.vehicle.dt), "baro_noise_pa": self.baro_noise,
+                "realtime": self.realtime,
                 "listen": f"{self.host}:{self.port}"}
 
     def write_config(self, config: dict[str, Any]) -> None:

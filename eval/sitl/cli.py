@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from fawtgym.cli_parser import ArgumentParser, bounded_int, seed
+from fawtgym.cli_parser import ArgumentParser, bounded_int, nonnegative_float, seed
 
 from .mavio import SitlError
 
@@ -79,8 +79,8 @@ def _replay_args(parser: ArgumentParser, connect_default: str | None) -> None:
     g.add_argument("--climb-speed", type=float, default=0.5, help="set point speed from the start to the hover "
                                                                    "point [m/s] (default 0.5)")
     g.add_argument("--tlog", default="replay.tlog", help="MAVLink log of the replay (default replay.tlog)")
-    g.add_argument("--heartbeat-timeout", type=float, default=1.0, help="abort after this long without a "
-                                                                       "heartbeat [s] (default 1)")
+    g.add_argument("--heartbeat-timeout", type=float, default=1.0, help="abort when a heartbeat is this much "
+                   "overdue [s], i.e. none for 1 s (MAVLink's heartbeat period, fixed in PX4) + this (default 1)")
     g.add_argument("--telemetry-timeout", type=float, default=0.5, help="abort after this long without telemetry "
                                                                        "[s] (default 0.5)")
     g.add_argument("--connect-timeout", type=float, default=30.0, help="wait this long for the first heartbeat "
@@ -135,6 +135,8 @@ def sitl_main(argv: Sequence[str]) -> int:
     parser.add_argument("--sensors", default="seed000", help="env sensor preset for the IMU/GPS noise (default "
                                                              "seed000; its pose rate must divide 250 Hz)")
     parser.add_argument("--seed", type=seed, default=0, help="seed of the wind and sensor noise (default 0)")
+    parser.add_argument("--baro-noise", type=nonnegative_float, default=None, metavar="PA",
+                        help="barometer white noise [Pa RMS] (default 1, as Gazebo; 0 makes PX4 flag it STALE)")
     parser.add_argument("--home", default=None, metavar="LAT,LON,ALT",
                         help="where our NED origin is (default PX4's SITL home 47.397742,8.545594,488)")
     parser.add_argument("--start", default=None, metavar="N,E,D",
@@ -151,7 +153,7 @@ def sitl_main(argv: Sequence[str]) -> int:
     _replay_args(parser, None)
     ns = parser.parse_args(list(argv))
     from .bridge import Px4Bridge
-    from .convert import Home, parse_home
+    from .convert import BARO_NOISE_PA, Home, parse_home
     from .plant import SitlVehicle
 
     log = lambda text: print(f"sitl px4: {text}", flush=True)
@@ -169,6 +171,7 @@ def sitl_main(argv: Sequence[str]) -> int:
                                                                                              flush=True))
         bridge = Px4Bridge(vehicle, home, ns.host, ns.port, realtime=ns.realtime or replay is not None,
                            accept_timeout=ns.accept_timeout, actuator_timeout=ns.actuator_timeout,
+                           baro_noise=BARO_NOISE_PA if ns.baro_noise is None else ns.baro_noise, seed=ns.seed,
                            tlog=ns.bridge_tlog, log_dir=ns.log, log=log)
     except ValueError as exc:
         parser.error(" ".join(str(exc).split()))

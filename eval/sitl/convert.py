@@ -58,6 +58,10 @@ GPS_FIX_3D = 3
 GPS_EPH_M = 0.3  #: horizontal accuracy the bridge reports [m] (well inside PX4's EKF2_REQ_EPH 3 m)
 GPS_EPV_M = 0.4  #: vertical accuracy the bridge reports [m] (EKF2_REQ_EPV 5 m)
 GPS_SATELLITES = 12
+#: barometer white noise [Pa RMS], as PX4-SITL_gazebo-classic's barometer plugin (``abs_pressure_noise = 1 Pa
+#: RMS``).  The env's sensor model has no barometer; without noise PX4 v1.14 flags the barometer STALE (its
+#: DataValidator: more than 100 equal values in a row) and EKF2 falls back to GPS height (seen in the hand test).
+BARO_NOISE_PA = 1.0
 
 #: SET_ATTITUDE_TARGET type_mask bits (ATTITUDE_TARGET_TYPEMASK)
 IGNORE_BODY_RATES = 0x7
@@ -160,13 +164,21 @@ def home_magnetometer(meas: Mapping[str, Any], attitude_true: ArrayLike, home: H
 
 
 def hil_sensor_fields(meas: Mapping[str, Any], mag: ArrayLike, alt_msl: float, time_usec: int,
-                      fields_updated: int = FIELDS_IMU_MAG_BARO) -> dict[str, Any]:
-    """HIL_SENSOR fields from a measurement (specific force, gyro), a magnetometer [gauss] and the altitude."""
+                      fields_updated: int = FIELDS_IMU_MAG_BARO, pressure_noise_pa: float = 0.0) -> dict[str, Any]:
+    """HIL_SENSOR fields from a measurement (specific force, gyro), a magnetometer [gauss] and the altitude.
+
+    ``pressure_noise_pa`` is this sample's barometer error [Pa] (the bridge draws it, :data:`BARO_NOISE_PA`
+    RMS); ``pressure_alt`` is the ISA altitude of the noisy pressure, as a barometer reports it.
+    """
+    if not math.isfinite(pressure_noise_pa):
+        raise ValueError(f"pressure_noise_pa must be finite, got {pressure_noise_pa!r}")
     f, g, m = np.ravel(meas[M.SPECIFIC_FORCE]), np.ravel(meas[M.GYRO]), np.ravel(mag)
+    pressure = isa_pressure_hpa(alt_msl) + float(pressure_noise_pa) / 100.0
+    baro_alt = float(alt_msl) if pressure_noise_pa == 0.0 else isa_altitude(pressure)
     return dict(time_usec=int(time_usec), xacc=float(f[0]), yacc=float(f[1]), zacc=float(f[2]),
                 xgyro=float(g[0]), ygyro=float(g[1]), zgyro=float(g[2]),
                 xmag=float(m[0]), ymag=float(m[1]), zmag=float(m[2]),
-                abs_pressure=isa_pressure_hpa(alt_msl), diff_pressure=0.0, pressure_alt=float(alt_msl),
+                abs_pressure=pressure, diff_pressure=0.0, pressure_alt=baro_alt,
                 temperature=isa_temperature_c(alt_msl), fields_updated=int(fields_updated), id=0)
 
 

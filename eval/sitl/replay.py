@@ -23,7 +23,10 @@ motor command), body rates + thrust for ``ctbr`` agents.  The torque feedforward
 on our side of the rate loop only; SET_ATTITUDE_TARGET carries no torque, so the autopilot's own rate loop
 flies without it.
 
-Safety: heartbeat loss (> ``heartbeat_timeout``, 1 s), telemetry older than ``telemetry_timeout``, Ctrl-C or
+Safety: heartbeat loss (a heartbeat more than ``heartbeat_timeout``, 1 s, overdue: no HEARTBEAT for
+:data:`HEARTBEAT_PERIOD` + ``heartbeat_timeout``; PX4 sends HEARTBEAT at a fixed 1 Hz and refuses
+SET_MESSAGE_INTERVAL for it, so a bare 1 s limit aborted a healthy hover against PX4 v1.14.0 SITL on gaps of
+1.000-1.011 s), telemetry older than ``telemetry_timeout`` (the fast check of a dead link), Ctrl-C or
 any exception stop the setpoint stream, command LAND if the vehicle may be airborne (else disarm) and raise
 :class:`~fawtgym.eval.sitl.mavio.SitlError` with the one-line reason.  Everything sent and received goes to
 the ``.tlog``.
@@ -56,6 +59,9 @@ ARDUCOPTER_GUIDED_NOGPS = 20
 MAV_CMD_DO_SET_MODE, MAV_CMD_COMPONENT_ARM_DISARM, MAV_CMD_NAV_LAND = 176, 400, 21
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MSG_IDS = {"ATTITUDE_QUATERNION": 31, "LOCAL_POSITION_NED": 32, "HIGHRES_IMU": 105}
+#: MAVLink's nominal heartbeat period [s]: PX4 v1.14 sends HEARTBEAT at a constant 1 Hz (mavlink_main.cpp
+#: "HEARTBEAT is constant rate stream"; MavlinkReceiver::set_message_interval rejects message 0)
+HEARTBEAT_PERIOD = 1.0
 ARMED_FLAG, CUSTOM_MODE_FLAG = 128, 1
 MAV_LANDED_STATE_ON_GROUND = 1
 
@@ -119,7 +125,8 @@ class Replay:
         self.env = HoverEnv(vehicle=self.preset, action_type=self.action_type, control_rate=rate,
                             setpoint=self.hover_point, sensors="none")
         self.agent = make_agent(spec, self.env)
-        if self.action_type != "ctbr" and not hasattr(type(self.agent), "attitude_setpoint"):
+        if self.action_type != "ctbr" and not (hasattr(type(self.agent), "attitude_setpoint")
+                                                and hasattr(type(self.agent), "collective_thrust")):
             raise ValueError(f"agent {spec.name!r} commands motors and exposes no attitude set point; replay sends "
                              "SET_ATTITUDE_TARGET, so it flies PX4-cascade agents (px4, px4+<observer>) and ctbr "
                              "agents")
@@ -208,9 +215,9 @@ class Replay:
     def _check_health(self) -> None:
         now = time.monotonic()
         age = now - self.last_time.get("HEARTBEAT", now)
-        if age > self.heartbeat_timeout:
-            raise SitlError(f"heartbeat lost: none from the autopilot for {age:.1f} s (limit "
-                            f"{self.heartbeat_timeout:g} s) during {self.phase}{self._garbage_note()}")
+        if age > HEARTBEAT_PERIOD + self.heartbeat_timeout:
+            raise SitlError(f"heartbeat lost: none from the autopilot for {age:.1f} s (its {HEARTBEAT_PERIOD:g} s "
+                            f"period + {self.heartbeat_timeout:g} s) during {self.phase}{self._garbage_note()}")
         if self.phase in ("prestream", "climb", "hover"):
             for kind in ("ATTITUDE_QUATERNION", "LOCAL_POSITION_NED", self.imu_type):
                 age = now - self.last_time.get(kind, now)
@@ -370,7 +377,14 @@ class Replay:
             collective = float(np.clip(action[0], 0.0, 1.0)) * 4.0 * self.preset.max_thrust_per_rotor
             self._command_state = (collective, np.zeros(3))
             return None, np.clip(action[1:4], -1.0, 1.0) * MAX_RATES, C.px4_thrust(self.preset, collective)
-        collective, torque = C.applied_from_motors(self.preset, action)
+        # The thrust sent is the cascade's collective set point, not the collective of its motor commands: those
+        # come from its own rate loop and allocator, which cut the collective when the torque saturates (PX4's
+        # allocator does the same on PX4's side).  In the hand test against PX4 v1.14.0 the observer's torque
+        # estimate saturated our (unused) rate loop, pinned the motor-derived thrust at 0.68 and the vehicle sank
+        # 1.3 m while the set point asked for full thrust.  The torque of our rate loop stays the observer's known
+        # torque input (PX4 flies its own rate loop; SET_ATTITUDE_TARGET carries no torque).
+        collective = float(np.asarray(self.agent.collective_thrust, dtype=float).reshape(-1)[0])
+        _, torque = C.applied_from_motors(self.preset, action)
         self._command_state = (collective, torque)
         attitude = np.asarray(self.agent.attitude_setpoint, dtype=float).reshape(-1, 3, 3)[0]
         return attitude, None, C.px4_thrust(self.preset, collective)
