@@ -61,6 +61,19 @@ def run_action_type(path: str | Path) -> str:
     return "ctbr" if meta["config"]["action"] == "ctbr" else "motors"
 
 
+def run_vehicle(path: str | Path) -> str:
+    """The vehicle preset a run was trained on: its metadata's ``vehicle`` if it names one, else its scenario's."""
+    _, meta = locate_run(path)
+    if meta.get("vehicle"):
+        return str(meta["vehicle"])
+    from fawtgym.eval.scenarios import resolve_scenarios
+
+    try:
+        return str(resolve_scenarios([meta["config"]["scenario"]])[0].vehicle)
+    except (KeyError, ValueError, OSError) as exc:
+        raise ValueError(f"sb3 agent: {str(path)!r}: cannot tell the vehicle of its training scenario ({exc})") from exc
+
+
 class SB3Agent(Agent):
     """A trained policy (module docstring); build with :meth:`for_env`."""
 
