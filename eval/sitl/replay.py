@@ -149,8 +149,6 @@ class Replay:
                              "agents and policies (ctbr, or residual on a PX4 base)")
         self._obs_low = self.env.observation_space.low.astype(float)
         self._obs_high = self.env.observation_space.high.astype(float)
-        self._act_low = self.env.action_space.low.astype(float)
-        self._act_high = self.env.action_space.high.astype(float)
         self._last_action = np.asarray(self.env.hover_action(), dtype=float)
         self.connect, self.rate, self.dt = connect, float(rate), self.env.dt
         self.duration, self.prestream, self.climb_speed, self.settle = duration, prestream, climb_speed, settle
@@ -381,13 +379,15 @@ class Replay:
             if sleep > 0:
                 time.sleep(sleep)
 
-    def observation(self, measurement: Mapping[str, Any], setpoint: ArrayLike) -> NDArray[np.float32]:
+    def observation(self, measurement: Mapping[str, Any], setpoint: ArrayLike, last_action: ArrayLike
+                    ) -> NDArray[np.float32]:
         """The env observation (19,) of a policy for one telemetry measurement (:func:`~fawtgym.envs.observation.
-        hover_observation`, the env's law and bounds; the last action is the policy's last env action)."""
+        hover_observation`, the env's law and bounds); ``last_action``: the policy's last action (the box clips it
+        to the action space, as the env clips what it applies)."""
         rows = {k: np.asarray(measurement[k], dtype=float)[None] for k in (M.POSITION, M.VELOCITY, M.ATTITUDE,
                                                                           M.ANGULAR_VELOCITY)}
-        return hover_observation(rows, np.asarray(setpoint, dtype=float)[None], self._last_action[None],
-                                 self._obs_low, self._obs_high)[0]
+        return hover_observation(rows, np.asarray(setpoint, dtype=float)[None],
+                                 np.asarray(last_action, dtype=float).reshape(1, 4), self._obs_low, self._obs_high)[0]
 
     def _agent_target(self, setpoint: NDArray[np.float64]) -> tuple:
         """One agent step on the latest telemetry -> (attitude or None, body rates or None, PX4 thrust)."""
@@ -401,11 +401,11 @@ class Replay:
             self.agent.reset(info, seed=0)
             self._first = False
             self._last_action = np.asarray(self.env.hover_action(), dtype=float)
-        obs = self.observation(meas, info["setpoint"]) if self.policy else None
+        obs = self.observation(meas, info["setpoint"], self._last_action) if self.policy else None
         action = np.asarray(self.agent.act(obs, info), dtype=float).reshape(-1)
         if not np.all(np.isfinite(action)):
             raise SitlError(f"agent {self.agent_name!r} returned a non-finite action {action.tolist()}")
-        self._last_action = np.minimum(np.maximum(action, self._act_low), self._act_high)
+        self._last_action = action
         if self.action_type == "ctbr":
             collective = float(np.clip(action[0], 0.0, 1.0)) * 4.0 * self.preset.max_thrust_per_rotor
             self._command_state = (collective, np.zeros(3))
