@@ -61,17 +61,16 @@ def run_action_type(path: str | Path) -> str:
     return "ctbr" if meta["config"]["action"] == "ctbr" else "motors"
 
 
-def run_vehicle(path: str | Path) -> str:
-    """The vehicle preset a run was trained on: its metadata's ``vehicle`` if it names one, else its scenario's."""
+def run_scenario(path: str | Path) -> Any:
+    """The :class:`~fawtgym.eval.scenarios.Scenario` a run was trained on (its metadata's ``config.scenario``): its
+    vehicle preset and control rate are the policy's."""
     _, meta = locate_run(path)
-    if meta.get("vehicle"):
-        return str(meta["vehicle"])
     from fawtgym.eval.scenarios import resolve_scenarios
 
     try:
-        return str(resolve_scenarios([meta["config"]["scenario"]])[0].vehicle)
+        return resolve_scenarios([meta["config"]["scenario"]])[0]
     except (KeyError, ValueError, OSError) as exc:
-        raise ValueError(f"sb3 agent: {str(path)!r}: cannot tell the vehicle of its training scenario ({exc})") from exc
+        raise ValueError(f"sb3 agent: {str(path)!r}: cannot read its training scenario ({exc})") from exc
 
 
 class SB3Agent(Agent):

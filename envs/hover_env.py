@@ -49,7 +49,8 @@ One control step (period ``1 / control_rate``, which must divide the physics rat
 
 ## Observation space
 
-``Box(float32, (19,))``, from *measurements* (never the truth), clipped to the box:
+``Box(float32, (19,))``, from *measurements* (never the truth), clipped to the box (one law for this env, the
+batch env and ``fawtgym replay``: :func:`fawtgym.envs.observation.hover_observation`):
 
 | index | observation | unit | bound |
 | --- | --- | --- | --- |

@@ -63,8 +63,9 @@ def hover_observation(measurement: Mapping[str, ArrayLike], setpoint: ArrayLike,
     x = np.concatenate([pos - np.asarray(setpoint, dtype=float), np.asarray(measurement[M.VELOCITY], dtype=float),
                         r[:, :, 0], r[:, :, 1], np.asarray(measurement[M.ANGULAR_VELOCITY], dtype=float),
                         np.asarray(last_action, dtype=float).reshape(r.shape[0], 4)], axis=1)
-    if not np.all(np.isfinite(x)):
-        row, i = (int(v) for v in np.argwhere(~np.isfinite(x))[0])
+    finite = np.isfinite(x)
+    if not finite.all():
+        row, i = (int(v) for v in np.argwhere(~finite)[0])
         raise ValueError(f"hover_observation: entry {i} of row {row} is {x[row, i]}; measurements, set point and "
                          "last action must be finite")
     return np.minimum(np.maximum(x, low), high).astype(np.float32)

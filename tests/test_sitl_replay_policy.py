@@ -34,6 +34,7 @@ HOVER_POINT = [1.5, 0.0, -0.25]
 #: (eps: the policy's float64 epsilon), which the observation law passes on unamplified (differences, copies
 #: and the quaternion -> rotation map of a unit quaternion), so cond = eps32 / eps
 FLOAT32_TRANSPORT = float(np.finfo(np.float32).eps) / EPS
+LOG: list[str] = []
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +53,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 def fly(agent: str, port: int, **kw) -> tuple[dict, AutopilotPeer]:
     replay = Replay(f"udp:127.0.0.1:{port}", agent, vehicle="s500", hover_point=HOVER_POINT, origin=ORIGIN,
                     rate=100.0, duration=0.8, prestream=1.1, climb_speed=1.0, settle=0.1, connect_timeout=3.0,
-                    command_timeout=3.0, land_timeout=5.0, **kw)
+                    command_timeout=3.0, land_timeout=5.0, log=LOG.append, **kw)
     peer = AutopilotPeer(port)
     peer.start()
     try:
@@ -65,7 +66,9 @@ def fly(agent: str, port: int, **kw) -> tuple[dict, AutopilotPeer]:
 
 @pytest.mark.parametrize("action, type_mask", [("ctbr", 128), ("residual", 7)])
 def test_policy_streams_setpoints_through_the_autopilot(runs, action, type_mask):
+    LOG.clear()
     summary, peer = fly(f"sb3:{runs[action]}", free_udp_port())
+    assert "note: the policy was trained at 200 Hz and flies at 100 Hz (--rate)" in LOG
     arm = [t for t, name, p in peer.events if name == "cmd400" and p[0] == 1]
     land = [t for t, name, _ in peer.events if name == "cmd21"]
     assert arm and land and not peer.armed

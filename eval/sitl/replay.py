@@ -30,7 +30,7 @@ A ``ctbr`` policy sends body rates + thrust; a ``residual`` policy on a PX4 base
 attitude set point with the collective thrust of the final (base + residual) motor command: the residual's
 torque, like the feedforward above, does not reach the autopilot.  A ``motors`` policy (no attitude set
 point) is refused, and so is a run trained for another vehicle than the replay's (``vehicle``; the run's
-vehicle is its training scenario's, :func:`fawtgym.agents.sb3_agent.run_vehicle`).
+vehicle is its training scenario's, :func:`fawtgym.agents.sb3_agent.run_scenario`).
 
 Safety: heartbeat loss (> ``heartbeat_timeout``, 1 s), telemetry older than ``telemetry_timeout``, Ctrl-C or
 any exception stop the setpoint stream, command LAND if the vehicle may be airborne (else disarm) and raise
@@ -131,9 +131,10 @@ class Replay:
         self.action_type = agent_action_type(spec)
         self.policy = spec.kind == "sb3"
         if self.policy:
-            from fawtgym.agents.sb3_agent import run_vehicle
+            from fawtgym.agents.sb3_agent import run_scenario
 
-            trained = run_vehicle(spec.target)
+            scenario = run_scenario(spec.target)
+            trained, self.trained_rate = str(scenario.vehicle), float(scenario.control_rate)
             if trained != self.preset.name:
                 raise ValueError(f"agent {spec.name!r} was trained for vehicle {trained!r}; this replay flies "
                                  f"{self.preset.name!r} (--vehicle {trained} with an autopilot flying that vehicle)")
@@ -300,6 +301,9 @@ class Replay:
         self._wait(f"no heartbeat from an autopilot on {self.connect}", self.connect_timeout,
                    lambda: self.target is not None)
         self.log(f"autopilot {self.target[0]}/{self.target[1]} ({'ArduPilot' if self.autopilot == 3 else 'PX4'})")
+        if self.policy and self.trained_rate != self.rate:
+            self.log(f"note: the policy was trained at {self.trained_rate:g} Hz and flies at {self.rate:g} Hz "
+                     f"(--rate)")
         for msg_id in MSG_IDS.values():
             self._command(MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / self.rate)
         self.phase = "telemetry"
