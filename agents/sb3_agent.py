@@ -61,6 +61,18 @@ def run_action_type(path: str | Path) -> str:
     return "ctbr" if meta["config"]["action"] == "ctbr" else "motors"
 
 
+def run_scenario(path: str | Path) -> Any:
+    """The :class:`~fawtgym.eval.scenarios.Scenario` a run was trained on (its metadata's ``config.scenario``): its
+    vehicle preset and control rate are the policy's."""
+    _, meta = locate_run(path)
+    from fawtgym.eval.scenarios import resolve_scenarios
+
+    try:
+        return resolve_scenarios([meta["config"]["scenario"]])[0]
+    except (KeyError, ValueError, OSError) as exc:
+        raise ValueError(f"sb3 agent: {str(path)!r}: cannot read its training scenario ({exc})") from exc
+
+
 class SB3Agent(Agent):
     """A trained policy (module docstring); build with :meth:`for_env`."""
 
@@ -131,6 +143,8 @@ class SB3Agent(Agent):
         base_action = None
         if self.base is not None:
             base_action = np.asarray(self.base.act(observation, info), dtype=float).reshape(obs.shape[0], -1)
+        #: the residual base agent's command of the last call (None without a base): the replay reads it
+        self.last_base_action = base_action
         if self.features is not None:
             feats = self.features.scale(*self.base.raw_estimate) if self.shared else self.features.update(info)
             obs = np.concatenate([obs, feats], axis=1)

@@ -123,6 +123,7 @@ from .frames import SIGN2_MJ_NED, SIGN_MJ_NED, rot_ned_to_quat_mj
 from .hover_env import INIT_SPREAD, HoverEnv, check_init_noise
 from .mjcf import hull_points
 from .motors import allocation_matrix
+from .observation import hover_observation
 from .sensors_batch import BatchSensorModel
 from .wind import WindModel
 from .wind.base import CalmWind
@@ -858,9 +859,9 @@ class HoverBatchEnv(VectorEnv):
         """Observations (N, 19), rewards (N,) and the reward's terms (dict of (N,)) (HoverEnv's layout and formula,
         row by row; the terms are its module docstring's table)."""
         r = meas[M.ATTITUDE]
+        obs = hover_observation(meas, self.setpoint, action, self._obs_low, self._obs_high)
         x = np.concatenate([meas[M.POSITION] - self.setpoint, meas[M.VELOCITY], r[:, :, 0], r[:, :, 1],
                             meas[M.ANGULAR_VELOCITY], action], axis=1)
-        obs = np.minimum(np.maximum(x, self._obs_low), self._obs_high).astype(np.float32)
         cos = np.clip(0.5 * (r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2] - 1.0), -1.0, 1.0)
         phi = np.arccos(cos)
         x[:, 15:] -= self._last_action if prev_action is None else prev_action

@@ -49,7 +49,8 @@ One control step (period ``1 / control_rate``, which must divide the physics rat
 
 ## Observation space
 
-``Box(float32, (19,))``, from *measurements* (never the truth), clipped to the box:
+``Box(float32, (19,))``, from *measurements* (never the truth), clipped to the box (one law for this env, the
+batch env and ``fawtgym replay``: :func:`fawtgym.envs.observation.hover_observation`):
 
 | index | observation | unit | bound |
 | --- | --- | --- | --- |
@@ -160,6 +161,7 @@ from .ctbr import MAX_RATES, RateLoop
 from .frames import FAWT_HOVER_POINT_NED, rot_ned_to_quat_mj, vec_ned_to_mj
 from .mjcf import INTEGRATORS, hull_points, vehicle_mjcf
 from .motors import allocation_matrix, hover_command
+from .observation import hover_observation, observation_bounds
 from .render import HoverRenderer
 from .sensors import SensorModel, make_sensor_spec
 from .vehicles import GRAVITY, VehiclePreset, make_vehicle
@@ -291,11 +293,7 @@ class HoverEnv(gym.Env):
         else:
             self.action_space = spaces.Box(np.array([0, -1, -1, -1], dtype=np.float32),
                                            np.array([1, 1, 1, 1], dtype=np.float32), dtype=np.float32)
-        lim = self.max_position_error + 1.0
-        high = np.array([lim] * 3 + [30.0] * 3 + [1.0] * 6 + [40.0] * 3 + [1.0] * 4, dtype=np.float32)
-        low = -high
-        low[-4:] = self.action_space.low
-        high[-4:] = self.action_space.high
+        low, high = observation_bounds(self.max_position_error, self.action_space.low, self.action_space.high)
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self._external_force = [0.0, 0.0, 0.0]
         self._external_torque = [0.0, 0.0, 0.0]
@@ -324,7 +322,7 @@ class HoverEnv(gym.Env):
         hull = hull_points(self.preset)
         self._hull = [tuple(p) for p in hull.tolist()]
         self._hull_radius = float(np.linalg.norm(hull, axis=1).max())
-        self._obs_limits = (float(high[0]), float(high[3]), float(high[12]))
+        self._obs_low, self._obs_high = low.astype(float), high.astype(float)
         self._reward_terms = (w["pos"], w["vel"], w["action"], w["rate"])
         self._rotor_offsets = self.preset.rotor_positions.tolist()
         self._bind_views()
@@ -577,13 +575,7 @@ class HoverEnv(gym.Env):
         lists = self.sensor.measure_floats(b, v, r, w, self._accel)
         pos, vel, att, rate = lists[0], lists[1], lists[2], lists[3]
         sp = self.setpoint.tolist()
-        lp, lv, lw = self._obs_limits  # symmetric box of the position error, velocity and rate entries
         e = [pos[0] - sp[0], pos[1] - sp[1], pos[2] - sp[2], *vel, *rate]
-        ec = [lp if x > lp else -lp if x < -lp else x for x in e[0:3]] + \
-             [lv if x > lv else -lv if x < -lv else x for x in e[3:6]] + \
-             [lw if x > lw else -lw if x < -lw else x for x in e[6:9]]
-        # the attitude entries of a rotation matrix and the (clipped) action are inside their bounds already
-        obs = np.array([*ec[0:6], att[0], att[3], att[6], att[1], att[4], att[7], *ec[6:9], *action], dtype=np.float32)
         cos_phi = 0.5 * (att[0] + att[4] + att[8] - 1.0)
         phi = math.acos(1.0 if cos_phi > 1.0 else -1.0 if cos_phi < -1.0 else cos_phi)
         last = self._last_action
@@ -604,6 +596,10 @@ class HoverEnv(gym.Env):
         # every array handed out is a disjoint view of one fresh buffer (one conversion instead of twenty)
         f = np.array([*pos, *vel, *att, *rate, *lists[4], *lists[5], *lists[6], *wrench[1:], *t_rot, *self._speeds,
                       *b, *v, *r, *w, *wind, *force, *torque, *sp, self.time])
+        rows = f[None]  # the observation law is batch-first: this env is a batch of one
+        obs = hover_observation({M.POSITION: rows[:, 0:3], M.VELOCITY: rows[:, 3:6],
+                                 M.ATTITUDE: rows[:, 6:15].reshape(1, 3, 3), M.ANGULAR_VELOCITY: rows[:, 15:18]},
+                                rows[:, 65:68], [action], self._obs_low, self._obs_high)[0]
         info = {
             "measurement": {M.POSITION: f[0:3], M.VELOCITY: f[3:6], M.ATTITUDE: f[6:15].reshape(3, 3),
                             M.ANGULAR_VELOCITY: f[15:18], M.SPECIFIC_FORCE: f[18:21], M.GYRO: f[21:24],

@@ -92,8 +92,9 @@ def _make_replay(parser: ArgumentParser, ns: Any, connect: str, log: Any) -> Any
 
     try:
         agent = resolve_agent(ns.agent, ns.results)
-        return Replay(connect, agent, hover_point=None if ns.hover_point is None else _vector(ns.hover_point,
-                      "--hover-point"), origin=None if ns.origin is None else _vector(ns.origin, "--origin"),
+        return Replay(connect, agent, vehicle=getattr(ns, "vehicle", None),  # sitl px4 flies the Iris only
+                      hover_point=None if ns.hover_point is None else _vector(ns.hover_point, "--hover-point"),
+                      origin=None if ns.origin is None else _vector(ns.origin, "--origin"),
                       rate=ns.rate, duration=ns.duration, climb_speed=ns.climb_speed, tlog=ns.tlog or None,
                       heartbeat_timeout=ns.heartbeat_timeout, telemetry_timeout=ns.telemetry_timeout,
                       connect_timeout=ns.connect_timeout, log=log)
@@ -107,6 +108,9 @@ def replay_main(argv: Sequence[str]) -> int:
                             "real autopilot over MAVLink: OFFBOARD, arm, climb, hover on SET_ATTITUDE_TARGET, land; "
                             "everything in a .tlog.")
     _replay_args(parser, DEFAULT_CONNECT)
+    parser.add_argument("--vehicle", default="iris", help="vehicle preset the agent is built for (default iris, "
+                        "the PX4 none_iris Iris that 'fawtgym sitl px4' flies; s500, x500, ... or a .yaml/.json "
+                        "file for an autopilot flying that vehicle); an sb3: policy must have been trained for it")
     ns = parser.parse_args(list(argv))
     log = lambda text: print(f"replay: {text}", flush=True)
     replay = _make_replay(parser, ns, ns.connect, log)

@@ -18,10 +18,19 @@ Each tick (``rate`` Hz, >= 50) turns the latest telemetry into our measurement m
 measurement_from_telemetry`: the same keys, units and frames as ``info["measurement"]`` of the env), calls
 ``agent.act`` exactly as the runner does in simulation (the observer inside the agent updates on it, with the
 known inputs of the last command), and sends SET_ATTITUDE_TARGET: attitude + thrust for agents that expose an
-attitude set point (the PX4 cascade, ``px4`` / ``px4+<observer>``: R_d and the collective thrust of its
-motor command), body rates + thrust for ``ctbr`` agents.  The torque feedforward of ``px4+<observer>`` acts
+attitude set point (the PX4 cascade, ``px4`` / ``px4+<observer>``: R_d and its collective
+thrust set point), body rates + thrust for ``ctbr`` agents.  The torque feedforward of ``px4+<observer>`` acts
 on our side of the rate loop only; SET_ATTITUDE_TARGET carries no torque, so the autopilot's own rate loop
 flies without it.
+
+Trained policies (``sb3:RUN``) get the env's observation, built from the same telemetry measurement by the
+env's own law (:func:`fawtgym.envs.observation.hover_observation`; its last-action entries are the policy's
+last action, the hover action before the first tick).  A ``ctbr`` policy sends body rates + thrust; a
+``residual`` policy on a PX4 base agent sends the base agent's attitude set point with the base's collective
+thrust set point plus the residual's change of the motors' collective: the residual's torque, like the
+feedforward above, does not reach the autopilot.  A ``motors`` policy (no attitude set point) is refused, and
+so is a run trained for another vehicle than the replay's (``vehicle``; the run's vehicle is its training
+scenario's, :func:`fawtgym.agents.sb3_agent.run_scenario`).
 
 Safety: heartbeat loss (a heartbeat more than ``heartbeat_timeout``, 1 s, overdue: no HEARTBEAT for
 :data:`HEARTBEAT_PERIOD` + ``heartbeat_timeout``; PX4 sends HEARTBEAT at a fixed 1 Hz and refuses
@@ -37,15 +46,17 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.envs import measurement as M
 from fawtgym.envs.ctbr import MAX_RATES
 from fawtgym.envs.frames import FAWT_HOVER_POINT_NED, euler_to_rot, rot_to_euler
+from fawtgym.envs.observation import hover_observation
 
 from . import convert as C
 from .airframe import iris
@@ -83,8 +94,10 @@ class Replay:
 
     Args:
         connect: pymavlink connection string (``udp:127.0.0.1:14540`` listens there).
-        agent: an agent-grammar name (``px4``, ``px4+ffts_eso``, ``module:Class``).
-        vehicle: preset the agent is built for (default the PX4 ``none_iris`` Iris).
+        agent: an agent-grammar name (``px4``, ``px4+ffts_eso``, ``module:Class``, ``sb3:RUN``).
+        vehicle: preset the agent is built for (default ``iris``, the PX4 ``none_iris`` Iris of
+            :mod:`.airframe`; or any vehicle preset name, mapping or file); an ``sb3:`` run must have been
+            trained for it.
         hover_point: NED set point of the hover, our world frame [m].
         origin: our NED coordinates of the autopilot's local origin [m] (default where ``fawtgym sitl px4``
             starts the vehicle, on the ground below the FAWT hover point).
@@ -113,7 +126,7 @@ class Replay:
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
         if not (math.isfinite(settle) and settle >= 0):
             raise ValueError(f"settle must be >= 0 s, got {settle!r}")
-        self.preset = iris() if vehicle is None else make_vehicle(vehicle)
+        self.preset = iris() if vehicle in (None, "iris") else make_vehicle(vehicle)
         self.hover_point = np.array(FAWT_HOVER_POINT_NED if hover_point is None else hover_point, dtype=float)
         self.origin = np.array(ground_start(self.preset) if origin is None else origin, dtype=float)
         for label, v in (("hover_point", self.hover_point), ("origin", self.origin)):
@@ -122,14 +135,30 @@ class Replay:
         spec = parse_agent(agent)
         self.agent_name = spec.name
         self.action_type = agent_action_type(spec)
+        self.policy = spec.kind == "sb3"
+        if self.policy:
+            from fawtgym.agents.sb3_agent import run_scenario
+
+            scenario = run_scenario(spec.target)
+            trained, self.trained_rate = str(scenario.vehicle), float(scenario.control_rate)
+            if trained != self.preset.name:
+                raise ValueError(f"agent {spec.name!r} was trained for vehicle {trained!r}; this replay flies "
+                                 f"{self.preset.name!r} (--vehicle {trained} with an autopilot flying that vehicle)")
         self.env = HoverEnv(vehicle=self.preset, action_type=self.action_type, control_rate=rate,
                             setpoint=self.hover_point, sensors="none")
         self.agent = make_agent(spec, self.env)
-        if self.action_type != "ctbr" and not (hasattr(type(self.agent), "attitude_setpoint")
-                                                and hasattr(type(self.agent), "collective_thrust")):
+        # who gives the attitude set point and collective thrust of a motors agent: the PX4 cascade, or a residual
+        # policy's PX4 base
+        self._attitude_agent = self.agent if hasattr(type(self.agent), "attitude_setpoint") else \
+            getattr(self.agent, "base", None)
+        if self.action_type != "ctbr" and not (hasattr(type(self._attitude_agent), "attitude_setpoint")
+                                                and hasattr(type(self._attitude_agent), "collective_thrust")):
             raise ValueError(f"agent {spec.name!r} commands motors and exposes no attitude set point; replay sends "
-                             "SET_ATTITUDE_TARGET, so it flies PX4-cascade agents (px4, px4+<observer>) and ctbr "
-                             "agents")
+                             "SET_ATTITUDE_TARGET, so it flies PX4-cascade agents (px4, px4+<observer>), ctbr "
+                             "agents and policies (ctbr, or residual on a PX4 base)")
+        self._obs_low = self.env.observation_space.low.astype(float)
+        self._obs_high = self.env.observation_space.high.astype(float)
+        self._last_action = np.asarray(self.env.hover_action(), dtype=float)
         self.connect, self.rate, self.dt = connect, float(rate), self.env.dt
         self.duration, self.prestream, self.climb_speed, self.settle = duration, prestream, climb_speed, settle
         self.heartbeat_timeout, self.telemetry_timeout = heartbeat_timeout, telemetry_timeout
@@ -280,6 +309,9 @@ class Replay:
         self._wait(f"no heartbeat from an autopilot on {self.connect}", self.connect_timeout,
                    lambda: self.target is not None)
         self.log(f"autopilot {self.target[0]}/{self.target[1]} ({'ArduPilot' if self.autopilot == 3 else 'PX4'})")
+        if self.policy and self.trained_rate != self.rate:
+            self.log(f"note: the policy was trained at {self.trained_rate:g} Hz and flies at {self.rate:g} Hz "
+                     f"(--rate)")
         for msg_id in MSG_IDS.values():
             self._command(MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, 1e6 / self.rate)
         self.phase = "telemetry"
@@ -359,6 +391,16 @@ class Replay:
             if sleep > 0:
                 time.sleep(sleep)
 
+    def observation(self, measurement: Mapping[str, Any], setpoint: ArrayLike, last_action: ArrayLike
+                    ) -> NDArray[np.float32]:
+        """The env observation (19,) of a policy for one telemetry measurement (:func:`~fawtgym.envs.observation.
+        hover_observation`, the env's law and bounds); ``last_action``: the policy's last action (the box clips it
+        to the action space, as the env clips what it applies)."""
+        rows = {k: np.asarray(measurement[k], dtype=float)[None] for k in (M.POSITION, M.VELOCITY, M.ATTITUDE,
+                                                                          M.ANGULAR_VELOCITY)}
+        return hover_observation(rows, np.asarray(setpoint, dtype=float)[None],
+                                 np.asarray(last_action, dtype=float).reshape(1, 4), self._obs_low, self._obs_high)[0]
+
     def _agent_target(self, setpoint: NDArray[np.float64]) -> tuple:
         """One agent step on the latest telemetry -> (attitude or None, body rates or None, PX4 thrust)."""
         meas = self._measurement()
@@ -370,9 +412,12 @@ class Replay:
         if self._first:
             self.agent.reset(info, seed=0)
             self._first = False
-        action = np.asarray(self.agent.act(None, info), dtype=float).reshape(-1)
+            self._last_action = np.asarray(self.env.hover_action(), dtype=float)
+        obs = self.observation(meas, info["setpoint"], self._last_action) if self.policy else None
+        action = np.asarray(self.agent.act(obs, info), dtype=float).reshape(-1)
         if not np.all(np.isfinite(action)):
             raise SitlError(f"agent {self.agent_name!r} returned a non-finite action {action.tolist()}")
+        self._last_action = action
         if self.action_type == "ctbr":
             collective = float(np.clip(action[0], 0.0, 1.0)) * 4.0 * self.preset.max_thrust_per_rotor
             self._command_state = (collective, np.zeros(3))
@@ -383,10 +428,14 @@ class Replay:
         # estimate saturated our (unused) rate loop, pinned the motor-derived thrust at 0.68 and the vehicle sank
         # 1.3 m while the set point asked for full thrust.  The torque of our rate loop stays the observer's known
         # torque input (PX4 flies its own rate loop; SET_ATTITUDE_TARGET carries no torque).
-        collective = float(np.asarray(self.agent.collective_thrust, dtype=float).reshape(-1)[0])
+        collective = float(np.asarray(self._attitude_agent.collective_thrust, dtype=float).reshape(-1)[0])
+        base_action = getattr(self.agent, "last_base_action", None)
+        if base_action is not None:  # a residual policy: its change of the motors' collective rides on the set point
+            collective += C.applied_from_motors(self.preset, action)[0] - \
+                C.applied_from_motors(self.preset, np.asarray(base_action, dtype=float).reshape(-1))[0]
         _, torque = C.applied_from_motors(self.preset, action)
         self._command_state = (collective, torque)
-        attitude = np.asarray(self.agent.attitude_setpoint, dtype=float).reshape(-1, 3, 3)[0]
+        attitude = np.asarray(self._attitude_agent.attitude_setpoint, dtype=float).reshape(-1, 3, 3)[0]
         return attitude, None, C.px4_thrust(self.preset, collective)
 
     def _land(self) -> None:
