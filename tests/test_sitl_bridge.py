@@ -278,7 +278,7 @@ def test_truth_log_carries_the_envs_wind_wrench_which_balances_the_ground_at_res
 
     log = np.genfromtxt(tmp_path / "truth.csv", delimiter=",", names=True)
     assert list(log.dtype.names[-12:]) == list(TRUTH_WRENCH_COLUMNS) and log.size == 500
-    cols = lambda *names, rows=slice(None): np.column_stack([log[n][rows] for n in names])  # noqa: E731
+    cols = lambda *names, rows=slice(None): np.column_stack([log[n][rows] for n in names])
     rest = log["t"] > 1.0
     p = vehicle.preset
     idle_thrust = 4 * p.k_thrust * p.omega_min**2
