@@ -11,7 +11,8 @@ bridge's ``truth.csv`` cut down to its disturbance wrench.
 * The truth keeps ``t``, the wind and the total disturbance wrench the env applied (aerodynamic + ground:
   ``f_n, f_e, f_d`` world NED [N], ``t_x, t_y, t_z`` body FRD [N m]; :data:`~fawtgym.eval.sitl.bridge.
   TRUTH_WRENCH_COLUMNS`), as means over blocks of ``--block`` steps labelled with the block's last ``t``
-  (a block mean keeps every mean over whole blocks exact).
+  (a block mean keeps every mean over whole blocks exact), and ``contact``: the fraction of the block's steps
+  with ground contact (0 in the air).
 * The replay's ``.tlog`` (optional) keeps the MAVLink messages :mod:`.tlog` reads, at most 50 Hz each.
 """
 
@@ -76,10 +77,11 @@ def trim_truth(src: str | Path, dest: str | Path, block: int = 5) -> int:
     ground = np.column_stack([tr[c] for c in ("fg_n", "fg_e", "fg_d", "tg_x", "tg_y", "tg_z")])
     wind = np.column_stack([tr[c] for c in ("wind_n", "wind_e", "wind_d")])
     n = (tr.size // block) * block
-    means = np.concatenate([wind, aero + ground], axis=1)[:n].reshape(-1, block, 9).mean(axis=1)
+    contact = np.any(ground != 0.0, axis=1, keepdims=True).astype(float)
+    means = np.concatenate([wind, aero + ground, contact], axis=1)[:n].reshape(-1, block, 10).mean(axis=1)
     t = tr["t"][block - 1:n:block]
     np.savetxt(dest, np.column_stack([t, means]), delimiter=",", fmt="%.6g", comments="",
-               header="t,wind_n,wind_e,wind_d,f_n,f_e,f_d,t_x,t_y,t_z")
+               header="t,wind_n,wind_e,wind_d,f_n,f_e,f_d,t_x,t_y,t_z,contact")
     return int(t.size)
 
 
