@@ -295,3 +295,27 @@ def test_channels_an_observer_does_not_estimate_are_empty_not_zero() -> None:
     with pytest.raises(FlightLogError) as exc:
         observe(SITL, ["pdt_sta"], JMAVSIM)  # attitude and rates only
     assert "estimates no disturbance" in _one_line(exc) and "ffts_eso" in str(exc.value)
+
+
+def test_trim_keeps_a_readable_log_and_exact_block_means(tmp_path: Path) -> None:
+    """The test-data trimmer: a thinned ULog still reads with every topic observe needs, under the rate asked;
+    the truth's block means and contact fraction are those of the rows (a hand-made 10-row truth.csv)."""
+    from fawtgym.eval.sitl.bridge import TRUTH_WRENCH_COLUMNS
+    from fawtgym.flightlog.trim import trim_truth, trim_ulog
+
+    kept = trim_ulog(IRIS_ULOG, tmp_path / "small.ulg", max_rate=30.0)
+    log = read_log(tmp_path / "small.ulg")
+    for name, n in kept.items():
+        t = log.topics[name].t
+        assert len(t) == n and (n < 2 or (n - 1) / (t[-1] - t[0]) < 30.0 * 1.05), name
+    head = ["t", "wind_n", "wind_e", "wind_d", *TRUTH_WRENCH_COLUMNS]
+    rows = np.zeros((10, len(head)))
+    rows[:, 0] = 0.004 * np.arange(1, 11)
+    rows[:, head.index("fa_n")] = np.arange(10.0)
+    rows[:3, head.index("fg_d")] = -15.0  # on the ground for the first 3 steps
+    np.savetxt(tmp_path / "truth.csv", rows, delimiter=",", header=",".join(head), comments="")
+    assert trim_truth(tmp_path / "truth.csv", tmp_path / "small.csv", block=5) == 2
+    out = np.loadtxt(tmp_path / "small.csv", delimiter=",", skiprows=1)
+    assert out[:, 0] == pytest.approx([0.02, 0.04])
+    assert out[:, 4] == pytest.approx([2.0, 7.0]) and out[:, 6] == pytest.approx([-9.0, 0.0])
+    assert out[:, 10] == pytest.approx([0.6, 0.0])

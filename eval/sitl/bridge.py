@@ -23,6 +23,10 @@ expects of a simulator, and what :class:`Px4Bridge` does:
 * HIL_GPS at 10 Hz: 3D fix, 12 satellites, position and velocity from the env's (noisy) position sensor mapped
   onto the home point.
 
+* ``log_dir``: ``truth.csv`` per step: the true state, wind and motors, and the true disturbance wrench held
+  over the step (the env's aerodynamic force NED / torque FRD and the ground contact wrench,
+  :data:`TRUTH_WRENCH_COLUMNS`; docs/sitl.md lists every column), for checking observers on PX4's log.
+
 ``realtime=True`` paces the steps to the wall clock; by default both sides run as fast as they can.
 """
 
