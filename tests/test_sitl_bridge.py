@@ -257,3 +257,36 @@ def test_bridge_tlog_read_by_mavlogdump(tmp_path):
     counts = {k: counts[k] for k in ("HIL_SENSOR", "HIL_ACTUATOR_CONTROLS", "HIL_GPS")}
     assert counts == {"HIL_SENSOR": 50, "HIL_ACTUATOR_CONTROLS": 50, "HIL_GPS": 2}
     assert (tmp_path / "log" / "truth.csv").read_text().count("\n") == 51
+
+
+def test_truth_log_carries_the_envs_wind_wrench_which_balances_the_ground_at_rest(tmp_path):
+    """truth.csv's fa_*/ta_* columns are the env's aerodynamic wrench and fg_*/tg_* the ground's.  Standing
+    disarmed in a 6 m/s mean wind, the vehicle is at rest, so (Newton) aero + ground + weight + idle thrust = 0
+    and aero torque + ground torque = 0; the aero force must point downwind (north) with a size of a newton."""
+    vehicle = SitlVehicle(wind={"name": "dryden-light", "mean_wind": 6.0}, sensors="none", seed=2)
+    bridge = Px4Bridge(vehicle, port=0, accept_timeout=10, boot_wait=2.0, baro_noise=0.0, log_dir=tmp_path)
+    th, out = start(bridge, duration=2.0)
+    peer = Px4SimPeer(bridge.port)
+    peer.hello()
+    try:
+        for _ in range(500):
+            peer.answer(peer.next_sensor())  # disarmed: motors at idle
+    finally:
+        finish(th, out)
+        peer.close()
+    from fawtgym.eval.sitl.bridge import TRUTH_WRENCH_COLUMNS
+
+    log = np.genfromtxt(tmp_path / "truth.csv", delimiter=",", names=True)
+    assert list(log.dtype.names[-12:]) == list(TRUTH_WRENCH_COLUMNS) and log.size == 500
+    cols = lambda *names, rows=slice(None): np.column_stack([log[n][rows] for n in names])
+    rest = log["t"] > 1.0
+    p = vehicle.preset
+    idle_thrust = 4 * p.k_thrust * p.omega_min**2
+    fa, fg = cols("fa_n", "fa_e", "fa_d", rows=rest), cols("fg_n", "fg_e", "fg_d", rows=rest)
+    ta, tg = cols("ta_x", "ta_y", "ta_z", rows=rest), cols("tg_x", "tg_y", "tg_z", rows=rest)
+    weight = p.mass * G
+    balance = (fa + fg).mean(axis=0) + np.array([0.0, 0.0, weight - idle_thrust])
+    assert np.all(np.abs(balance) < 0.01 * weight), balance
+    assert np.all(np.abs((ta + tg).mean(axis=0)) < 1e-3), (ta + tg).mean(axis=0)
+    assert 0.3 < fa[:, 0].mean() < 5.0 and abs(fa[:, 1].mean()) < 0.5 * fa[:, 0].mean(), fa.mean(axis=0)
+    assert np.all(np.abs(cols("fg_d")) > 0), "the vehicle stands on the ground"

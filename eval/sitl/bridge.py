@@ -23,6 +23,10 @@ expects of a simulator, and what :class:`Px4Bridge` does:
 * HIL_GPS at 10 Hz: 3D fix, 12 satellites, position and velocity from the env's (noisy) position sensor mapped
   onto the home point.
 
+* ``log_dir``: ``truth.csv`` per step: the true state, wind and motors, and the true disturbance wrench held
+  over the step (the env's aerodynamic force NED / torque FRD and the ground contact wrench,
+  :data:`TRUTH_WRENCH_COLUMNS`; docs/sitl.md lists every column), for checking observers on PX4's log.
+
 ``realtime=True`` paces the steps to the wall clock; by default both sides run as fast as they can.
 """
 
@@ -50,6 +54,9 @@ from .mavio import SitlError, TlogWriter, mavlink_dialect
 from .plant import SitlVehicle
 
 MSG_ID_HIL_STATE_QUATERNION = 115
+#: truth.csv's wrench columns: the env's aerodynamic (wind) force, world NED [N], and torque, body FRD [N m], then
+#: the ground contact wrench (zero in the air), each held over the step that ends at the row's ``t``
+TRUTH_WRENCH_COLUMNS = ("fa_n", "fa_e", "fa_d", "ta_x", "ta_y", "ta_z", "fg_n", "fg_e", "fg_d", "tg_x", "tg_y", "tg_z")
 CMD_SET_MESSAGE_INTERVAL = 511
 
 
@@ -160,12 +167,14 @@ class Px4Bridge:
                 elif time.monotonic() > boot_deadline:
                     raise SitlError(f"PX4 sent no HIL_ACTUATOR_CONTROLS within {self.boot_timeout:g} s of sensor "
                                     f"data{self._garbage_note()}")
+            (f_aero, t_aero), (f_ground, t_ground) = plant.aero_wrench, plant.ground_wrench  # held over this step
             plant.step(self._motors)
             self.steps += 1
             if rows is not None:
                 t = plant.truth
                 rows.append([plant.time, *t[M.POSITION], *t[M.VELOCITY], *rot_to_euler(t[M.ATTITUDE]),
-                             *t[M.ANGULAR_VELOCITY], *t["wind"], *self._motors])
+                             *t[M.ANGULAR_VELOCITY], *t["wind"], *self._motors, *f_aero, *t_aero, *f_ground,
+                             *t_ground])
             if self.realtime:
                 lag = wall0 + self.steps * plant.dt - time.monotonic()
                 if lag > 0:
@@ -255,7 +264,7 @@ class Px4Bridge:
         with open(self._log_dir / "truth.csv", "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["t", "n", "e", "d", "vn", "ve", "vd", "roll", "pitch", "yaw", "p", "q", "r",
-                        "wind_n", "wind_e", "wind_d", "m1", "m2", "m3", "m4"])
+                        "wind_n", "wind_e", "wind_d", "m1", "m2", "m3", "m4", *TRUTH_WRENCH_COLUMNS])
             w.writerows([f"{x:.6g}" for x in row] for row in rows)
 
     def describe(self, wind: Any, sensors: Any, seed: int) -> dict[str, Any]:

@@ -69,7 +69,9 @@ class SitlVehicle:
         self._kt = float(np.diag(j)[:2].max()) * wn * wn
         self._ct = 2.0 * float(np.diag(j).max()) * wn
         self._hull = hull_points(self.preset)
+        self._ground = (np.zeros(3), np.zeros(3))  # the env starts with no external wrench
         _, self.info = self.env.reset(seed=seed)
+        self._aero = self._aero_from_info()
         self._acc = np.zeros(3)
         self._update_ground()
 
@@ -94,6 +96,23 @@ class SitlVehicle:
     def on_ground(self) -> bool:
         return self._in_contact
 
+    @property
+    def aero_wrench(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The env's aerodynamic (wind) disturbance held over the next step: force world NED [N], torque body FRD
+        [N m], exactly as the env applies it (its ``info["truth"]`` force/torque minus our ground wrench)."""
+        return self._aero
+
+    @property
+    def ground_wrench(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The ground contact wrench held over the next step (force NED [N], torque FRD [N m]; zero in the air)."""
+        return self._ground
+
+    def _aero_from_info(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``info["truth"]`` reports the aero wrench of the next step plus the external wrench in force when the
+        info was made (our ground wrench of the step just taken); remove the latter."""
+        t = self.info["truth"]
+        return np.asarray(t["force"]) - self._ground[0], np.asarray(t["torque"]) - self._ground[1]
+
     def _update_ground(self) -> None:
         """The ground wrench for the next step from the current true state (zero in the air)."""
         t = self.info["truth"]
@@ -101,13 +120,15 @@ class SitlVehicle:
         depth = float((p[2] + self._hull @ r[2]).max())  # lowest hull point below the floor (z_NED > 0)
         self._in_contact = depth >= 0.0
         if not self._in_contact:
-            self.env.set_external_wrench((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+            self._ground = (np.zeros(3), np.zeros(3))
+            self.env.set_external_wrench(*self._ground)
             return
         normal = min(0.0, -(self._k * depth + self._c * float(v[2])))  # pushes up (NED -z), never pulls
         force = (-self._c * float(v[0]), -self._c * float(v[1]), normal)
         tilt = np.array([r[2, 1], -r[2, 0], 0.0])  # ~ (roll, pitch) for small angles, from R's last row
         torque = -self._kt * tilt - self._ct * np.asarray(w, dtype=float)
-        self.env.set_external_wrench(force, torque)
+        self._ground = (np.array(force, dtype=float), torque)
+        self.env.set_external_wrench(*self._ground)
 
     def step(self, motors: ArrayLike) -> dict[str, Any]:
         """One step with motor commands (4,) in [0, 1] (our rotor order); returns the env's info."""
@@ -116,5 +137,6 @@ class SitlVehicle:
             raise SitlError(f"the simulated vehicle diverged at t = {self.env.time:.3f} s")
         self._acc = (info["truth"]["velocity"] - self.info["truth"]["velocity"]) / self.dt
         self.info = info
+        self._aero = self._aero_from_info()
         self._update_ground()
         return info

@@ -57,6 +57,9 @@ class FlightLog:
     duration: float
     version: str = ""  #: PX4 version string as logged ("" when unknown)
     notes: list[str] = dataclasses.field(default_factory=list)  #: reader remarks (e.g. truncated data)
+    #: the log's t = 0 on the autopilot's clock [s since boot] (ULog start timestamp; a tlog's earliest boot time),
+    #: so log time + ``start`` is PX4 time (= the simulated time of a SITL flight, docs/sitl.md)
+    start: float = 0.0
 
     def has(self, topic: str) -> bool:
         return topic in self.topics and len(self.topics[topic]) > 0

@@ -74,7 +74,7 @@ def read_tlog(path: Path) -> FlightLog:
     for tp in topics.values():
         tp.t = tp.t - t0
     duration = max(float(t.t.max()) for t in topics.values() if len(t))
-    return FlightLog(str(path), "tlog", topics, params, duration, "", [])
+    return FlightLog(str(path), "tlog", topics, params, duration, "", [], start=t0)
 
 
 def _unwrap32(x: np.ndarray, period: float) -> np.ndarray:

@@ -52,7 +52,7 @@ def read_ulog(path: Path, topics: tuple[str, ...] | None = None) -> FlightLog:
     notes = []
     if ulog.file_corruption:
         notes.append(f"pyulog found corrupt data in {path.name}; data read up to t = {duration:.1f} s")
-    return FlightLog(str(path), "ulog", topics_out, params, duration, _px4_version(version), notes)
+    return FlightLog(str(path), "ulog", topics_out, params, duration, _px4_version(version), notes, start=t0 * 1e-6)
 
 
 def _px4_version(ver: str) -> str:
