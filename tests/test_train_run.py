@@ -160,13 +160,17 @@ def test_sweep_trains_a_grid_and_skips_finished_runs(tmp_path: Path, capsys: pyt
 
 @pytest.mark.long
 def test_ppo_learns_to_hover_in_calm_air(tmp_path: Path) -> None:
-    """PPO with the normalized ctbr action on calm hover: the deterministic return of a 5 s episode (at most 1000)
-    rises from the untrained policy's by at least 150 within 200k steps (measured: ~? -> ~?; see the assertion)."""
+    """PPO (the study's hyperparameters) with the normalized motor action on calm hover: the deterministic return of
+    a 5 s episode (at most 1000, 1 per step at the set point) after 200k steps is at least 200 above the policy's
+    at its first checkpoint (10k steps).  Measured in two runs on 2 cores: 265 -> 563 and ~200 -> 804 (PPO's
+    outcome at 200k steps varies with the thread count's rounding; the margin holds in both).  With the ctbr
+    action the same budget gives ~300: its policies still fall out of bounds after ~3 s, so this test flies
+    motors."""
     from fawtgym.train.config import algo_class
     from fawtgym.train.envs import make_vector_env
 
-    cfg = make_config(hyperparams=load_hyperparams("ppo"), algo="ppo", obs="state", action="ctbr", scenario="calm",
-                      episode_seconds=5.0, steps=200_000, eval_scenarios=())
+    cfg = make_config(hyperparams=load_hyperparams("ppo"), algo="ppo", obs="state", action="motors",
+                      scenario="calm", episode_seconds=5.0, steps=200_000, eval_scenarios=())
 
     def deterministic_return(folder: Path) -> float:
         import pickle
@@ -191,7 +195,7 @@ def test_ppo_learns_to_hover_in_calm_air(tmp_path: Path) -> None:
     first = sorted((tmp_path / "run" / "checkpoints").iterdir())[0]
     before, after = deterministic_return(first), deterministic_return(tmp_path / "run")
     print(f"deterministic return after {first.name} steps: {before:.1f}; after 200k: {after:.1f}")
-    assert after >= before + 150.0, (before, after)
+    assert after >= before + 200.0, (before, after)
 
 
 def test_sweep_on_ray(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
