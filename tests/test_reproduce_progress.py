@@ -155,3 +155,22 @@ def test_reproduce_all_runs_studies_without_their_bar(monkeypatch: pytest.Monkey
     run = report.run_study(report.STUDIES[0], tmp_path, quick=True)
     assert got and got[0][-1] == "--no-progress"
     assert "--no-progress" not in run.argv and run.error is None
+
+
+def test_bench_all_bar_over_the_jobs(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """``bench all`` shows a bar over the benchmarks (off with ``--no-progress``); their lines still print."""
+    import sys
+    import types
+
+    from fawtgym import cli
+
+    fake = types.ModuleType("_fake_bench")
+    fake.main = lambda argv: print("ratio 1.0") or 0  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "_fake_bench", fake)
+    monkeypatch.setattr(cli, "BENCHMARKS", {"one": ("_fake_bench:main", ""), "two": ("_fake_bench:main", "")})
+    assert main(["bench", "all"]) == 0
+    out, err = capsys.readouterr()
+    assert out.count("ratio 1.0") == 2 and "fawtgym bench two" in err
+    assert main(["bench", "all", "--no-progress"]) == 0
+    out, err = capsys.readouterr()
+    assert out.count("ratio 1.0") == 2 and "fawtgym bench" not in err
