@@ -107,9 +107,27 @@ def _dispatch(prog: str, table: dict[str, tuple[str, str]], argv: Sequence[str],
         every = ArgumentParser(prog=f"{prog} all", formatter_class=argparse.RawDescriptionHelpFormatter,
                                description=f"Run every benchmark below with its defaults, one after the other "
                                            f"(each one's options: {prog} NAME --help).\n{names}")
-        every.parse_args(ns.args)
-        return max(_call(target, [], f"{prog} {name}") for name, (target, _) in table.items())
+        every.add_argument("--no-progress", action="store_true", help="no progress bar over the jobs")
+        return _call_every(prog, table, every.parse_args(ns.args).no_progress)
     return _call(table[ns.name][0], ns.args, f"{prog} {ns.name}")
+
+
+def _call_every(prog: str, table: dict[str, tuple[str, str]], no_progress: bool) -> int:
+    """Every job of ``table`` with its defaults, one after the other, under a bar over the jobs on stderr (the
+    jobs' printed lines pass above it); returns the worst exit status."""
+    import contextlib
+
+    from tqdm.auto import tqdm
+    from tqdm.contrib import DummyTqdmFile
+
+    codes = []
+    with tqdm(total=len(table), unit="job", file=sys.stderr, dynamic_ncols=True, leave=False,
+              disable=no_progress) as bar, contextlib.redirect_stdout(DummyTqdmFile(sys.stdout)):
+        for name, (target, _) in table.items():
+            bar.set_description(f"{prog} {name}")
+            codes.append(_call(target, [], f"{prog} {name}"))
+            bar.update(1)
+    return max(codes)
 
 
 def reproduce_main(argv: Sequence[str]) -> int:

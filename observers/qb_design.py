@@ -28,7 +28,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -348,10 +349,10 @@ class AlphaSweep:
         return np.exp(self.log_volumes)
 
 
-def sweep_alpha(problem: QBProblem, alphas: Sequence[float] | NDArray[np.float64], solver: str | None = None
-                ) -> AlphaSweep:
+def sweep_alpha(problem: QBProblem, alphas: Sequence[float] | NDArray[np.float64], solver: str | None = None,
+                progress: Callable[[int], Any] | None = None) -> AlphaSweep:
     """Solve eq. 31 at each alpha (Fig. 4).  Points that fail are reported in ``failed``; raises
-    :class:`QBInfeasibleError` if none is feasible."""
+    :class:`QBInfeasibleError` if none is feasible.  ``progress``, if given, is called with 1 after each alpha."""
     sols: list[QBSolution] = []
     failed: list[tuple[float, str]] = []
     for a in np.asarray(alphas, dtype=float):
@@ -359,6 +360,8 @@ def sweep_alpha(problem: QBProblem, alphas: Sequence[float] | NDArray[np.float64
             sols.append(solve_qb_lmi(problem, float(a), solver=solver))
         except QBInfeasibleError as exc:
             failed.append((float(a), str(exc)))
+        if progress is not None:
+            progress(1)
     if not sols:
         raise QBInfeasibleError(f"QB design infeasible at every alpha of the sweep {list(alphas)}: {failed[0][1]}")
     return AlphaSweep(alphas=np.array([s.alpha for s in sols]), log_volumes=np.array([s.log_volume for s in sols]),

@@ -145,7 +145,7 @@ def test_sensitivity_varies_each_assumption_alone(monkeypatch: pytest.MonkeyPatc
 
     seen = []
 
-    def fake(columns, duties, seeds, hover, on, off, a, sensors, rate, box, progress=False):
+    def fake(columns, duties, seeds, hover, on, off, a, sensors, rate, box, progress=False, tick=None):
         seen.append(a)
         return {(c, d): {"mean_position_error": np.array([0.1 if c == "px4" else 0.04]),
                          "paper_position_error": np.array([0.1 if c == "px4" else 0.04]), "failures": [""]}

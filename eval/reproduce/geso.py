@@ -42,6 +42,7 @@ from fawtgym.agents.backstepping_quat import (
 from fawtgym.cli_parser import ArgumentParser, check_output_dir, nonnegative_float, positive_float
 from fawtgym.envs.frames import quat_to_rot, rot_to_euler
 from fawtgym.eval.reproduce import claims as C
+from fawtgym.eval.reproduce.progress import Progress, add_flag, bar, tick
 from fawtgym.observers import make_observer
 from fawtgym.observers.geso import error_magnitude, error_magnitude_lowfreq, geso_gains
 
@@ -97,8 +98,11 @@ def _plant_rhs(q: NDArray[np.float64], w: NDArray[np.float64], u: NDArray[np.flo
 
 def simulate(t_end: float = 20.0, dt: float = 1e-3, substeps: int = 1, bandwidth: float = BANDWIDTH,
              inertia_error: float = INERTIA_ERROR, variants: Sequence[str] = VARIANTS,
-             cases: Sequence[int] = CASES) -> dict[str, object]:
-    """Run every (variant, case) in one batch; returns time series keyed by name."""
+             cases: Sequence[int] = CASES, progress: Progress | None = None) -> dict[str, object]:
+    """Run every (variant, case) in one batch; returns time series keyed by name.
+
+    ``progress``, if given, is called with 1 after each of the ``round(t_end / dt) + 1`` control steps.
+    """
     if not (t_end > 0 and dt > 0 and substeps >= 1 and t_end / dt >= 10):
         raise ValueError(f"need t_end > 0, dt > 0, substeps >= 1 and >= 10 steps; got {t_end}, {dt}, {substeps}")
     for v in variants:
@@ -136,6 +140,7 @@ def simulate(t_end: float = 20.0, dt: float = 1e-3, substeps: int = 1, bandwidth
                 d_hat[idx] = obs.update({"angular_velocity": w[idx]}, zeros_thrust[v], u[idx], dt).torque
         u = ctrl.torque(q, w, q_d[k], w_d[k], dw_d[k], disturbance=d_hat)
         q_rec[k], w_rec[k], u_rec[k], dhat_rec[k] = q, w, u, d_hat
+        tick(progress)
         if k == steps:
             break
         for s in range(substeps):  # RK4 with the torque held (zero-order hold)
@@ -463,13 +468,15 @@ def _run(argv: Sequence[str] | None) -> tuple[C.StudyOutcome, list[str]]:
     parser.add_argument("--steady-from", type=nonnegative_float, default=2.0,
                         help="start of the 'steady' RMS window [s]")
     parser.add_argument("--no-figures", action="store_true")
+    add_flag(parser)
     ns = parser.parse_args(list(argv) if argv is not None else None)
     check_output_dir(parser, "--out", ns.out)
     t_end = ns.t_end if ns.t_end is not None else (6.0 if ns.quick else 20.0)
     if not 0 <= ns.steady_from < t_end:
         parser.error(f"need 0 <= --steady-from < the horizon {t_end:g} s, got {ns.steady_from:g}")
     ns.out.mkdir(parents=True, exist_ok=True)
-    sim = simulate(t_end=t_end, dt=ns.dt)
+    with bar(int(round(t_end / ns.dt)) + 1, "geso", disable=ns.no_progress) as progress:
+        sim = simulate(t_end=t_end, dt=ns.dt, progress=progress)
     full = rms_table(sim, 0.0)
     steady = rms_table(sim, ns.steady_from)
     keys = list(full[0])

@@ -32,6 +32,7 @@ from scipy.integrate import solve_ivp
 
 from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
 from fawtgym.eval.reproduce import claims as C
+from fawtgym.eval.reproduce.progress import Progress, add_flag, bar, tick
 from fawtgym.observers import vector_attitude as va
 from fawtgym.observers.hc_eso_so3 import HcEsoGains, hc_eso_step
 from fawtgym.observers.lie import exp_so3, log_so3, project_so3, vee
@@ -83,8 +84,10 @@ def simulate_truth(t_eval: NDArray[np.float64]) -> tuple[NDArray[np.float64], ND
 
 
 def run(t_end: float = 60.0, h: float = 0.01, seed: int = 0, centered_noise: bool = False,
-        noise_scale: float = 1.0) -> dict[str, NDArray[np.float64]]:
+        noise_scale: float = 1.0, progress: Progress | None = None) -> dict[str, NDArray[np.float64]]:
     """Run the Sec. 6 simulation; returns time series of the estimation errors.
+
+    ``progress``, if given, is called with 1 after each of the ``round(t_end / h) + 1`` measurement steps.
 
     Beside the HC-ESO's errors, the same data give the *trivial estimator*'s (keys ``triv_*``): the static
     Wahba solution of the vectors measured at that step (:func:`fawtgym.observers.vector_attitude.solve_wahba`,
@@ -119,6 +122,7 @@ def run(t_end: float = 60.0, h: float = 0.01, seed: int = 0, centered_noise: boo
         out["morse"][i] = np.sum(MORSE_K * (1.0 - np.diag(q)))  # <K, I - Q>, eq. 14
         out["omega_err"][i] = w_true[i] - w_hat[0]
         out["sigma_err"][i] = sigma_true[i] - s_hat[0]
+        tick(progress)
         if i == n - 1:
             break
         tau = control_torque(r_true[i])[None]
@@ -323,13 +327,16 @@ def _run(argv: Sequence[str] | None) -> tuple[C.StudyOutcome, list[str]]:
                         help="noise seeds; verdicts on the median, spread printed (default 0,1,2,3,4)")
     parser.add_argument("--centered-noise", action="store_true", help="zero-mean uniform noise instead of 0.05 rand")
     parser.add_argument("--no-figures", action="store_true")
+    add_flag(parser)
     ns = parser.parse_args(list(argv) if argv is not None else None)
     check_output_dir(parser, "--out", ns.out)
     t_end = ns.t_end if ns.t_end is not None else (20.0 if ns.quick else 60.0)
     ns.out.mkdir(parents=True, exist_ok=True)
-    runs = [run(t_end=t_end, h=ns.step, seed=s, centered_noise=ns.centered_noise) for s in ns.seeds]
+    with bar((len(ns.seeds) + 1) * (int(round(t_end / ns.step)) + 1), "hc-eso", disable=ns.no_progress) as progress:
+        runs = [run(t_end=t_end, h=ns.step, seed=s, centered_noise=ns.centered_noise, progress=progress)
+                for s in ns.seeds]
+        noiseless = run(t_end=t_end, h=ns.step, seed=ns.seeds[0], noise_scale=0.0, progress=progress)
     res = runs[0]
-    noiseless = run(t_end=t_end, h=ns.step, seed=ns.seeds[0], noise_scale=0.0)
     nb, nb0 = over_seeds([neighbourhood(r) for r in runs]), neighbourhood(noiseless)
     with open(ns.out / "hc_eso_errors.csv", "w", newline="") as fh:
         wr = csv.writer(fh)

@@ -41,6 +41,7 @@ from scipy.integrate import solve_ivp
 from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
 from fawtgym.cli_parser import seed as seed_arg
 from fawtgym.eval.reproduce import claims as C
+from fawtgym.eval.reproduce.progress import Progress, add_flag, bar, tick
 from fawtgym.observers import pdt_sta as P
 from fawtgym.observers.gyroless_attitude import (
     GibbsSTSMO,
@@ -170,8 +171,11 @@ def quest_measurements(g: NDArray[np.float64], noise: bool, seed: int = 0) -> ND
 
 
 def run_case(case: Sec5Case, ts: float = 1e-4, t_f: float = 3.0, omega_source: str = "forcing", seed: int = 0,
-             truth: tuple[NDArray, NDArray, NDArray] | None = None) -> Sec5Result:
-    """One Sec.-5 simulation; returns ||g - g_hat|| and ||omega - omega_hat|| on the grid."""
+             truth: tuple[NDArray, NDArray, NDArray] | None = None, progress: Progress | None = None) -> Sec5Result:
+    """One Sec.-5 simulation; returns ||g - g_hat|| and ||omega - omega_hat|| on the grid.
+
+    ``progress``, if given, is called with 1 after each of the ``round(t_f / ts)`` observer steps.
+    """
     n = int(round(t_f / ts))
     t, g, w = truth if truth is not None else (np.arange(n + 1) * ts, *simulate_truth(np.arange(n + 1) * ts))
     y = quest_measurements(g, case.noise, seed)
@@ -189,6 +193,7 @@ def run_case(case: Sec5Case, ts: float = 1e-4, t_f: float = 3.0, omega_source: s
     for k in range(n):
         obs.step(y[k][None], u[k][None], ts, omega=wf[k][None] if omega_source == "forcing" else None)
         x1[k + 1], wh[k + 1] = obs.x1[0], obs.omega[0]
+        tick(progress)
     w_fd = np.empty_like(w)
     w_fd[1:] = omega_from_gibbs(y[1:], np.diff(y, axis=0) / ts)
     w_fd[0] = w_fd[1]
@@ -297,16 +302,24 @@ def bounded(m: dict[str, float]) -> bool:
 
 
 def seed_sweep(seeds: Sequence[int] = NOISE_SEEDS, ts: float = 1e-4, t_f: float = 2.0,
-               cases: Sequence[str] = ("fig8", "fig9", "fig9_eq44", "fig8_exact")) -> dict[str, list[dict[str, float]]]:
-    """:func:`metrics` of the noisy cases over noise seeds (the switch window and [t_c + 0.25, t_f]; t_f = 2 s)."""
+               cases: Sequence[str] = ("fig8", "fig9", "fig9_eq44", "fig8_exact"), progress: Progress | None = None
+               ) -> dict[str, list[dict[str, float]]]:
+    """:func:`metrics` of the noisy cases over noise seeds (the switch window and [t_c + 0.25, t_f]; t_f = 2 s).
+
+    ``progress`` is passed to :func:`run_case`."""
     n = int(round(t_f / ts))
     t = np.arange(n + 1) * ts
     g, w = simulate_truth(t)
     out: dict[str, list[dict[str, float]]] = {}
-    for case in CASES:
-        if case.noise and case.name in cases:
-            out[case.name] = [metrics(run_case(case, ts, t_f, seed=seed, truth=(t, g, w))) for seed in seeds]
+    for case in _sweep_cases(cases):
+        out[case.name] = [metrics(run_case(case, ts, t_f, seed=seed, truth=(t, g, w), progress=progress))
+                          for seed in seeds]
     return out
+
+
+def _sweep_cases(cases: Sequence[str]) -> list[Sec5Case]:
+    """The noisy cases of :data:`CASES` named in ``cases``: what :func:`seed_sweep` flies per seed."""
+    return [c for c in CASES if c.noise and c.name in cases]
 
 
 def median_spread(runs: Sequence[dict[str, float]], key: str) -> tuple[float, float, float]:
@@ -559,13 +572,13 @@ def paper_claims(result: dict[str, object]) -> list[C.Claim]:
 # ---- main ----------------------------------------------------------------------------------------
 def run_all(out: pathlib.Path, quick: bool = False, omega_source: str = "forcing", figures: bool = True,
             seed: int = 0, ts: float | None = None, t_f: float | None = None,
-            seeds: Sequence[int] | None = None) -> dict[str, object]:
+            seeds: Sequence[int] | None = None, show_progress: bool = False) -> dict[str, object]:
     """Everything; writes CSV/Markdown/figures into ``out`` and returns the numbers.
 
     ``ts`` / ``t_f``: Sec. 5 step and horizon (default: the paper's 1e-4 s and 3 s; quick 1e-3 s and 2 s).
     ``seed``: the noise seed of the per-case table and figures; ``seeds``: the noise seeds over which the noisy
     claims (Figs. 8-9) are decided (median, spread printed; default 0-4, quick 0-2; the full run sweeps the two
-    "ours" variants as well).
+    "ours" variants as well).  ``show_progress``: a progress bar over the observer steps of every simulation.
     """
     out.mkdir(parents=True, exist_ok=True)
     ex = example1()
@@ -586,7 +599,14 @@ def run_all(out: pathlib.Path, quick: bool = False, omega_source: str = "forcing
     n = int(round(t_f / ts))
     t = np.arange(n + 1) * ts
     g, w = simulate_truth(t)
-    results = {c.name: run_case(c, ts, t_f, omega_source, seed=seed, truth=(t, g, w)) for c in CASES}
+    seeds = tuple(seeds) if seeds is not None else (NOISE_SEEDS[:3] if quick else NOISE_SEEDS)
+    sweep_names = ("fig8", "fig9") if quick else ("fig8", "fig9", "fig9_eq44", "fig8_exact")
+    n_sweep = int(round(min(t_f, 2.0) / ts)) * len(seeds) * len(_sweep_cases(sweep_names))
+    with bar(len(CASES) * n + n_sweep, "pdt-sta", disable=not show_progress) as progress:
+        results = {c.name: run_case(c, ts, t_f, omega_source, seed=seed, truth=(t, g, w), progress=progress)
+                   for c in CASES}
+        sweep: dict[str, list[dict[str, float]]] = (
+            seed_sweep(seeds, ts, min(t_f, 2.0), sweep_names, progress) if seeds else {})
     mets = {k: metrics(r) for k, r in results.items()}
     keys = list(next(iter(mets.values())))
     with open(out / "sec5.csv", "w", newline="") as fh:
@@ -638,11 +658,7 @@ def run_all(out: pathlib.Path, quick: bool = False, omega_source: str = "forcing
                      f"{m['w_err_max_late']:.2e} ({m['w_err_max_late'] / ws:.2f}) | {m['departure']:.2f} | "
                      f"{m['settle_time']:.4g} | {m['triv_g_late']:.1e} | {m['triv_w_forcing_late'] / ws:.2f} | "
                      f"{m['triv_w_fd_late'] / ws:.2g} |")
-    sweep: dict[str, list[dict[str, float]]] = {}
-    seeds = tuple(seeds) if seeds is not None else (NOISE_SEEDS[:3] if quick else NOISE_SEEDS)
     if seeds:
-        sweep = seed_sweep(seeds, ts, min(t_f, 2.0), ("fig8", "fig9") if quick else
-                           ("fig8", "fig9", "fig9_eq44", "fig8_exact"))
         lines += ["", f"Noisy cases over noise seeds {', '.join(map(str, seeds))} (t_f = {min(t_f, 2.0):g} s; the "
                   "noise at a step does not depend on the run's length, so seed "
                   f"{seed} here matches the table above over the common part):", "",
@@ -682,6 +698,7 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--seed", type=seed_arg, default=0, help="noise seed of the table and figures (Figs. 8-9)")
     parser.add_argument("--seeds", type=str, default=None,
                         help="noise seeds deciding Figs. 8-9, comma-separated (default 0,1,2,3,4; quick 0,1,2)")
+    add_flag(parser)
     ns = parser.parse_args(list(argv) if argv is not None else None)
     check_output_dir(parser, "--out", ns.out)
     if ns.ts is not None and not ns.ts > 0:
@@ -701,7 +718,8 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
 def reproduce(argv: Sequence[str] | None = None) -> C.StudyOutcome:
     """Parse ``argv`` as the command line, run the study, write its files; returns its claims and figures."""
     ns = _parse(argv)
-    res = run_all(pathlib.Path(ns.out), ns.quick, ns.omega, not ns.no_figures, ns.seed, ns.ts, ns.t_final, ns.seeds)
+    res = run_all(pathlib.Path(ns.out), ns.quick, ns.omega, not ns.no_figures, ns.seed, ns.ts, ns.t_final, ns.seeds,
+                  show_progress=not ns.no_progress)
     sweep = res["seed_sweep"]
     n_sw = len(next(iter(sweep.values()))) if sweep else 0  # type: ignore[union-attr]
     settings = (f"Sec. 5 at T_s = {res['ts']:g} s, t_f = {res['t_f']:g} s, noise seed {ns.seed}"
@@ -711,7 +729,8 @@ def reproduce(argv: Sequence[str] | None = None) -> C.StudyOutcome:
 
 def main(argv: Sequence[str] | None = None) -> int:
     ns = _parse(argv)
-    run_all(pathlib.Path(ns.out), ns.quick, ns.omega, not ns.no_figures, ns.seed, ns.ts, ns.t_final, ns.seeds)
+    run_all(pathlib.Path(ns.out), ns.quick, ns.omega, not ns.no_figures, ns.seed, ns.ts, ns.t_final, ns.seeds,
+            show_progress=not ns.no_progress)
     print((pathlib.Path(ns.out) / "summary.md").read_text())
     return 0
 

@@ -40,6 +40,7 @@ from scipy.optimize import minimize_scalar
 
 from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
 from fawtgym.eval.reproduce import claims as C
+from fawtgym.eval.reproduce.progress import Progress, add_flag, bar
 from fawtgym.observers.qb_design import (
     AlphaSweep,
     ParetoAnchors,
@@ -196,12 +197,22 @@ def _write_csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[float]
 
 
 def run(out: Path, quick: bool = False, solver: str | None = None, figures: bool = True,
-        t_end: float | None = None) -> dict[str, Any]:
-    """Run the whole study; returns the numbers written to ``qb_summary.md``."""
+        t_end: float | None = None, show_progress: bool = False) -> dict[str, Any]:
+    """Run the whole study; returns the numbers written to ``qb_summary.md``.
+
+    ``show_progress``: a progress bar over the jobs: one SDP per alpha of the grid, the two line searches of
+    Fig. 7 and its simulations (two gains x (noisy and noise-free + the extra noise seeds)).
+    """
     out.mkdir(parents=True, exist_ok=True)
-    problem = uav_model()
     grid = QUICK_GRID if quick else FULL_GRID
-    sweep = sweep_alpha(problem, grid, solver=solver)
+    with bar(grid.size + 2 + 2 * (2 + len(NOISE_SEEDS) - 1), "qb", unit="job", disable=not show_progress) as tick:
+        return _run_study(out, grid, solver, figures, t_end, quick, tick)
+
+
+def _run_study(out: Path, grid: NDArray[np.float64], solver: str | None, figures: bool, t_end: float | None,
+               quick: bool, tick: Progress) -> dict[str, Any]:
+    problem = uav_model()
+    sweep = sweep_alpha(problem, grid, solver=solver, progress=tick)
     anchors = anchors_from_sweep(sweep)
     res7 = [lmi_residuals(problem, s) for s in sweep.solutions]
     _write_csv(out / "qb_fig4_volume.csv",
@@ -226,8 +237,10 @@ def run(out: Path, quick: bool = False, solver: str | None = None, figures: bool
     for mu in (0.2, 0.95):
         gains[mu] = design_uav_gain(HUMMINGBIRD_MASS, HUMMINGBIRD_INERTIA, mu, sweep=sweep, solver=solver,
                                     vehicle="hummingbird")
+        tick(1)
     horizon = t_end if t_end is not None else (50.0 if not quick else 50.0)
-    sims = {(mu, nz): simulate_fig7(gains[mu], t_end=horizon, noise=nz) for mu in gains for nz in (True, False)}
+    sims = {(mu, nz): _counted(simulate_fig7(gains[mu], t_end=horizon, noise=nz), tick)
+            for mu in gains for nz in (True, False)}
     t = sims[(0.2, True)]["t"]
     _write_csv(out / "qb_fig7_estimation.csv",
                ["t", "d_true", "dhat_mu0.2", "dhat_mu0.95", "dhat_mu0.2_noisefree", "dhat_mu0.95_noisefree"],
@@ -235,9 +248,9 @@ def run(out: Path, quick: bool = False, solver: str | None = None, figures: bool
                  float(sims[(0.95, True)]["d_hat"][i]), float(sims[(0.2, False)]["d_hat"][i]),
                  float(sims[(0.95, False)]["d_hat"][i])] for i in range(t.size)])
     # the noisy error region over noise seeds (seed 0 is the run above): median decides, spread printed
-    regions = {mu: [error_region(sims[(mu, True)])] + [error_region(simulate_fig7(gains[mu], t_end=horizon,
-                                                                                  noise=True, seed=sd))
-                                                       for sd in NOISE_SEEDS[1:]] for mu in gains}
+    regions = {mu: [error_region(sims[(mu, True)])] + [
+        error_region(_counted(simulate_fig7(gains[mu], t_end=horizon, noise=True, seed=sd), tick))
+        for sd in NOISE_SEEDS[1:]] for mu in gains}
     d_true = sims[(0.2, True)]["d"]
     win = (t >= 37.0) & (t < 45.0)
     summary = {
@@ -265,6 +278,12 @@ def run(out: Path, quick: bool = False, solver: str | None = None, figures: bool
 
 #: noise seeds of the Fig. 7 error region (median decides, min-max printed)
 NOISE_SEEDS = (0, 1, 2, 3, 4)
+
+
+def _counted(sim: dict[str, NDArray[np.float64]], tick: Progress) -> dict[str, NDArray[np.float64]]:
+    """``sim``, after one tick of the progress bar (one Fig. 7 simulation done)."""
+    tick(1)
+    return sim
 
 
 def _median_region(regions: Sequence[dict[str, float]]) -> dict[str, float]:
@@ -553,6 +572,7 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--design-for", default=None, metavar="PRESET",
                         help="only design and save a gain for this vehicle preset (see fawtgym list)")
     parser.add_argument("--mu", type=float, default=0.5, help="trade-off mu for --design-for (default 0.5)")
+    add_flag(parser)
     ns = parser.parse_args(list(argv) if argv is not None else None)
     check_output_dir(parser, "--out", ns.out)
     if not 0 <= ns.mu <= 1:
@@ -589,7 +609,8 @@ def reproduce(argv: Sequence[str] | None = None) -> C.StudyOutcome:
     ns = _parse(argv)
     if ns.design_for:
         raise ValueError("--design-for designs a gain; it is not a reproduction (use `fawtgym reproduce qb`)")
-    s = run(ns.out, quick=ns.quick, solver=ns.solver, figures=not ns.no_figures, t_end=ns.t_end)
+    s = run(ns.out, quick=ns.quick, solver=ns.solver, figures=not ns.no_figures, t_end=ns.t_end,
+            show_progress=not ns.no_progress)
     figs = [] if ns.no_figures else [ns.out / f for f in FIGURES]
     settings = (f"{s['sweep'].alphas.size} SDPs over alpha in [{s['sweep'].alphas.min():g}, "
                 f"{s['sweep'].alphas.max():g}]; Fig. 7 designs by the eq. 25 line search")
@@ -601,7 +622,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if ns.design_for:
         design_for(ns.design_for, ns.mu, ns.out, solver=ns.solver, quick=ns.quick)
         return 0
-    s = run(ns.out, quick=ns.quick, solver=ns.solver, figures=not ns.no_figures, t_end=ns.t_end)
+    s = run(ns.out, quick=ns.quick, solver=ns.solver, figures=not ns.no_figures, t_end=ns.t_end,
+            show_progress=not ns.no_progress)
     print((ns.out / "qb_summary.md").read_text())
     return 0 if all(s["claims"].values()) else 1
 

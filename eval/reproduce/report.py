@@ -36,6 +36,7 @@ from pathlib import Path
 from fawtgym.cli_parser import ArgumentParser
 from fawtgym.eval.html_page import HtmlPage
 from fawtgym.eval.reproduce import claims as C
+from fawtgym.eval.reproduce.progress import FLAG, add_flag
 
 PROG = "fawtgym reproduce all"
 
@@ -148,6 +149,7 @@ def _parser() -> ArgumentParser:
                    help="output folder: report.md, index.html, claims.json and one subfolder per study")
     p.add_argument("--only", type=str, default=None, metavar="NAMES",
                    help=f"comma list of studies to run (default all: {names})")
+    add_flag(p)  # the bar over the studies; each study runs with --no-progress (its stderr goes to its log.txt)
     return p
 
 
@@ -167,7 +169,8 @@ def _check_writable(out: Path) -> str | None:
 
 def run_study(study: Study, out: Path, quick: bool) -> StudyRun:
     """Run one study into ``out / study.name``; its stdout and stderr go to ``log.txt`` there; never raises
-    (except KeyboardInterrupt): an exception becomes the run's ``error``."""
+    (except KeyboardInterrupt): an exception becomes the run's ``error``.  The study runs with ``--no-progress``
+    (its bar would go to the log); ``argv`` records the command line without it."""
     folder = out / study.name
     argv = [*(study.quick_args if quick else study.full_args), "--out", str(folder)]
     folder.mkdir(parents=True, exist_ok=True)
@@ -177,7 +180,7 @@ def run_study(study: Study, out: Path, quick: bool) -> StudyRun:
     try:
         module = importlib.import_module(f"fawtgym.eval.reproduce.{study.module}")
         with contextlib.redirect_stdout(log), contextlib.redirect_stderr(log):
-            run.outcome = module.reproduce(argv)
+            run.outcome = module.reproduce([*argv, FLAG])
     except KeyboardInterrupt:
         raise
     except SystemExit as exc:  # argparse inside a study: a bug of this table, reported as the study's error
@@ -397,7 +400,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     command = " ".join([PROG, *argv])
     t0 = time.perf_counter()
     runs: list[StudyRun] = []
-    with tqdm(total=len(studies), unit="study", file=sys.stderr, dynamic_ncols=True) as bar:
+    with tqdm(total=len(studies), unit="study", file=sys.stderr, dynamic_ncols=True, disable=ns.no_progress) as bar:
         for study in studies:
             bar.set_description(f"{study.name}")
             run = run_study(study, ns.out, ns.quick)

@@ -669,12 +669,13 @@ def _run(argv: Sequence[str] | None) -> tuple[StudyResult, Path, list[Path], flo
     ns.out.mkdir(parents=True, exist_ok=True)
     from tqdm.auto import tqdm
 
-    with tqdm(total=int(round(seconds / plant.STEP)), desc="seed000-sim", unit="step", leave=False,
+    seeds = [ns.seed] + ([ns.seed + k for k in range(1, n_seeds)] if True in cases else [])
+    with tqdm(total=len(seeds) * int(round(seconds / plant.STEP)), desc="seed000-sim", unit="step", leave=False,
               disable=ns.no_progress, dynamic_ncols=True) as bar:
         res = run_study(seconds=seconds, noise_cases=cases, seed=ns.seed, progress=bar.update)
-    seeds = [ns.seed] + ([ns.seed + k for k in range(1, n_seeds)] if True in cases else [])
-    results = [res] + [with_noisy_cases_of(res, run_study(seconds=seconds, noise_cases=(True,), seed=sd))
-                       for sd in seeds[1:]]
+        results = [res] + [with_noisy_cases_of(res, run_study(seconds=seconds, noise_cases=(True,), seed=sd,
+                                                              progress=bar.update))
+                           for sd in seeds[1:]]
     claims = claims_over_seeds(results, seeds)
     write_csv(res, ns.out / "seed000_rms.csv")
     figs = plot(res, ns.out)

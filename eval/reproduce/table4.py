@@ -48,7 +48,15 @@ import numpy as np
 from fawtgym.agents.spec import FFTS_ESO_FLIGHT_GAINS
 from fawtgym.cli_parser import ArgumentParser
 from fawtgym.eval.reproduce import claims as C
-from fawtgym.eval.reproduce.table4_flight import PAPER_SCHEDULE, SENSITIVITY_RANGES, Assumptions, failure_fraction, fly
+from fawtgym.eval.reproduce.progress import Progress, add_flag, bar
+from fawtgym.eval.reproduce.table4_flight import (
+    PAPER_SCHEDULE,
+    SENSITIVITY_RANGES,
+    Assumptions,
+    failure_fraction,
+    flight_steps,
+    fly,
+)
 
 #: Wang et al. 2024, Table 4 (time-averaged tracking error): duty -> (pos PX4, pos PX4+ESO, att PX4, att PX4+ESO);
 #: None = "Failed!".
@@ -664,6 +672,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--box", action="store_true", help="also fail a run that leaves the +-2 m box (old rule)")
     parser.add_argument("--sensitivity", action="store_true",
                         help="also fly each assumption at the ends of its documented range (docs/fidelity.md)")
+    add_flag(parser)
     return parser
 
 
@@ -710,46 +719,69 @@ def _resolve(args: argparse.Namespace, parser: argparse.ArgumentParser) -> None:
 
 def fly_study(columns: Sequence[str], duties: Sequence[float], seeds: Sequence[int], hover: float, on: float,
               off: float, assumptions: Assumptions, sensors: str, control_rate: float, box: bool,
-              progress: bool = False) -> dict[tuple[str, Any], dict[str, Any]]:
-    """Every (column, duty) cell: one batched env per column holding every (duty, seed) row."""
+              progress: bool = False, tick: Progress | None = None) -> dict[tuple[str, Any], dict[str, Any]]:
+    """Every (column, duty) cell: one batched env per column holding every (duty, seed) row.
+
+    ``progress``: print one line per finished column; ``tick``: a progress callback passed to :func:`fly`
+    (``len(columns) * flight_steps(hover, control_rate)`` steps in all).
+    """
     results: dict[tuple[str, Any], dict[str, Any]] = {}
     rows = [(d, s) for d in duties for s in seeds]
     for c in columns:
         t1 = time.time()
         flown = fly(c, rows, hover, on, off, assumptions, sensors, control_rate, box,
-                    observer_kwargs=FLIGHT_GAINS if c == "px4+ffts_eso" else None)
+                    observer_kwargs=FLIGHT_GAINS if c == "px4+ffts_eso" else None, progress=tick)
         for d, cell in cells_of(flown, hover, on, off).items():
             results[(c, d)] = cell
         if progress:
             vals = ", ".join(f"{_duty_label(d)}: {_fmt(_cell_value(results[(c, d)], 'mean_position_error'))}"
                              for d in duties)
-            print(f"{c:>16s}: pos over our hover {vals} ({time.time() - t1:.0f} s)", flush=True)
+            _say(f"{c:>16s}: pos over our hover {vals} ({time.time() - t1:.0f} s)")
     return results
 
 
 def run_sensitivity(columns: Sequence[str], duties: Sequence[float], seeds: Sequence[int], hover: float, on: float,
                     off: float, base: Assumptions, sensors: str, control_rate: float, box: bool,
-                    progress: bool = False) -> list[dict[str, Any]]:
-    """Each assumption of :data:`SENSITIVITY_RANGES` at each end of its range, the others at ``base``."""
+                    progress: bool = False, tick: Progress | None = None) -> list[dict[str, Any]]:
+    """Each assumption of :data:`SENSITIVITY_RANGES` at each end of its range, the others at ``base``.
+
+    ``progress``: print one line per finished assumption value; ``tick``: passed to :func:`fly_study`.
+    """
     rows: list[dict[str, Any]] = []
     on_paper = (hover, on, off) == PAPER_SCHEDULE
     key = "mean_position_error" if on_paper else "paper_position_error"
+    for name, value, a in sensitivity_cases(base, control_rate):
+        res = fly_study(columns, duties, seeds, hover, on, off, a, sensors, control_rate, box, tick=tick)
+        for d in duties:
+            b_cell, e_cell = res[(columns[0], d)], res[(columns[-1], d)]
+            rows.append({"name": name, "value": value, "duty": d, "px4": _cell_value(b_cell, key),
+                         "eso": _cell_value(e_cell, key),
+                         "fail_px4": "{}/{}".format(*failure_fraction(b_cell["failures"])[:2]),
+                         "fail_eso": "{}/{}".format(*failure_fraction(e_cell["failures"])[:2])})
+        if progress:
+            _say(f"sensitivity {name} = {value!r}: done")
+    return rows
+
+
+def sensitivity_cases(base: Assumptions, control_rate: float) -> list[tuple[str, Any, Assumptions]]:
+    """(name, value, assumptions) of :func:`run_sensitivity`: each end of each range whose pose latency is a
+    whole number of control periods."""
+    cases = []
     for name, values in SENSITIVITY_RANGES.items():
         for value in values:
             a = base.replace(**{name: value})
             steps = a.pose_latency * control_rate
-            if abs(steps - round(steps)) > 1e-6:
-                continue
-            res = fly_study(columns, duties, seeds, hover, on, off, a, sensors, control_rate, box)
-            for d in duties:
-                b_cell, e_cell = res[(columns[0], d)], res[(columns[-1], d)]
-                rows.append({"name": name, "value": value, "duty": d, "px4": _cell_value(b_cell, key),
-                             "eso": _cell_value(e_cell, key),
-                             "fail_px4": "{}/{}".format(*failure_fraction(b_cell["failures"])[:2]),
-                             "fail_eso": "{}/{}".format(*failure_fraction(e_cell["failures"])[:2])})
-            if progress:
-                print(f"sensitivity {name} = {value!r}: done", flush=True)
-    return rows
+            if abs(steps - round(steps)) <= 1e-6:
+                cases.append((name, value, a))
+    return cases
+
+
+def _say(line: str) -> None:
+    """Print a line to stdout without breaking a progress bar on stderr."""
+    from tqdm.auto import tqdm
+
+    tqdm.write(line, file=sys.stdout)
+    sys.stdout.flush()
 
 
 def reproduce(argv: Sequence[str] | None = None, progress: bool = True) -> C.StudyOutcome:
@@ -774,12 +806,17 @@ def reproduce(argv: Sequence[str] | None = None, progress: bool = True) -> C.Stu
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
-    results = fly_study(columns, duties, seeds, args.hover_seconds, args.fan_on, args.fan_off, args.assumptions,
-                        args.sensors, args.control_rate, args.box, progress)
-    sens = None
-    if args.sensitivity:
-        sens = run_sensitivity([columns[0], columns[1]], duties, seeds, args.hover_seconds, args.fan_on,
-                               args.fan_off, args.assumptions, args.sensors, args.control_rate, args.box, progress)
+    flights = len(columns) + (2 * len(sensitivity_cases(args.assumptions, args.control_rate))
+                              if args.sensitivity else 0)
+    with bar(flights * flight_steps(args.hover_seconds, args.control_rate), "table4",
+             disable=args.no_progress) as tick:
+        results = fly_study(columns, duties, seeds, args.hover_seconds, args.fan_on, args.fan_off, args.assumptions,
+                            args.sensors, args.control_rate, args.box, progress, tick)
+        sens = None
+        if args.sensitivity:
+            sens = run_sensitivity([columns[0], columns[1]], duties, seeds, args.hover_seconds, args.fan_on,
+                                   args.fan_off, args.assumptions, args.sensors, args.control_rate, args.box,
+                                   progress, tick)
     wall = time.time() - t0
     figs = write_figures(results, duties, columns, out)
     report, ok = write_report(results, duties, columns, args, wall, out, sens)

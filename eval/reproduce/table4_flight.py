@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from fawtgym.envs.frames import FAWT_HOVER_POINT_NED, FAWT_ORIGIN_NED, R_FAWT_TO_NED
+from fawtgym.eval.reproduce.progress import Progress, tick
 
 #: distance of the hover point from the fan-array plane [m] (Wang et al. 2024, Sec. 7.3)
 ARRAY_DISTANCE = 1.5
@@ -105,6 +106,11 @@ def agent_for(column: str, env: Any, assumptions: Assumptions, observer_kwargs: 
     return PX4ObserverAgent.for_env(env, observer=column.split("+", 1)[1], observer_kwargs=observer_kwargs, **opts)
 
 
+def flight_steps(hover: float, control_rate: float) -> int:
+    """Control steps of one :func:`fly` over ``hover`` seconds at ``control_rate`` (the env's ``max_steps``)."""
+    return int(math.ceil(hover * control_rate - 1e-9))
+
+
 def vehicle_radius(preset: Any) -> float:
     """Arm length + rotor radius [m]: how close the centre can come to a wall before a rotor touches it."""
     return float(preset.arm_length + preset.rotor_radius)
@@ -112,9 +118,12 @@ def vehicle_radius(preset: Any) -> float:
 
 def fly(column: str, rows: Sequence[tuple[float, int]], hover: float, on: float, off: float,
         assumptions: Assumptions = Assumptions(), sensors: str = "mocap_imu", control_rate: float = 200.0,
-        box: bool = False, record_hz: float = 20.0, observer_kwargs: Mapping[str, Any] | None = None
-        ) -> dict[str, Any]:
+        box: bool = False, record_hz: float = 20.0, observer_kwargs: Mapping[str, Any] | None = None,
+        progress: Progress | None = None) -> dict[str, Any]:
     """Fly ``rows`` = [(duty %, seed), ...] with one controller; per-row traces and failure data.
+
+    ``progress``, if given, is called with the number of control steps done, :func:`flight_steps` in all
+    (the steps a flight skips once every row has failed are counted at its end).
 
     Returns arrays over rows: ``pos`` / ``att`` error traces (K, R) at every control step (NaN after a
     row failed), ``failure`` (R,) ("" if it held; else ``upstream_wall``, ``ground_contact``, ``out_of_bounds``
@@ -149,6 +158,7 @@ def fly(column: str, rows: Sequence[tuple[float, int]], hover: float, on: float,
         up, down = np.zeros(n), np.zeros(n)
         pos_tr, att_tr = np.full((steps, n), np.nan), np.full((steps, n), np.nan)
         restarted = np.zeros(n, dtype=bool)  # rows the env ended last step (it restarts them: so does the agent)
+        done = 0
         for k in range(steps):
             if restarted.any():
                 agent.reset(info, rows=restarted)
@@ -172,8 +182,12 @@ def fly(column: str, rows: Sequence[tuple[float, int]], hover: float, on: float,
                 failure[new_fail] = [r or "terminated" for r in reasons[new_fail]]
                 fail_time[new_fail] = (k + 1) * dt
                 alive &= ~new_fail
+            done = k + 1
+            tick(progress)
             if not alive.any():
                 break
+        if done < steps:
+            tick(progress, steps - done)
     finally:
         env.close()
     every = max(1, int(round(1.0 / (record_hz * dt))))
