@@ -121,6 +121,7 @@ CASES = [
     ["bench", "eval", "--workers", "0"],
     ["bench", "train", "--steps", "0"],
     ["bench", "train", "--threads", "0"],
+    ["bench", "train", "--rows", "0"],
     ["bench", "render", "--frames", "0"],
 ]
 
