@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.envs.frames import quat_to_rot
-from fawtgym.observers.lie import hat
+from fawtgym.core.frames import quat_to_rot
+from fawtgym.core.so3 import hat
 
 
 def cross3(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:

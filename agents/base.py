@@ -8,7 +8,7 @@ An agent turns what the env reports into an action, with the same two calls for 
     agent.reset(info, rows=mask)              # rows of a batched env that started a new episode (bool (N,))
 
 ``info`` is the env's info dict; agents read only the *sensor* side of it:
-``info["measurement"]`` (keys in :mod:`fawtgym.envs.measurement`), ``info["applied"]`` (the
+``info["measurement"]`` (keys in :mod:`fawtgym.core.measurement`), ``info["applied"]`` (the
 collective thrust [N] and body torque [N m] applied over the step just taken -- the known inputs of
 an observer) and, if present, ``info["setpoint"]`` (NED position setpoint).  ``info["truth"]`` is for
 metrics only and agents must not read it.
@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.envs.measurement import batch_measurement
+from fawtgym.core.measurement import batch_measurement
 
 
 class Agent(abc.ABC):

@@ -26,8 +26,8 @@ import dataclasses
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.so3 import hat, log_so3, vee
 from fawtgym.observers._obs_common import cross
-from fawtgym.observers.lie import hat, log_so3, vee
 
 _E3 = np.array([0.0, 0.0, 1.0])
 

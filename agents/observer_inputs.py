@@ -23,8 +23,8 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
+from fawtgym.core import measurement as M
 from fawtgym.core.rows import masked
-from fawtgym.envs import measurement as M
 
 #: the measurement keys the motion-capture link delivers (the rest comes from the onboard IMU)
 POSE_KEYS = (M.POSITION, M.VELOCITY, M.ATTITUDE)

@@ -48,8 +48,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.frames import FAWT_HOVER_POINT_NED
 from fawtgym.core.rows import check_row_mask, masked
-from fawtgym.envs.frames import FAWT_HOVER_POINT_NED
 from fawtgym.envs.motors import allocation_matrix
 from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
 

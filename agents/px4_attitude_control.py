@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.envs.frames import rot_to_quat
+from fawtgym.core.frames import rot_to_quat
 
 from .px4_params import PX4Params
 

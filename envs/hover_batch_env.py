@@ -115,11 +115,11 @@ from gymnasium.vector.utils import batch_space
 from mujoco import rollout
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.observers.lie import exp_so3
+from fawtgym.core import measurement as M
+from fawtgym.core.frames import SIGN2_MJ_NED, SIGN_MJ_NED, rot_ned_to_quat_mj
+from fawtgym.core.so3 import exp_so3
 
-from . import measurement as M
 from .ctbr import MAX_RATES, RateLoop
-from .frames import SIGN2_MJ_NED, SIGN_MJ_NED, rot_ned_to_quat_mj
 from .hover_env import INIT_SPREAD, HoverEnv, check_init_noise
 from .mjcf import hull_points
 from .motors import allocation_matrix

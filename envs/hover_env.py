@@ -153,12 +153,12 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.observers.lie import exp_so3
+from fawtgym.core import measurement as M
+from fawtgym.core.frames import FAWT_HOVER_POINT_NED, rot_ned_to_quat_mj, vec_ned_to_mj
+from fawtgym.core.so3 import exp_so3
 
-from . import measurement as M
 from .aero import AeroModel
 from .ctbr import MAX_RATES, RateLoop
-from .frames import FAWT_HOVER_POINT_NED, rot_ned_to_quat_mj, vec_ned_to_mj
 from .mjcf import INTEGRATORS, hull_points, vehicle_mjcf
 from .motors import allocation_matrix, hover_command
 from .observation import hover_observation, observation_bounds

@@ -25,7 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .frames import vec_ned_to_mj
+from fawtgym.core.frames import vec_ned_to_mj
+
 from .vehicles import GRAVITY, VehiclePreset
 
 #: MuJoCo integrators allowed by the env; the default is justified in :class:`HoverEnv`.

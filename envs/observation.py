@@ -27,7 +27,7 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import measurement as M
+from fawtgym.core import measurement as M
 
 #: observation entries per row
 OBS_SIZE = 19

@@ -5,7 +5,7 @@ Everything but the vehicle and the floor is drawn at render time as scene decora
 
 * the fan array of Wang et al. (2024), Sec. 7.1: a 1.44 m x 0.72 m wall of 18 x 9 = 162 fans of
   80 mm pitch, its face centred 1.5 m above the floor, the jet blowing north (+x) towards the hover
-  point 1.5 m downstream (:data:`fawtgym.envs.frames.FAWT_ORIGIN_NED`);
+  point 1.5 m downstream (:data:`fawtgym.core.frames.FAWT_ORIGIN_NED`);
 * the wind: a bold orange arrow at the vehicle is the wind vector at its centre of mass (the
   ``info["truth"]["wind"]`` of the last step), 0.1 m per m/s; the blue streaks across the jet carry
   the same vector at 0.14 m per m/s (the wind at the vehicle drawn across the jet, not a flow-field
@@ -29,7 +29,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from .frames import FAWT_ORIGIN_NED, vec_ned_to_mj
+from fawtgym.core.frames import FAWT_ORIGIN_NED, vec_ned_to_mj
 
 #: fan array (Wang et al. 2024, Sec. 7.1): columns x rows of fans, fan pitch [m], face centre (MuJoCo frame)
 FAN_COLUMNS, FAN_ROWS, FAN_PITCH = 18, 9, 0.08

@@ -5,7 +5,7 @@ power spectral density ``P = d^2``.  Sampled every ``dt`` seconds, white noise o
 has per-sample standard deviation ``sigma = d / sqrt(dt)``; this is how Wang et al. (2024) Table 2's PSDs
 (the eq. 39 noise model) become samples, independent of the rate.
 
-Groups and what they produce (see :mod:`fawtgym.envs.measurement` for the keys):
+Groups and what they produce (see :mod:`fawtgym.core.measurement` for the keys):
 
 * pose group (``position``, ``velocity``, ``attitude``) at ``pose_rate`` (motion capture fused by
   the autopilot's estimator; held between samples).  Attitude noise is ``R exp(Delta^x)``
@@ -37,9 +37,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fawtgym.observers.lie import exp_so3_floats, matmul33_floats
+from fawtgym.core import measurement as M
+from fawtgym.core.so3 import exp_so3_floats, matmul33_floats
 
-from . import measurement as M
 from .vehicles import GRAVITY
 
 

@@ -20,9 +20,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from fawtgym.observers.lie import exp_so3
+from fawtgym.core import measurement as M
+from fawtgym.core.so3 import exp_so3
 
-from . import measurement as M
 from .sensors import SensorModel, SensorSpec, make_sensor_spec
 from .vehicles import GRAVITY
 

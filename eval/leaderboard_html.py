@@ -210,7 +210,7 @@ def _safe(name: str) -> str:
 def _wind_psd_figure(board: Mapping[str, Any], results: Path, path: Path) -> bool:
     import scipy.signal
 
-    from fawtgym.envs.frames import FAWT_HOVER_POINT_NED
+    from fawtgym.core.frames import FAWT_HOVER_POINT_NED
     from fawtgym.envs.wind import make_wind
     from fawtgym.envs.wind.cli import analytic_psd
 

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.envs.measurement import batch_measurement
+from fawtgym.core.measurement import batch_measurement
 
 if TYPE_CHECKING:
     from fawtgym.observers.base import Observer

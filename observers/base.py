@@ -7,7 +7,7 @@ Model (Wang et al. (2024) eq. 38)::
 with world NED / body FRD.  An observer is built from (m, J) and its gains, is reset from a
 measurement and updated with the measurement and the *known applied* collective thrust ``f`` [N]
 and body torque ``tau`` [N m] (``info["applied"]`` of the env).  Everything is batch-first: the
-measurement arrays carry a leading axis N (see :mod:`fawtgym.envs.measurement`), ``thrust`` has
+measurement arrays carry a leading axis N (see :mod:`fawtgym.core.measurement`), ``thrust`` has
 shape (N,), ``torque`` (N, 3); a single vehicle is N = 1.  No Python loop over N.
 
 Per-row reset.  Rows of a batched env end at different times, so ``reset(measurement, rows=mask)``
@@ -28,8 +28,8 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.measurement import TRAILING_SHAPES, batch_measurement
 from fawtgym.core.rows import check_row_mask
-from fawtgym.envs.measurement import TRAILING_SHAPES, batch_measurement
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,7 +79,7 @@ class Observer(abc.ABC):
               torque: ArrayLike | None = None, *, rows: ArrayLike | None = None, **options: Any) -> None:
         """Initialize the state estimates from a measurement (and optionally initial disturbance guesses).
 
-        ``measurement``: batch-first mapping (:mod:`fawtgym.envs.measurement`) with the keys the observer
+        ``measurement``: batch-first mapping (:mod:`fawtgym.core.measurement`) with the keys the observer
         needs; ``force`` / ``torque``: initial guesses of phi_D (world NED) / tau_D (body FRD), shape (3,)
         (every row) or (N, 3), default zero (an observer that does not estimate a channel ignores its guess).
 

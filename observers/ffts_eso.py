@@ -28,7 +28,7 @@ e_Omega = Omega^m - E_R^T Omega_hat), e_R = s_K(E_R) (Lemma 5, eq. 41) and e_w =
 Discretisation: the measurement and the applied thrust/torque are held over ``dt`` (zero-order hold);
 the vector states are advanced by explicit Euler, the kinematic chains b_hat' = v_hat and
 R_hat' = R_hat Omega_hat^ exactly for the held accelerations (R_hat by the exponential map,
-:func:`fawtgym.observers.lie.integrate_rotation`, so R_hat stays on SO(3)).  The time derivative of
+:func:`fawtgym.core.so3.integrate_rotation`, so R_hat stays on SO(3)).  The time derivative of
 the fractional power (the H-terms) is unbounded at e = 0, so the fractional power is regularised as
 g(e) = max(e^T e, eps)^((1-p)/p) e (exact for |e| > sqrt(eps), linear inside) and its *exact* derivative
 is used (:func:`fawtgym.observers.hc_ffts.frac_power` / :func:`~fawtgym.observers.hc_ffts.frac_power_rate`), so the
@@ -57,6 +57,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.rows import write_rows
+from fawtgym.core.so3 import integrate_rotation, project_so3, vee
 from fawtgym.observers._obs_common import (
     all_finite,
     batch_vec,
@@ -68,7 +69,6 @@ from fawtgym.observers._obs_common import (
 )
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 from fawtgym.observers.hc_ffts import DEFAULT_EPS, check_p, euler_stable_eps, hurwitz_matrix
-from fawtgym.observers.lie import integrate_rotation, project_so3, vee
 
 _E3 = np.array([0.0, 0.0, 1.0])
 _TINY = 1e-300          # floor inside the fractional powers of phi1/phi2: x**neg * 0 stays 0, never inf*0

@@ -44,8 +44,8 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core import measurement as M
 from fawtgym.core.rows import write_rows
-from fawtgym.envs import measurement as M
 
 from ._obs_common import floats
 from .base import Observer, ObserverEstimate, register_observer

@@ -46,12 +46,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FORCE
 from fawtgym.core.rows import check_row_mask, write_rows
-from fawtgym.envs.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FORCE
+from fawtgym.core.so3 import hat, matmul33_floats, vee
 
 from ._obs_common import single_inputs
 from .base import Observer, ObserverEstimate, register_observer
-from .lie import hat, matmul33_floats, vee
 from .pdt_sta import check_params, switch_and_gain_times
 from .quest import _cross as _cross_any
 from .quest import _quest_unit_batch, quest_floats, quest_unit
@@ -512,7 +512,7 @@ class PdtStaAttitudeObserver(Observer):
 
         State: ``anchor`` (N, 3, 3) and the core's x1, x2 (N, 3) and t (N,) (:meth:`GibbsSTSMO.reset`, which
         syncs its N = 1 float state first); a new ``anchor`` array refreshes the N = 1 path's float copy of it."""
-        from fawtgym.envs.measurement import batch_measurement
+        from fawtgym.core.measurement import batch_measurement
 
         R_q, _ = self._quest(batch_measurement(measurement))
         self.core.reset(np.zeros((R_q.shape[0], 3)), rows=rows)

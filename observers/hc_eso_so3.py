@@ -37,15 +37,15 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core import measurement as M
+from fawtgym.core.measurement import TRAILING_SHAPES as _MEAS_TRAILING
 from fawtgym.core.rows import write_rows
-from fawtgym.envs import measurement as M
-from fawtgym.envs.measurement import TRAILING_SHAPES as _MEAS_TRAILING
+from fawtgym.core.so3 import _SMALL as _LIE_SMALL
+from fawtgym.core.so3 import exp_so3, exp_so3_floats, matmul33_floats
 
 from . import vector_attitude as va
 from ._obs_common import single_inputs
 from .base import Observer, ObserverEstimate, register_observer
-from .lie import _SMALL as _LIE_SMALL
-from .lie import exp_so3, exp_so3_floats, matmul33_floats
 
 #: the Morse-function gains K (Lemma 1) used when none are given; the paper's simulation does not state
 #: its K, any k1 > k2 > k3 >= 1 is admissible.
@@ -122,7 +122,7 @@ _EYE = np.eye(3)
 
 
 def _exp_so3(w: NDArray[np.float64]) -> NDArray[np.float64]:
-    """:func:`fawtgym.observers.lie.exp_so3` (same formulas and threshold, same numbers) evaluating only
+    """:func:`fawtgym.core.so3.exp_so3` (same formulas and threshold, same numbers) evaluating only
     the branch (Taylor series or Rodrigues) that the whole batch needs; a mixed batch goes to lie."""
     th2 = (w * w).sum(axis=-1)[..., None, None]
     small = th2 < _LIE_SMALL
@@ -209,7 +209,7 @@ _SINGLE_SHAPES = {k: (t, (1,) + t) for k, t in _MEAS_TRAILING.items()}
 
 
 def _single_shapes_ok(measurement: Mapping[str, object], torque: object) -> bool:
-    """True iff :func:`fawtgym.envs.measurement.batch_measurement` accepts ``measurement`` as an N = 1 batch
+    """True iff :func:`fawtgym.core.measurement.batch_measurement` accepts ``measurement`` as an N = 1 batch
     (every value a numeric numpy array/scalar, or a Python number under ``"time"`` or an unknown key; every
     known key shaped (trailing) or (1, *trailing)) and ``torque`` is (3,) or (1, 3).
 

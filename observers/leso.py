@@ -33,8 +33,8 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.frames import rot_to_euler
 from fawtgym.core.rows import write_rows
-from fawtgym.envs.frames import rot_to_euler
 from fawtgym.observers._obs_common import (
     batch_vec,
     check_finite,
@@ -141,7 +141,7 @@ class LESO(Observer):
         pd1 = p31 + (0.0 - fm * rm[5]) + b2 * e1
         pd2 = p32 + (self.gravity - fm * rm[8]) + b2 * e2
         g1, g2, g3 = self.beta_a
-        # rot_to_euler (envs/frames.py): Z-Y-X (roll, pitch, yaw)
+        # rot_to_euler (fawtgym/core/frames.py): Z-Y-X (roll, pitch, yaw)
         ea0 = math.atan2(rm[7], rm[8]) - a10
         ea1 = math.asin(min(max(-rm[6], -1.0), 1.0)) - a11
         ea2 = math.atan2(rm[3], rm[0]) - a12

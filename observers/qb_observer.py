@@ -51,8 +51,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import expm
 
+from fawtgym.core import measurement as M
 from fawtgym.core.rows import write_rows
-from fawtgym.envs import measurement as M
 
 from ._obs_common import floats
 from .base import Observer, ObserverEstimate, register_observer

@@ -23,9 +23,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.envs.measurement import EARTH_FIELD_NED
-
-from .lie import hat, vee
+from fawtgym.core.measurement import EARTH_FIELD_NED
+from fawtgym.core.so3 import hat, vee
 
 #: floor on s^T s in the Hölder terms (eqs. 26, 28, 30): they are continuous at s = 0 but their
 #: formulas divide by powers of |s|; below this the direction is undefined and the term is ~0.
@@ -151,7 +150,7 @@ def h_matrix(x: ArrayLike, alpha: float, gamma: float) -> NDArray[np.float64]:
 
 def solve_wahba(l: ArrayLike) -> NDArray[np.float64]:
     """Static attitude: the R_hat in SO(3) maximizing tr(L^T R_hat) (i.e. minimizing eq. 12), by SVD."""
-    from .lie import project_so3
+    from fawtgym.core.so3 import project_so3
 
     return project_so3(l)
 

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from _tolerance import assert_same_law
 
+from fawtgym.core.frames import FAWT_HOVER_POINT_NED, euler_to_rot
 from fawtgym.envs.aero import AeroModel, calibrated_rotor_drag, hover_drag, hover_tilt_deg
-from fawtgym.envs.frames import FAWT_HOVER_POINT_NED, euler_to_rot
 from fawtgym.envs.vehicles import VEHICLE_NAMES, make_vehicle
 from fawtgym.envs.wind import FawtWind
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from _tolerance import same_law_tol
 
-from fawtgym.envs.frames import FAWT_ORIGIN_NED, R_FAWT_TO_NED
+from fawtgym.core.frames import FAWT_ORIGIN_NED, R_FAWT_TO_NED
 from fawtgym.envs.hover_batch_env import HoverBatchEnv
 from fawtgym.envs.hover_env import HoverEnv
 from fawtgym.envs.wind.fawt import SHEAR_TI, fawt_profile

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from _tolerance import assert_same_law
 
-from fawtgym.envs import frames
-from fawtgym.observers.lie import exp_so3
+from fawtgym.core import frames
+from fawtgym.core.so3 import exp_so3
 
 RNG = np.random.default_rng(7)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fawtgym.envs.frames import euler_to_rot
+from fawtgym.core.frames import euler_to_rot
 from fawtgym.envs.hover_env import HoverEnv
 from fawtgym.envs.observation import hover_observation, observation_bounds
 

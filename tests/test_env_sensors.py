@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from _tolerance import assert_same_law
 
+from fawtgym.core.so3 import log_so3
 from fawtgym.envs.hover_env import HoverEnv
 from fawtgym.envs.sensors import SensorModel, make_sensor_spec
-from fawtgym.observers.lie import log_so3
 
 
 def _noise(preset, control_dt, n=4000):
@@ -98,8 +98,8 @@ def test_reward_bounded_and_decreasing_with_error():
 @pytest.mark.parametrize("preset", ["none", "seed000", "mocap_imu"])
 def test_float_measurement_equals_numpy_formulas(preset):
     """measure() (float arithmetic) against the sensor equations written with numpy, same random draws."""
-    from fawtgym.envs.measurement import EARTH_FIELD_NED
-    from fawtgym.observers.lie import exp_so3
+    from fawtgym.core.measurement import EARTH_FIELD_NED
+    from fawtgym.core.so3 import exp_so3
 
     dt = 0.01
     model = SensorModel(make_sensor_spec(preset), dt)

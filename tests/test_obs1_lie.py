@@ -1,11 +1,11 @@
-"""Lie-group helpers (observers/lie.py): hat/vee, exp/log, geometric integration keeps R on SO(3)."""
+"""Lie-group helpers (fawtgym/core/so3.py): hat/vee, exp/log, geometric integration keeps R on SO(3)."""
 
 import numpy as np
 import pytest
 import scipy.linalg
 from _tolerance import assert_same_law
 
-from fawtgym.observers.lie import exp_so3, hat, integrate_rotation, log_so3, orthogonality_error, project_so3, vee
+from fawtgym.core.so3 import exp_so3, hat, integrate_rotation, log_so3, orthogonality_error, project_so3, vee
 
 RNG = np.random.default_rng(7)
 

@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 from _tolerance import HOLDER, assert_same_law
 
-from fawtgym.envs.frames import euler_to_rot
+from fawtgym.core.frames import euler_to_rot
+from fawtgym.core.so3 import exp_so3, hat, orthogonality_error
 from fawtgym.observers import make_observer, observer_names
 from fawtgym.observers.ffts_eso import FFTSESO, morse, s_k, s_k_rate
 from fawtgym.observers.hc_ffts import frac_power, frac_power_rate, phi1, phi2
-from fawtgym.observers.lie import exp_so3, hat, orthogonality_error
 
 MASS = 4.34
 J = np.diag([0.0820, 0.0845, 0.1377])

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from fawtgym.agents.lee_se3 import DesiredRateFilter, LeeSE3Controller
+from fawtgym.core.so3 import orthogonality_error
 from fawtgym.eval.reproduce import seed000_plant as plant
 from fawtgym.eval.reproduce import seed000_sim as sim
-from fawtgym.observers.lie import orthogonality_error
 
 
 def test_noise_sigma_from_psd_and_sampled_noise():

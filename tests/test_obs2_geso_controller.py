@@ -15,8 +15,8 @@ from fawtgym.agents.backstepping_quat import (
     quat_derivative,
     quat_multiply,
 )
-from fawtgym.envs.frames import euler_to_rot, quat_to_rot, rot_to_quat
-from fawtgym.observers.lie import exp_so3, vee
+from fawtgym.core.frames import euler_to_rot, quat_to_rot, rot_to_quat
+from fawtgym.core.so3 import exp_so3, vee
 
 J = np.diag([1.335e-2, 1.335e-2, 2.465e-2])
 

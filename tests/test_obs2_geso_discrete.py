@@ -9,9 +9,9 @@ from _tolerance import assert_same_law
 from scipy.integrate import solve_ivp
 
 from fawtgym.agents.backstepping_quat import cross3
+from fawtgym.core.so3 import exp_so3
 from fawtgym.observers import make_observer
 from fawtgym.observers.geso import GesoFilter
-from fawtgym.observers.lie import exp_so3
 
 G = 9.80665
 J = np.diag([0.015, 0.017, 0.028])

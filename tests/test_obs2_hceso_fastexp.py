@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from _tolerance import assert_same_law
 
+from fawtgym.core.so3 import exp_so3
 from fawtgym.observers.hc_eso_so3 import _exp_so3
-from fawtgym.observers.lie import exp_so3
 
 
 @pytest.mark.parametrize("scale", [1e-7, 1e-5, 1e-4, 1e-3, 0.1, 1.0, 3.0])

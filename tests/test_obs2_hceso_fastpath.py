@@ -18,7 +18,9 @@ from _tolerance import HC_ESO_COND, assert_same_law
 import fawtgym  # noqa: F401  (registers the env ids)
 from fawtgym.agents.backstepping_quat import cross3
 from fawtgym.agents.px4_agent import PX4Agent
-from fawtgym.envs.measurement import EARTH_FIELD_NED
+from fawtgym.core.measurement import EARTH_FIELD_NED
+from fawtgym.core.so3 import exp_so3
+from fawtgym.core.so3 import exp_so3_floats as _exp_so3_single
 from fawtgym.observers import make_observer
 from fawtgym.observers import vector_attitude as va
 from fawtgym.observers.hc_eso_so3 import (
@@ -27,8 +29,6 @@ from fawtgym.observers.hc_eso_so3 import (
     hc_eso_step,
     hc_eso_step_single,
 )
-from fawtgym.observers.lie import exp_so3
-from fawtgym.observers.lie import exp_so3_floats as _exp_so3_single
 
 G = 9.80665
 J_QUAD = np.diag([0.015, 0.016, 0.026])

@@ -7,11 +7,11 @@ import pytest
 from _tolerance import HC_ESO_COND, assert_same_law
 
 from fawtgym.agents.backstepping_quat import cross3
-from fawtgym.envs.measurement import EARTH_FIELD_NED
+from fawtgym.core.measurement import EARTH_FIELD_NED
+from fawtgym.core.so3 import exp_so3, hat, log_so3, orthogonality_error
 from fawtgym.observers import make_observer
 from fawtgym.observers import vector_attitude as va
 from fawtgym.observers.hc_eso_so3 import HcEsoGains, hc_eso_rates, hc_eso_step
-from fawtgym.observers.lie import exp_so3, hat, log_so3, orthogonality_error
 
 G = 9.80665
 K = np.array([3.0, 2.0, 1.0])

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from _tolerance import assert_same_law
 
+from fawtgym.core.so3 import exp_so3, vee
 from fawtgym.eval.reproduce import hc_eso as rep
-from fawtgym.observers.lie import exp_so3, vee
 
 
 def test_setup_is_the_papers():

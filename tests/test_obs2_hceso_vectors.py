@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from _tolerance import assert_same_law
 
-from fawtgym.envs.measurement import EARTH_FIELD_NED
+from fawtgym.core.measurement import EARTH_FIELD_NED
+from fawtgym.core.so3 import exp_so3
 from fawtgym.observers import vector_attitude as va
-from fawtgym.observers.lie import exp_so3
 
 K = np.array([3.0, 2.0, 1.0])
 G = 9.80665

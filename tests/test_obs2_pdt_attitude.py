@@ -7,7 +7,8 @@ import pytest
 from _tolerance import HOLDER, assert_same_law
 from scipy.integrate import solve_ivp
 
-from fawtgym.envs.measurement import EARTH_FIELD_NED
+from fawtgym.core.measurement import EARTH_FIELD_NED
+from fawtgym.core.so3 import exp_so3, hat, log_so3
 from fawtgym.observers import make_observer
 from fawtgym.observers.gyroless_attitude import (
     GibbsSTSMO,
@@ -21,7 +22,6 @@ from fawtgym.observers.gyroless_attitude import (
     rigid_body_rhs,
     rot_to_gibbs,
 )
-from fawtgym.observers.lie import exp_so3, hat, log_so3
 
 J = np.diag([0.05, 0.05, 0.02])
 

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from _tolerance import HOLDER, assert_same_law
 
-from fawtgym.envs.measurement import EARTH_FIELD_NED, batch_measurement
+from fawtgym.core.measurement import EARTH_FIELD_NED, batch_measurement
+from fawtgym.core.so3 import exp_so3, log_so3
 from fawtgym.observers import make_observer
 from fawtgym.observers import quest as Q
 from fawtgym.observers.gyroless_attitude import GibbsSTSMO, rot_to_gibbs
-from fawtgym.observers.lie import exp_so3, log_so3
 
 FIELDS = ("R", "quaternion", "gibbs", "lambda_max", "loss")
 

@@ -2,9 +2,9 @@
 
 import numpy as np
 
-from fawtgym.envs.measurement import EARTH_FIELD_NED
+from fawtgym.core.measurement import EARTH_FIELD_NED
+from fawtgym.core.so3 import exp_so3
 from fawtgym.observers import make_observer
-from fawtgym.observers.lie import exp_so3
 
 
 def test_invalid_accelerometer_row_is_not_corrected():

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from _tolerance import assert_same_law
 
-from fawtgym.envs.frames import quat_to_rot
+from fawtgym.core.frames import quat_to_rot
+from fawtgym.core.so3 import exp_so3, log_so3
 from fawtgym.observers.gyroless_attitude import rot_to_gibbs
-from fawtgym.observers.lie import exp_so3, log_so3
 from fawtgym.observers.quest import quest, wahba_loss
 
 REF = np.array([[0.0, 0.0, -9.80665], [0.22, 0.0, 0.42], [0.3, -0.5, 0.1]])

@@ -14,11 +14,11 @@ import pytest
 from _tolerance import assert_same_law
 from scipy.integrate import solve_ivp
 
+from fawtgym.core.so3 import hat
 from fawtgym.envs.vehicles import GRAVITY
 from fawtgym.eval.reproduce import qb_observer as rq
 from fawtgym.observers import make_observer, observer_names
 from fawtgym.observers import qb_design as qd
-from fawtgym.observers.lie import hat
 from fawtgym.observers.qb_observer import GAIN_DIR, QBObserver, load_gain
 from fawtgym.observers.qb_uav_model import HUMMINGBIRD_INERTIA, HUMMINGBIRD_MASS, scaled_q2, uav_model
 
@@ -88,7 +88,7 @@ def test_stored_gain_is_reproduced_by_the_sdp(gains):
 
 
 def _hover_meas(n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
-    from fawtgym.observers.lie import exp_so3
+    from fawtgym.core.so3 import exp_so3
 
     R = exp_so3(0.2 * rng.normal(size=(n, 3)))
     return {"position": rng.normal(size=(n, 3)), "velocity": rng.normal(size=(n, 3)), "attitude": R,

@@ -16,7 +16,7 @@ pytest.importorskip("pymavlink")
 from pymavlink.dialects.v20 import common as mavlink
 
 from fawtgym.agents.spec import make_agent
-from fawtgym.envs.frames import euler_to_rot, rot_to_quat
+from fawtgym.core.frames import euler_to_rot, rot_to_quat
 from fawtgym.envs.hover_env import HoverEnv
 from fawtgym.envs.motors import allocation_matrix
 from fawtgym.eval.sitl import convert as C

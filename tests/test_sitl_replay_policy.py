@@ -20,7 +20,7 @@ from _sitl_peers import AutopilotPeer
 from _tolerance import EPS, assert_same_law
 from test_sitl_replay import ORIGIN, free_udp_port
 
-from fawtgym.envs.frames import rot_to_quat
+from fawtgym.core.frames import rot_to_quat
 from fawtgym.envs.hover_env import HoverEnv
 from fawtgym.eval.sitl import convert as C
 from fawtgym.eval.sitl.replay import Replay

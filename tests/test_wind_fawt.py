@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from _tolerance import assert_same_law
 
-from fawtgym.envs.frames import FAWT_HOVER_POINT_NED, fawt_to_ned
+from fawtgym.core.frames import FAWT_HOVER_POINT_NED, fawt_to_ned
 from fawtgym.envs.wind import FawtWind, make_wind, wind_names
 from fawtgym.envs.wind.fawt import FAN_PITCH, TABLE3, fawt_statistics, length_scale_from_table3
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from fawtgym.envs.frames import FAWT_HOVER_POINT_NED, fawt_to_ned
+from fawtgym.core.frames import FAWT_HOVER_POINT_NED, fawt_to_ned
 from fawtgym.envs.wind import make_wind
 from fawtgym.envs.wind.dryden import dryden_psd
 

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from fawtgym.envs.frames import fawt_to_ned
+from fawtgym.core.frames import fawt_to_ned
 from fawtgym.envs.wind import make_wind
 from fawtgym.envs.wind.dryden import dryden_psd
 from fawtgym.envs.wind.fawt import fawt_profile

@@ -18,7 +18,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..frames import FAWT_HOVER_POINT_NED, fawt_to_ned
+from fawtgym.core.frames import FAWT_HOVER_POINT_NED, fawt_to_ned
+
 from .base import make_wind, wind_names
 from .dryden import V_FLOOR, dryden_psd
 from .fawt import HOTWIRE_X, TABLE3, FawtWind, fawt_statistics

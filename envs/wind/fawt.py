@@ -3,7 +3,7 @@
 The tunnel: 162 fans in a 1.44 m x 0.72 m array (18 x 9, 80 mm pitch), up to 12 m/s, run in
 steady uniform mode at 30-70 % duty; hot-wire statistics at x = 1.2 m on the axis (Table 3); the
 vehicle hovers at x = 1.5 m, y = z = 0 (FAWT frame: x stream-wise, y span-wise, z up, origin at the
-array centre, mapped to NED by :func:`fawtgym.envs.frames.fawt_to_ned`).
+array centre, mapped to NED by :func:`fawtgym.core.frames.fawt_to_ned`).
 
 Model (all parameters are constructor options)
 ---------------------------------------------
@@ -52,7 +52,8 @@ import numpy as np
 import scipy.special
 from numpy.typing import NDArray
 
-from ..frames import FAWT_ORIGIN_NED, R_FAWT_TO_NED
+from fawtgym.core.frames import FAWT_ORIGIN_NED, R_FAWT_TO_NED
+
 from .base import WindModel
 from .dryden import FORMS, DrydenParams, DrydenProcess
 from .schedule import DEFAULT_SPIN_TAU, FanSchedule

@@ -67,9 +67,9 @@ def mj_step_seconds(steps: int = 5000, repeats: int = 5) -> float:
 
 
 def hover_measurement(n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """A plausible measurement for n vehicles near hover, with every key of envs/measurement.py."""
-    from fawtgym.envs.measurement import EARTH_FIELD_NED
-    from fawtgym.observers.lie import exp_so3
+    """A plausible measurement for n vehicles near hover, with every key of fawtgym/core/measurement.py."""
+    from fawtgym.core.measurement import EARTH_FIELD_NED
+    from fawtgym.core.so3 import exp_so3
 
     r = exp_so3(0.05 * rng.standard_normal((n, 3)))
     w = 0.1 * rng.standard_normal((n, 3))

@@ -17,7 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from fawtgym.cli_parser import ArgumentParser, positive_float, positive_int
-from fawtgym.observers.lie import exp_so3
+from fawtgym.core.so3 import exp_so3
 from fawtgym.observers.qb_design import lmi_residuals, solve_qb_lmi
 from fawtgym.observers.qb_observer import QBObserver
 from fawtgym.observers.qb_uav_model import HUMMINGBIRD_INERTIA, HUMMINGBIRD_MASS, uav_model

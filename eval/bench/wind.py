@@ -25,8 +25,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from fawtgym.cli_parser import ArgumentParser, positive_int
+from fawtgym.core.frames import FAWT_HOVER_POINT_NED
 from fawtgym.envs.aero import AeroModel
-from fawtgym.envs.frames import FAWT_HOVER_POINT_NED
 from fawtgym.envs.vehicles import make_vehicle
 from fawtgym.envs.wind import make_wind
 

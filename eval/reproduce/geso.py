@@ -40,7 +40,7 @@ from fawtgym.agents.backstepping_quat import (
     quat_derivative,
 )
 from fawtgym.cli_parser import ArgumentParser, check_output_dir, nonnegative_float, positive_float
-from fawtgym.envs.frames import quat_to_rot, rot_to_euler
+from fawtgym.core.frames import quat_to_rot, rot_to_euler
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce.progress import Progress, add_flag, bar, tick
 from fawtgym.observers import make_observer

@@ -31,11 +31,11 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
+from fawtgym.core.so3 import exp_so3, log_so3, project_so3, vee
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce.progress import Progress, add_flag, bar, tick
 from fawtgym.observers import vector_attitude as va
 from fawtgym.observers.hc_eso_so3 import HcEsoGains, hc_eso_step
-from fawtgym.observers.lie import exp_so3, log_so3, project_so3, vee
 
 J = np.diag([4.0, 4.0, 10.0])
 K_C = np.diag([0.1, 0.2, 0.3])

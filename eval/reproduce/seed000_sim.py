@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from fawtgym.agents.lee_se3 import DesiredRateFilter, LeeSE3Controller
 from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float, seed
-from fawtgym.envs.frames import rot_to_euler
+from fawtgym.core.frames import rot_to_euler
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce import seed000_plant as plant
 from fawtgym.observers import make_observer

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from fawtgym.envs.frames import FAWT_HOVER_POINT_NED, FAWT_ORIGIN_NED, R_FAWT_TO_NED
+from fawtgym.core.frames import FAWT_HOVER_POINT_NED, FAWT_ORIGIN_NED, R_FAWT_TO_NED
 from fawtgym.eval.reproduce.progress import Progress, tick
 
 #: distance of the hover point from the fan-array plane [m] (Wang et al. 2024, Sec. 7.3)

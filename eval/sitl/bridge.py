@@ -45,8 +45,8 @@ from typing import Any
 
 import numpy as np
 
-from fawtgym.envs import measurement as M
-from fawtgym.envs.frames import rot_to_euler
+from fawtgym.core import measurement as M
+from fawtgym.core.frames import rot_to_euler
 
 from . import convert as C
 from .airframe import PX4_MOTOR_TO_ROTOR

@@ -1,6 +1,6 @@
 """MAVLink fields <-> our frames and units: the one place the SITL hook converts (tested in tests/test_sitl_convert.py).
 
-Our side (:mod:`fawtgym.envs.measurement`): world NED [m, m/s], body FRD, attitude R (body -> world), SI units,
+Our side (:mod:`fawtgym.core.measurement`): world NED [m, m/s], body FRD, attitude R (body -> world), SI units,
 magnetic field in gauss.  MAVLink's side, per the message definitions of ``common.xml``:
 
 =====================  ==================================================================================
@@ -37,8 +37,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.envs import measurement as M
-from fawtgym.envs.frames import quat_to_rot, rot_to_quat
+from fawtgym.core import measurement as M
+from fawtgym.core.frames import quat_to_rot, rot_to_quat
 from fawtgym.envs.motors import command_to_thrust, rotor_wrench, thrust_to_command
 from fawtgym.envs.vehicles import GRAVITY, VehiclePreset
 
@@ -157,7 +157,7 @@ def isa_temperature_c(alt_msl: float) -> float:
 # ---- simulator -> PX4 ----------------------------------------------------------------------------------------
 def home_magnetometer(meas: Mapping[str, Any], attitude_true: ArrayLike, home: Home) -> NDArray[np.float64]:
     """The magnetometer [gauss] (3,) at the home field: the env's measurement (field
-    :data:`fawtgym.envs.measurement.EARTH_FIELD_NED`, with its noise) plus ``R^T (m_home - m_env)``."""
+    :data:`fawtgym.core.measurement.EARTH_FIELD_NED`, with its noise) plus ``R^T (m_home - m_env)``."""
     r = np.asarray(attitude_true, dtype=float).reshape(3, 3)
     delta = np.asarray(home.mag_ned) - M.EARTH_FIELD_NED
     return np.ravel(meas[M.MAGNETOMETER]) + r.T @ delta

@@ -53,9 +53,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.envs import measurement as M
+from fawtgym.core import measurement as M
+from fawtgym.core.frames import FAWT_HOVER_POINT_NED, euler_to_rot, rot_to_euler
 from fawtgym.envs.ctbr import MAX_RATES
-from fawtgym.envs.frames import FAWT_HOVER_POINT_NED, euler_to_rot, rot_to_euler
 from fawtgym.envs.observation import hover_observation
 
 from . import convert as C
