@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fawtgym.envs.frames import rot_to_quat
+from fawtgym.core.frames import rot_to_quat
 
 BOOT_UNIX = 1.7e9  #: UNIX time of the simulated boot [s] (the tlog's receive stamps)
 

@@ -19,7 +19,7 @@ import dataclasses
 import numpy as np
 from numpy.typing import NDArray
 
-from fawtgym.envs.frames import quat_to_rot
+from fawtgym.core.frames import quat_to_rot
 
 from .errors import FlightLogError
 from .logdata import FlightLog
@@ -89,7 +89,7 @@ class Signal:
 
 
 def measurement_signals(log: FlightLog) -> dict[str, Signal]:
-    """The measurement keys of :mod:`fawtgym.envs.measurement` as signals from the log's topics.
+    """The measurement keys of :mod:`fawtgym.core.measurement` as signals from the log's topics.
 
     position, velocity: ``vehicle_local_position`` (x, y, z, vx, vy, vz; NED).  attitude:
     ``vehicle_attitude.q`` (w, x, y, z; FRD -> NED) as R.  angular_velocity: ``vehicle_angular_velocity.xyz``
