@@ -75,7 +75,7 @@ def test_policy_streams_setpoints_through_the_autopilot(runs, action, type_mask)
     flying = [(t, sp) for t, sp in peer.setpoints if arm[0] <= t <= land[0]]
     times = [t for t, _ in flying]
     assert (len(times) - 1) / (times[-1] - times[0]) >= 50.0 and summary["setpoint_rate_hz"] >= 50.0
-    assert np.diff(times).max() < 0.2
+    assert np.diff(times).max() < 0.5  # PX4 leaves OFFBOARD after COM_OF_LOSS_T (1 s by default) without set points
     for _, sp in flying:
         values = [*sp.q, sp.body_roll_rate, sp.body_pitch_rate, sp.body_yaw_rate, sp.thrust]
         assert np.all(np.isfinite(values)) and 0.0 <= sp.thrust <= 1.0

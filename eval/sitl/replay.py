@@ -158,6 +158,12 @@ class Replay:
                              "agents and policies (ctbr, or residual on a PX4 base)")
         self._obs_low = self.env.observation_space.low.astype(float)
         self._obs_high = self.env.observation_space.high.astype(float)
+        # one step on the env's own start state before any link is open: the first call of a policy (torch's lazy
+        # initialisation) or an observer took ~0.4 s, a hole in the setpoint stream when the agent takes over; the
+        # first telemetry tick resets the agent again
+        warm_obs, warm_info = self.env.reset(seed=0)
+        self.agent.reset(warm_info, seed=0)
+        self.agent.act(warm_obs, warm_info)
         self._last_action = np.asarray(self.env.hover_action(), dtype=float)
         self.connect, self.rate, self.dt = connect, float(rate), self.env.dt
         self.duration, self.prestream, self.climb_speed, self.settle = duration, prestream, climb_speed, settle
