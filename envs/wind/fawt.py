@@ -52,6 +52,7 @@ import numpy as np
 import scipy.special
 from numpy.typing import NDArray
 
+from fawtgym.core.checks import check_flag
 from fawtgym.core.frames import FAWT_ORIGIN_NED, R_FAWT_TO_NED
 
 from .base import WindModel
@@ -223,8 +224,8 @@ class FawtWind(WindModel):
         self.schedule = FanSchedule(on_time, off_time, spin_tau, spin_down_tau)
         lat = self.length_scale if form == "8785c" else 0.5 * self.length_scale
         self.params = DrydenParams(sigma=(1.0, 1.0, 1.0), length=(self.length_scale, lat, lat), form=form, span=span)
-        self.turbulence = bool(turbulence)
-        self.rates = bool(rates)
+        self.turbulence = check_flag(turbulence, "turbulence")
+        self.rates = check_flag(rates, "rates")
         self.process = DrydenProcess(self.params, rates=self.rates, discretization=discretization)
         self.n = 0
         self.level = self.schedule.initial_level()

@@ -33,6 +33,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from fawtgym.core.checks import check_flag
+
 from .base import WindModel
 from .dryden import FORMS, V_FLOOR, DrydenParams, DrydenProcess
 from .fawt import check_points
@@ -115,7 +117,7 @@ class DrydenWind(WindModel):
         self.advection = (speed if speed > 0 else log_profile_speed(intensity, altitude)) * d
         # gust axes (rows: u, v, w) in NED
         self.axes = np.array([d, [-d[1], d[0], 0.0], [0.0, 0.0, 1.0]])
-        self.rates = bool(rates)
+        self.rates = check_flag(rates, "rates")
         self.process = DrydenProcess(params, rates=self.rates, discretization=discretization)
         self.n = 0
 
