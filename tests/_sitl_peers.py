@@ -16,6 +16,8 @@ import socket
 import threading
 import time
 from collections import deque
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 from pymavlink.dialects.v20 import common as mavlink
 
@@ -194,3 +196,15 @@ class AutopilotPeer(threading.Thread):
                     self.send(mavlink.MAVLink_highres_imu_message(ms * 1000, 0.0, 0.0, -G, 0.0, 0.0, 0.0, 0.21,
                                                                   0.01, 0.43, 960.0, 0.0, 0.0, 20.0, 0x1FFF))
         self.sock.close()
+
+
+@contextmanager
+def running_peer(port: int, **kwargs) -> Iterator[AutopilotPeer]:
+    """An :class:`AutopilotPeer` running on ``port`` for the body of the ``with``; stopped and joined after it."""
+    peer = AutopilotPeer(port, **kwargs)
+    peer.start()
+    try:
+        yield peer
+    finally:
+        peer.stop_event.set()
+        peer.join(5)

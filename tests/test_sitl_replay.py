@@ -21,7 +21,7 @@ import pytest
 
 pytest.importorskip("pymavlink")
 
-from _sitl_peers import AutopilotPeer
+from _sitl_peers import running_peer
 
 from fawtgym.eval.sitl.mavio import SitlError
 from fawtgym.eval.sitl.replay import HEARTBEAT_PERIOD, Replay, resolve_agent
@@ -46,13 +46,8 @@ def test_offboard_sequence_rate_land_and_tlog(tmp_path):
     port = free_udp_port()
     tlog = tmp_path / "replay.tlog"
     replay = make_replay(port, tlog)
-    peer = AutopilotPeer(port)
-    peer.start()
-    try:
+    with running_peer(port) as peer:
         summary = replay.run()
-    finally:
-        peer.stop_event.set()
-        peer.join(5)
     cmds = [(t, name, p) for t, name, p in peer.events]
     first_sp = peer.setpoints[0][0]
     mode = [t for t, name, p in cmds if name == "cmd176"]
@@ -90,13 +85,8 @@ def test_offboard_sequence_rate_land_and_tlog(tmp_path):
 def test_ardupilot_guided_nogps():
     port = free_udp_port()
     replay = make_replay(port, duration=0.5)
-    peer = AutopilotPeer(port, ardupilot=True)
-    peer.start()
-    try:
+    with running_peer(port, ardupilot=True) as peer:
         replay.run()
-    finally:
-        peer.stop_event.set()
-        peer.join(5)
     modes = [p for _, name, p in peer.events if name == "cmd176"]
     assert modes and all(p == (1.0, 20.0) for p in modes)  # custom mode GUIDED_NOGPS
     assert not peer.armed and [name for _, name, _ in peer.events].count("cmd21") >= 1
@@ -107,15 +97,10 @@ def test_abort_on_link_loss(loss, reason):
     port = free_udp_port()
     replay = make_replay(port, duration=20.0)
     stop_after = 1.5 if loss == "heartbeat" else 0.3  # 1 Hz heartbeats: the replay sees "armed" within 1 s
-    peer = AutopilotPeer(port, **{f"stop_{loss}_after_arm": stop_after})
-    peer.start()
-    t0 = time.monotonic()
-    try:
+    with running_peer(port, **{f"stop_{loss}_after_arm": stop_after}) as peer:
+        t0 = time.monotonic()
         with pytest.raises(SitlError, match=reason) as info:
             replay.run()
-    finally:
-        peer.stop_event.set()
-        peer.join(5)
     assert time.monotonic() - t0 < 10.0
     assert "\n" not in str(info.value) and "LAND commanded" in str(info.value)
     land = [t for t, name, _ in peer.events if name == "cmd21"]
@@ -133,29 +118,19 @@ def test_px4s_1hz_heartbeat_is_not_a_loss():
     port = free_udp_port()
     replay = make_replay(port, duration=4.0)
     assert replay.heartbeat_timeout == 1.0
-    peer = AutopilotPeer(port)
-    peer.start()
-    try:
+    with running_peer(port) as peer:
         summary = replay.run()
-    finally:
-        peer.stop_event.set()
-        peer.join(5)
     assert summary["final_position_error"] is not None, "the hover must end normally"
     assert not peer.armed and [name for _, name, _ in peer.events].count("cmd21") >= 1
 
 
 def test_malformed_bytes_and_silence_give_clear_errors():
     port = free_udp_port()
-    peer = AutopilotPeer(port, garbage_only=True)
-    peer.start()
-    t0 = time.monotonic()
-    try:
+    with running_peer(port, garbage_only=True):
+        t0 = time.monotonic()
         with pytest.raises(SitlError, match=r"no heartbeat from an autopilot on udp:127\.0\.0\.1:\d+ within 1 s "
                                             r"\(\d+ bytes received were not valid MAVLink\)"):
             make_replay(port, connect_timeout=1.0).run()
-    finally:
-        peer.stop_event.set()
-        peer.join(5)
     assert time.monotonic() - t0 < 4.0
     with pytest.raises(SitlError, match="nothing was armed"):
         make_replay(free_udp_port(), connect_timeout=0.3).run()

@@ -16,7 +16,7 @@ import pytest
 pytest.importorskip("pymavlink")
 pytest.importorskip("stable_baselines3")
 
-from _sitl_peers import AutopilotPeer
+from _sitl_peers import AutopilotPeer, running_peer
 from _tolerance import EPS, assert_same_law
 from test_sitl_replay import ORIGIN, free_udp_port
 
@@ -54,13 +54,8 @@ def fly(agent: str, port: int, **kw) -> tuple[dict, AutopilotPeer]:
     replay = Replay(f"udp:127.0.0.1:{port}", agent, vehicle="s500", hover_point=HOVER_POINT, origin=ORIGIN,
                     rate=100.0, duration=0.8, prestream=1.1, climb_speed=1.0, settle=0.1, connect_timeout=3.0,
                     command_timeout=3.0, land_timeout=5.0, log=LOG.append, **kw)
-    peer = AutopilotPeer(port)
-    peer.start()
-    try:
+    with running_peer(port) as peer:
         summary = replay.run()
-    finally:
-        peer.stop_event.set()
-        peer.join(5)
     return summary, peer
 
 
