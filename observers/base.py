@@ -70,7 +70,7 @@ class Observer:
     #: registry name, set by :func:`register_observer`
     name: ClassVar[str] = ""
     #: which disturbance channels it estimates: subset of {"force", "torque"}
-    channels: ClassVar[frozenset[str]] = frozenset({"force", "torque"})
+    channels: frozenset[str] = frozenset({"force", "torque"})
     #: measurement keys the law reads: :meth:`update` (and :meth:`reset`) check them (present, N rows of the
     #: shape of :mod:`fawtgym.core.measurement`, real, finite; ``"attitude"`` a rotation).  A subclass states
     #: them (an instance whose keys depend on its options sets ``self.required_keys`` in ``__init__``).
@@ -160,8 +160,8 @@ class Observer:
         shape = np.shape(measurement[key])
         return int(shape[0]) if len(shape) > len(TRAILING_SHAPES[key]) else 1
 
-    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None, **options: Any) -> int:
+    def _reset(self, measurement: Mapping[str, Any], force: ArrayLike | None, torque: ArrayLike | None,
+               rows: NDArray[np.bool_] | None) -> int:
         """Build the fresh state of the rows of ``measurement`` (and the guesses) and store it.
 
         ``rows`` None: a full reset, the fresh state replaces the state.  Else ``rows`` is the observer's
@@ -244,8 +244,9 @@ class Observer:
             if value.base is not buf:
                 shared = False
                 break
-        if shared and first_nonfinite_row(buf if buf.ndim == 2 else buf.reshape(buf.shape[0], -1)) < 0:
-            return
+        if shared and buf is not None:
+            if first_nonfinite_row(buf if buf.ndim == 2 else buf.reshape(buf.shape[0], -1)) < 0:
+                return
         for channel, value in states.items():
             row = first_nonfinite_row(value if value.ndim == 2 else value.reshape(value.shape[0], -1))
             if row >= 0:

@@ -180,7 +180,7 @@ class FFTSESO(Observer):
         self.ka1, self.ka2, self.ka3 = float(ka1), float(ka2), float(ka3)
         self.morse_k = np.asarray(morse_k, dtype=float)
         self.eps = float(eps)
-        self._state: NDArray[np.float64] | None = None
+        self._state: NDArray[np.float64] = np.empty((0, 0))      # (N, k) after reset
         self._gains = np.array([self.mass, self.gravity, p, kt1, kt2, kt3, kappa_t, ka1, ka2, ka3, kappa_a,
                                 *self.morse_k, *self.inertia.ravel(), *self.inertia_inv.ravel()], dtype=float)
         # stiffest-mode gains of the two halves (euler_stable_eps): e_v' ~ -kappa_t g' e_v, and
@@ -201,8 +201,8 @@ class FFTSESO(Observer):
         return self._eps_cache[1], self._eps_cache[2]
 
     # ---- interface -------------------------------------------------------------------------
-    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None) -> int:
+    def _reset(self, measurement: Mapping[str, NDArray[np.float64]], force: ArrayLike | None,
+               torque: ArrayLike | None, rows: NDArray[np.bool_] | None) -> int:
         """b_hat, v_hat, R_hat, Omega_hat := measured values; phi_hat, tau_hat := given guesses (default 0).
 
         State: ``_state`` (N, 24), columns b_hat, v_hat, phi_hat, Omega_hat, tau_hat, R_hat (row-major)."""
@@ -225,7 +225,7 @@ class FFTSESO(Observer):
         return _estimate(est), x_new
 
     def estimate(self) -> ObserverEstimate:
-        if self._state is None:
+        if self._n_rows is None:
             raise RuntimeError("ffts_eso: call reset(measurement) first")
         est = np.empty_like(self._state)
         ffts_eso_estimate(self._state, est)

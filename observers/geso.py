@@ -177,6 +177,7 @@ class GesoFilter:
         self.f = a - np.outer(self.gains, c[0])
         self.g = np.hstack([b, self.gains[:, None]])
         self._cache: dict[tuple[float, str], tuple[NDArray[np.float64], ...]] = {}   # per (dt, hold)
+        self._packed: dict[tuple[float, str], NDArray[np.float64]] = {}
 
     def discretize(self, dt: float, hold: str = "zoh") -> tuple[NDArray[np.float64], ...]:
         """Exact discrete matrices for step ``dt``.
@@ -215,8 +216,8 @@ class GesoFilter:
     def step_matrix(self, dt: float, hold: str = "zoh") -> NDArray[np.float64]:
         """:meth:`discretize` packed for :func:`geso_filter_row`: ``[Phi | Gamma | Gamma1]``, shape (n+1, n+5)
         (Gamma1 = 0 for ``"zoh"``: y held)."""
-        key = (float(dt), hold + "/packed")
-        packed = self._cache.get(key)
+        key = (float(dt), hold)
+        packed = self._packed.get(key)
         if packed is None:
             mats = self.discretize(dt, hold)
             m = self.order + 1
@@ -224,9 +225,8 @@ class GesoFilter:
             packed[:, :m], packed[:, m:m + 2] = mats[0], mats[1]
             if hold == "foh":
                 packed[:, m + 2:] = mats[2]
-            self._cache[key] = (packed,)
-            return packed
-        return packed[0]
+            self._packed[key] = packed
+        return packed
 
     def derivative(self, x: NDArray[np.float64], u_star: ArrayLike, y: ArrayLike) -> NDArray[np.float64]:
         """Continuous right-hand side of eq. 22, ``(A - L C) x + B u* + L y``, batch (..., n+1)."""
@@ -424,7 +424,7 @@ class GESO(Observer):
         self._m = int(self._slots[:, 1].max())
         self._params = np.concatenate([[self.mass, self.gravity], self.inertia.ravel(), self.inertia_inv.ravel()])
         self._mats: dict[float, NDArray[np.float64]] = {}
-        self._state: NDArray[np.float64] | None = None
+        self._state: NDArray[np.float64] = np.empty((0, 0))      # (N, k) after reset
         keys: tuple[str, ...] = ((M.VELOCITY, M.ATTITUDE) if "force" in chans else ()) + (
             (rate_key,) if "torque" in chans else ())
         self.required_keys = keys
@@ -443,8 +443,8 @@ class GESO(Observer):
             self._mats[dt] = mats
         return mats
 
-    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None) -> int:
+    def _reset(self, measurement: Mapping[str, NDArray[np.float64]], force: ArrayLike | None,
+               torque: ArrayLike | None, rows: NDArray[np.bool_] | None) -> int:
         """Start at x0_hat = y, d_hat = the given guess (default 0), higher derivatives 0.
 
         State: ``_state`` (N, K, 3, M + 2), per channel slot and axis x_hat (zero-padded to M entries) and the

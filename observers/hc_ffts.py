@@ -276,6 +276,9 @@ class HCFFTSD:
     k3: float
     p: float
     q: tuple[tuple[float, float], tuple[float, float]] = ((1.0, 0.0), (0.0, 1.0))
+    #: P* of eq. (17) and (gamma_1, gamma_2) of eq. (32), computed at construction
+    _pm: NDArray[np.float64] = dataclasses.field(init=False, repr=False, compare=False)
+    _gammas: tuple[float, float] = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         check_p(self.p)
