@@ -66,11 +66,9 @@ from fawtgym.observers.hc_ffts import (
     DEFAULT_EPS,
     check_p,
     euler_stable_eps,
-    frac_power_rate_row,
     frac_power_row,
     hurwitz_matrix,
-    phi1_row,
-    phi2_row,
+    phi_row,
 )
 
 _KEYS = ("position", "velocity", "attitude", "angular_velocity")
@@ -290,12 +288,10 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
         for j in range(3):
             e_b[j] = pos[i, j] - xi[B + j]                                  # e_b = b^m - b_hat
             e_v[j] = vel[i, j] - xi[V + j]                                  # e_v = v^m - v_hat
-        frac_power_row(e_b, p, eps_t, g_b)                                  # |e_b|^(2(1-p)/p) e_b, regularised
-        frac_power_rate_row(e_b, e_v, p, eps_t, rate_b)                     # its rate (the H-term of eq. 49)
+        frac_power_row(e_b, e_v, p, eps_t, g_b, rate_b)  # |e_b|^(2(1-p)/p) e_b (regularised), its rate (H-term)
         for j in range(3):
             psi_t[j] = e_v[j] + kappa_t * (e_b[j] + g_b[j])                 # psi_t, eq. (50)
-        phi1_row(psi_t, kt3, p, inj1)                                       # eq. (9)
-        phi2_row(psi_t, kt3, p, inj2)
+        phi_row(psi_t, kt3, p, inj1, inj2)                                  # phi1, phi2 of eq. (9)
         f_over_m = thrust[i] / mass
         for j in range(3):
             # v_hat' = g e3 - (f/m) R^m e3 + k_t1 phi1(psi_t) + kappa_t (g'(e_b) + e_v) + phi_hat / m, eq. (49)
@@ -316,12 +312,10 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
             e_om[j] = omega[i, j] - t1[j]                                   # e_Omega, eq. (47)
         s_k_row(e_mat, morse_k, e_r)                                        # e_R = s_K(E), eq. (41)
         s_k_rate_row(e_mat, e_om, morse_k, e_w)                             # e_w = d/dt e_R, eq. (66)
-        frac_power_row(e_r, p, eps_a, g_r)
-        frac_power_rate_row(e_r, e_w, p, eps_a, rate_r)
+        frac_power_row(e_r, e_w, p, eps_a, g_r, rate_r)
         for j in range(3):
             psi_a[j] = e_om[j] + kappa_a * (e_r[j] + g_r[j])                # psi_a, eq. (69)
-        phi1_row(psi_a, ka3, p, inj1)
-        phi2_row(psi_a, ka3, p, inj2)
+        phi_row(psi_a, ka3, p, inj1, inj2)
         mat_vec_row(inertia, omega[i], jw)
         cross_row(jw, omega[i], gyro)                                       # J Om^m x Om^m
         for j in range(3):
