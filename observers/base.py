@@ -114,8 +114,7 @@ class Observer:
         observer's batch, the rows where the mask is True get exactly the state a freshly built observer
         reset on those rows' measurements (and guesses) would have -- only their measurement is read, the
         other rows' may be anything, e.g. non-finite -- and the rows where it is False keep their state
-        bitwise.  An all-False mask changes nothing; an all-True mask is a full reset.  At N = 1 a mask
-        is all or nothing, so it never reaches a float fast path half-way.
+        bitwise.  An all-False mask changes nothing; an all-True mask is a full reset.
 
         Raises ValueError (one line; the same text at every N apart from the sizes it names) when
         ``rows`` is given before any full reset, is not a bool array of shape (N,), or ``measurement``
@@ -167,9 +166,10 @@ class Observer:
         ``rows`` None: a full reset, the fresh state replaces the state.  Else ``rows`` is the observer's
         bool mask (N,) with both values present, ``measurement`` holds only the masked rows (already
         checked to be rows of this batch) and ``force`` / ``torque`` are None, (3,) or one row per masked
-        row; store ``write_rows(state, fresh, rows)``, after bringing any float cache of the state up to
+        row; store ``write_rows(state, fresh, rows)``, after bringing any cache of the state up to
         date, and build the fresh state completely before writing it (an error leaves the state as it
-        was).  Returns the number of rows of ``measurement``.
+        was).  Returns the number of rows of ``measurement``.  An observer that states :attr:`required_keys`
+        receives those keys only, checked as :meth:`update` checks them (float64, finite, a rotation).
         """
         raise NotImplementedError(f"{type(self).__name__} must implement _reset (or override reset)")
 

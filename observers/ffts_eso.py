@@ -28,10 +28,11 @@ e_Omega = Omega^m - E_R^T Omega_hat), e_R = s_K(E_R) (Lemma 5, eq. 41) and e_w =
 Discretisation: the measurement and the applied thrust/torque are held over ``dt`` (zero-order hold);
 the vector states are advanced by explicit Euler, the kinematic chains b_hat' = v_hat and
 R_hat' = R_hat Omega_hat^ exactly for the held accelerations (R_hat by the exponential map,
-:func:`fawtgym.core.so3.integrate_rotation`, so R_hat stays on SO(3)).  The time derivative of
+:func:`fawtgym.core.so3_kernels.exp_so3_row`, so R_hat stays on SO(3)).  The whole step is one compiled kernel
+over rows, :func:`ffts_eso_step` (the same code at N = 1 and N = 1024).  The time derivative of
 the fractional power (the H-terms) is unbounded at e = 0, so the fractional power is regularised as
 g(e) = max(e^T e, eps)^((1-p)/p) e (exact for |e| > sqrt(eps), linear inside) and its *exact* derivative
-is used (:func:`fawtgym.observers.hc_ffts.frac_power` / :func:`~fawtgym.observers.hc_ffts.frac_power_rate`), so the
+is used (:func:`fawtgym.observers.hc_ffts.frac_power_row`, batch forms ``frac_power`` / ``frac_power_rate``), so the
 implemented observer is the paper's with psi's fractional term replaced by g; finite at e = 0.
 
 The floor eps depends on p and dt.  g's largest slope is eps^((1-p)/p) (at the ball's edge), and the
