@@ -322,9 +322,10 @@ def geso_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.
     signals y, aux.  ``vel`` = v^m, ``att`` = R^m (force channel),
     ``rate`` = Omega^m (torque channel); ``mats`` (K, M, M + 4) the packed step matrices of each slot at this dt
     (:meth:`GesoFilter.step_matrix`); ``params`` as :data:`PARAM_NAMES`.  Writes ``x_new`` and ``est``
-    (N, K, 3 M): the disturbance (x_hat[1] per axis), the rate (v = x0 / m or Omega = J^-1 x0), then the
-    derivatives d', ..., d^(n-1), axis by axis.  u* is held over the step: the applied input with its
-    state-dependent part at the previous signals (zoh) or at the mean of the previous and the new (foh).
+    (N, K, M, 3): per slot the disturbance (x_hat[1] of each axis), the rate (v = x0 / m or Omega = J^-1 x0),
+    then the derivatives d', ..., d^(n-1) (rows beyond n_k + 1 are padding).  u* is held over the step: the
+    applied input with its state-dependent part at the previous signals (zoh) or at the mean of the previous
+    and the new (foh).
     """
     mass, gravity = params[0], params[1]
     inertia = params[2:11].reshape((3, 3))
@@ -349,17 +350,15 @@ def geso_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.
                 for c in range(m, mm):
                     xo[c] = 0.0
                 xo[mm], xo[mm + 1] = y_new[j], aux_new[j]
-                est[i, k, j] = xo[1]
-                for c in range(2, m):
-                    est[i, k, 6 + 3 * (c - 2) + j] = xo[c]
-                for c in range(m, mm):
-                    est[i, k, 6 + 3 * (c - 2) + j] = 0.0
+                est[i, k, 0, j] = xo[1]
+                for c in range(2, mm):
+                    est[i, k, c, j] = xo[c]          # 0 beyond the slot's n + 1
             for j in range(3):
                 if is_force:
-                    est[i, k, 3 + j] = x_new[i, k, j, 0] / mass
+                    est[i, k, 1, j] = x_new[i, k, j, 0] / mass
                 else:
-                    est[i, k, 3 + j] = (inertia_inv[j, 0] * x_new[i, k, 0, 0] + inertia_inv[j, 1] * x_new[i, k, 1, 0]
-                                        + inertia_inv[j, 2] * x_new[i, k, 2, 0])
+                    est[i, k, 1, j] = (inertia_inv[j, 0] * x_new[i, k, 0, 0] + inertia_inv[j, 1] * x_new[i, k, 1, 0]
+                                       + inertia_inv[j, 2] * x_new[i, k, 2, 0])
 
 
 def _parse_channels(channels: str | Iterable[str]) -> tuple[str, ...]:
@@ -483,15 +482,15 @@ class GESO(Observer):
         vel = rate if vel is None else vel                    # a channel's absent input is never read
         rate = vel if rate is None else rate
         x_new = np.empty(x.shape)
-        est = np.empty((n, x.shape[1], 3 * self._m))
+        est = np.empty((n, x.shape[1], self._m, 3))
         geso_step(x, vel, meas.get(M.ATTITUDE, _EYE3), rate, f, tau, self._slots, self.hold == "foh", self._params,
                   mats, x_new, est)
         out: dict[str, NDArray[np.float64]] = {}
         states: dict[str, NDArray[np.float64]] = {}
         for k, (chan, filt) in enumerate(self.filters.items()):
-            out[chan] = est[:, k, 0:3]
-            states[_RATE_NAME[chan]] = est[:, k, 3:6]
-            states[_DER_NAME[chan]] = est[:, k, 6:3 * (filt.order + 1)].reshape(n, filt.order - 1, 3)
+            out[chan] = est[:, k, 0]
+            states[_RATE_NAME[chan]] = est[:, k, 1]
+            states[_DER_NAME[chan]] = est[:, k, 2:filt.order + 1]
         if len(out) == 1:                                     # the channel this instance does not estimate
             out["torque" if "force" in out else "force"] = np.zeros((n, 3))
         return ObserverEstimate(force=out["force"], torque=out["torque"], states=states), x_new
