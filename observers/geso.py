@@ -477,10 +477,9 @@ class GESO(Observer):
         mats = self._mats.get(dt)
         if mats is None:
             mats = self._step_matrices(dt)
-        vel = meas.get(M.VELOCITY)
-        rate = meas.get(self.rate_key)
-        vel = rate if vel is None else vel                    # a channel's absent input is never read
-        rate = vel if rate is None else rate
+        # a channel's absent input is never read: the other channel's array stands in for it
+        vel = meas[M.VELOCITY] if M.VELOCITY in meas else meas[self.rate_key]
+        rate = meas[self.rate_key] if self.rate_key in meas else vel
         x_new = np.empty(x.shape)
         est = np.empty((n, x.shape[1], self._m, 3))
         geso_step(x, vel, meas.get(M.ATTITUDE, _EYE3), rate, f, tau, self._slots, self.hold == "foh", self._params,
