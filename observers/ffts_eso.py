@@ -28,10 +28,11 @@ e_Omega = Omega^m - E_R^T Omega_hat), e_R = s_K(E_R) (Lemma 5, eq. 41) and e_w =
 Discretisation: the measurement and the applied thrust/torque are held over ``dt`` (zero-order hold);
 the vector states are advanced by explicit Euler, the kinematic chains b_hat' = v_hat and
 R_hat' = R_hat Omega_hat^ exactly for the held accelerations (R_hat by the exponential map,
-:func:`fawtgym.core.so3.integrate_rotation`, so R_hat stays on SO(3)).  The time derivative of
+:func:`fawtgym.core.so3_kernels.exp_so3_row`, so R_hat stays on SO(3)).  The whole step is one compiled kernel
+over rows, :func:`ffts_eso_step` (the same code at N = 1 and N = 1024).  The time derivative of
 the fractional power (the H-terms) is unbounded at e = 0, so the fractional power is regularised as
 g(e) = max(e^T e, eps)^((1-p)/p) e (exact for |e| > sqrt(eps), linear inside) and its *exact* derivative
-is used (:func:`fawtgym.observers.hc_ffts.frac_power` / :func:`~fawtgym.observers.hc_ffts.frac_power_rate`), so the
+is used (:func:`fawtgym.observers.hc_ffts.frac_power_row`, batch forms ``frac_power`` / ``frac_power_rate``), so the
 implemented observer is the paper's with psi's fractional term replaced by g; finite at e = 0.
 
 The floor eps depends on p and dt.  g's largest slope is eps^((1-p)/p) (at the ball's edge), and the
@@ -54,44 +55,78 @@ import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.rows import write_rows
-from fawtgym.core.so3 import integrate_rotation, project_so3, vee
-from fawtgym.observers._obs_common import (
-    all_finite,
-    batch_vec,
-    check_finite,
-    cross,
-    floats,
-    require,
-    step_inputs,
-)
+from fawtgym.core.so3 import project_so3
+from fawtgym.core.so3_kernels import cross_row, exp_so3_row, mat_mul_row, mat_t_vec_row, mat_vec_row
+from fawtgym.observers._obs_common import batch_vec
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
-from fawtgym.observers.hc_ffts import DEFAULT_EPS, check_p, euler_stable_eps, hurwitz_matrix
+from fawtgym.observers.hc_ffts import (
+    DEFAULT_EPS,
+    check_p,
+    euler_stable_eps,
+    frac_power_row,
+    hurwitz_matrix,
+    phi_row,
+)
 
-_E3 = np.array([0.0, 0.0, 1.0])
-_TINY = 1e-300          # floor inside the fractional powers of phi1/phi2: x**neg * 0 stays 0, never inf*0
-_ONES = np.ones((3, 1))   # row sums as a BLAS product (cheaper than np.sum on small batches)
-_VA = np.array([2, 0, 1])
-_VB = np.array([1, 2, 0])
 _KEYS = ("position", "velocity", "attitude", "angular_velocity")
+#: the gains array the kernel reads, in this order
+GAIN_NAMES = ("mass", "gravity", "p", "kt1", "kt2", "kt3", "kappa_t", "ka1", "ka2", "ka3", "kappa_a", "K1", "K2", "K3",
+              "J (9, row-major)", "J^-1 (9, row-major)")
+#: columns of the state (N, 24): b_hat, v_hat, phi_hat, Omega_hat, tau_hat, R_hat (row-major 9)
+B, V, PHI, W, TAU, R = 0, 3, 6, 9, 12, 15
+#: columns of the estimate buffer (N, 24): force, torque, position, velocity, angular_velocity, attitude (9)
+E_FORCE, E_TORQUE, E_POS, E_VEL, E_W, E_ATT = 0, 3, 6, 9, 12, 15
+
+
+@njit(cache=True)
+def s_k_row(e: NDArray[np.float64], k: NDArray[np.float64], out: NDArray[np.float64]) -> None:
+    """out = s_K(E) = sum_i K_i (E^T e_i) x e_i (eq. 41) = vee(K E - E^T K), K = diag(k)."""
+    out[0] = k[2] * e[2, 1] - k[1] * e[1, 2]
+    out[1] = k[0] * e[0, 2] - k[2] * e[2, 0]
+    out[2] = k[1] * e[1, 0] - k[0] * e[0, 1]
+
+
+@njit(cache=True)
+def s_k_rate_row(e: NDArray[np.float64], w: NDArray[np.float64], k: NDArray[np.float64],
+                 out: NDArray[np.float64]) -> None:
+    """out = d/dt s_K(E) along E' = E w^: sum_i K_i e_i x (w x E^T e_i) (eq. 66) = tr(K E) w - E^T K w."""
+    trace_ke = k[0] * e[0, 0] + k[1] * e[1, 1] + k[2] * e[2, 2]
+    for j in range(3):
+        out[j] = trace_ke * w[j] - (e[0, j] * k[0] * w[0] + e[1, j] * k[1] * w[1] + e[2, j] * k[2] * w[2])
+
+
+@njit(cache=True)
+def _s_k_rows(r: NDArray[np.float64], w: NDArray[np.float64], k: NDArray[np.float64], rate: bool,
+              out: NDArray[np.float64]) -> None:
+    for i in range(r.shape[0]):
+        if rate:
+            s_k_rate_row(r[i], w[i], k, out[i])
+        else:
+            s_k_row(r[i], k, out[i])
 
 
 def s_k(r: ArrayLike, k: ArrayLike) -> NDArray[np.float64]:
     """s_K(R) = sum_i K_i (R^T e_i) x e_i (eq. 41) = vee(K R - R^T K); R (..., 3, 3), K the 3 diagonal entries."""
     r = np.asarray(r, dtype=float)
-    km = np.diag(np.asarray(k, dtype=float))
-    return vee(km @ r - np.swapaxes(r, -1, -2) @ km)
+    rows = np.ascontiguousarray(r.reshape(-1, 3, 3))
+    out = np.empty((rows.shape[0], 3))
+    _s_k_rows(rows, out, np.asarray(k, dtype=float), False, out)
+    return out.reshape(r.shape[:-2] + (3,))
 
 
 def s_k_rate(r: ArrayLike, omega: ArrayLike, k: ArrayLike) -> NDArray[np.float64]:
     """d/dt s_K(E) for E' = E omega^: sum_i K_i e_i x (omega x E^T e_i) (eq. 66) = tr(K E) w - E^T K w."""
-    r = np.asarray(r, dtype=float)
-    w = np.asarray(omega, dtype=float)
-    kv = np.asarray(k, dtype=float)
-    tr = np.einsum("i,...ii->...", kv, r)
-    return tr[..., None] * w - np.einsum("...ji,...j->...i", r, kv * w)
+    r, w = np.asarray(r, dtype=float), np.asarray(omega, dtype=float)
+    shape = np.broadcast_shapes(r.shape[:-2], w.shape[:-1])
+    rows = np.ascontiguousarray(np.broadcast_to(r, shape + (3, 3)).reshape(-1, 3, 3))
+    ws = np.ascontiguousarray(np.broadcast_to(w, shape + (3,)).reshape(-1, 3))
+    out = np.empty_like(ws)
+    _s_k_rows(rows, ws, np.asarray(k, dtype=float), True, out)
+    return out.reshape(shape + (3,))
 
 
 def morse(r: ArrayLike, k: ArrayLike) -> NDArray[np.float64]:
@@ -121,7 +156,15 @@ def validate_gains(p: float, kt1: float, kt2: float, kt3: float, kappa_t: float,
 
 @register_observer("ffts_eso")
 class FFTSESO(Observer):
-    """FFTS-ESO on TSE(3) (Wang et al. (2024) Props. 1-2); estimates phi_D (world NED) and tau_D (body FRD)."""
+    """FFTS-ESO on TSE(3) (Wang et al. (2024) Props. 1-2); estimates phi_D (world NED) and tau_D (body FRD).
+
+    ``max_dt`` = 1 / max(k_t1 k_t3 + kappa_t, k_a1 k_a3 + kappa_a (tr K - min K)): far from e = 0 the output
+    injections are linear (phi1(e) ~ k3 e, eq. 9) with these rates, and explicit Euler needs rate dt < 2
+    (near e = 0 the floor of :func:`~fawtgym.observers.hc_ffts.euler_stable_eps` keeps the step stable);
+    53 ms at the paper's gains.
+    """
+
+    required_keys = _KEYS
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, p: float = 1.2,
                  kt1: float = 3.0, kt2: float = 2.0, kt3: float = 6.0, kappa_t: float = 0.8,
@@ -136,25 +179,17 @@ class FFTSESO(Observer):
         self.ka1, self.ka2, self.ka3 = float(ka1), float(ka2), float(ka3)
         self.morse_k = np.asarray(morse_k, dtype=float)
         self.eps = float(eps)
-        self._state: dict[str, NDArray[np.float64]] | None = None
-        self._single_flat: list[float] | None = None     # N = 1 fast path: the state as 24 floats
-        self._dirty = False                                # self._state older than self._single_flat
-        # constants of eq. (9) and of the fractional power (1-p)/p, (p-1)/p
-        self._a = (1.0 - p) / (3.0 * p - 2.0)
-        self._c1t = 2.0 * kt3 * (2.0 * p - 1.0) / (3.0 * p - 2.0)
-        self._c1a = 2.0 * ka3 * (2.0 * p - 1.0) / (3.0 * p - 2.0)
-        self._c2 = p / (3.0 * p - 2.0)
-        self._c = (1.0 - p) / p
-        self._k = (p - 1.0) / p
-        self._ge3 = self.gravity * _E3
-        self._j_list = self.inertia.tolist()
-        self._jinv_list = self.inertia_inv.tolist()
-        self._kv = tuple(self.morse_k.tolist())
+        self._state: NDArray[np.float64] = np.empty((0, 0))      # (N, k) after reset
+        self._gains = np.array([self.mass, self.gravity, p, kt1, kt2, kt3, kappa_t, ka1, ka2, ka3, kappa_a,
+                                *self.morse_k, *self.inertia.ravel(), *self.inertia_inv.ravel()], dtype=float)
         # stiffest-mode gains of the two halves (euler_stable_eps): e_v' ~ -kappa_t g' e_v, and
         # e_Omega' ~ -kappa_a g' (tr(K) I - K) e_Omega at E = I (eq. 66)
         self._stiff_t = self.kappa_t
         self._stiff_a = self.kappa_a * float(self.morse_k.sum() - self.morse_k.min())
         self._eps_cache: tuple[float, float, float] = (math.nan, self.eps, self.eps)
+        # far from e = 0 the injections are linear (phi1 ~ k3 e), with rates up to k1 k3 + kappa (the kappa e_v
+        # term) on each half; explicit Euler needs rate dt < 2, max_dt = 1 / rate keeps a margin of 2
+        self.max_dt = 1.0 / max(self.kt1 * self.kt3 + self._stiff_t, self.ka1 * self.ka3 + self._stiff_a)
 
     def eps_at(self, dt: float) -> tuple[float, float]:
         """(eps_t, eps_a): the floors of the translational and rotational fractional terms at step ``dt``
@@ -165,259 +200,145 @@ class FFTSESO(Observer):
         return self._eps_cache[1], self._eps_cache[2]
 
     # ---- interface -------------------------------------------------------------------------
-    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None) -> int:
+    def _reset(self, measurement: Mapping[str, NDArray[np.float64]], force: ArrayLike | None,
+               torque: ArrayLike | None, rows: NDArray[np.bool_] | None) -> int:
         """b_hat, v_hat, R_hat, Omega_hat := measured values; phi_hat, tau_hat := given guesses (default 0).
 
-        State: the dict ``_state`` of (N, 3) / (N, 3, 3) arrays, behind the N = 1 float state ``_single_flat``
-        when ``_dirty`` (synced before a masked write)."""
-        m = require(measurement, _KEYS, "ffts_eso")
+        State: ``_state`` (N, 24), columns b_hat, v_hat, phi_hat, Omega_hat, tau_hat, R_hat (row-major)."""
+        m = measurement        # checked by Observer.reset (required_keys)
         n = m["position"].shape[0]
-        fresh = {
-            "b": m["position"].copy(), "v": m["velocity"].copy(), "phi": batch_vec(force, n, "force", "ffts_eso"),
-            "R": project_so3(m["attitude"]), "w": m["angular_velocity"].copy(),
-            "tau": batch_vec(torque, n, "torque", "ffts_eso"),
-        }
-        self._sync_single()
+        fresh = np.concatenate([m["position"], m["velocity"], batch_vec(force, n, "force", "ffts_eso"),
+                                m["angular_velocity"], batch_vec(torque, n, "torque", "ffts_eso"),
+                                project_so3(m["attitude"]).reshape(n, 9)], axis=1)
         self._state = write_rows(self._state, fresh, rows)
-        self._single_flat, self._dirty = None, False
         return n
 
-    def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
-               dt: float) -> ObserverEstimate:
-        if self._state is None:
-            raise RuntimeError("ffts_eso: call reset(measurement) before update()")
-        if self._state["b"].shape[0] == 1:
-            return self._update_single(measurement, thrust, torque, dt)
-        s = self._state
-        m, f, tau = step_inputs(self, measurement, thrust, torque, dt, _KEYS, s["b"].shape[0], "ffts_eso")
-        new = self._advance(s, self._rhs(s, m, f, tau, *self.eps_at(dt)), dt)
-        if not all_finite(new["v"], new["w"], new["phi"], new["tau"], new["b"], new["R"]):
-            check_finite("ffts_eso", **new)
-        self._state = new
-        return self.estimate()
-
-    def _update_single(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
-                       dt: float) -> ObserverEstimate:
-        """N = 1 fast path: the same equations as :meth:`_rhs` + :meth:`_advance` (Euler) in Python floats.
-
-        numpy's per-call overhead dominates a single 3-vector update, so everything is unrolled into scalar
-        float arithmetic (same operation order as the list form it replaced); this path is checked against
-        the batched one in the tests (batch-equals-separate-runs).
-        """
-        if not (math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
-        try:
-            pm0, pm1, pm2, vm0, vm1, vm2, om0, om1, om2 = (
-                floats(measurement["position"]) + floats(measurement["velocity"])
-                + floats(measurement["angular_velocity"]))
-            rm = floats(measurement["attitude"])
-        except KeyError as exc:
-            raise ValueError(f"ffts_eso needs measurement keys {list(_KEYS)}; missing {exc} "
-                             f"(got {sorted(measurement)})") from None
-        except ValueError:      # wrong number of entries in the unpacking above
-            rm = []
-        if len(rm) != 9:
-            sizes = [np.size(measurement[k]) for k in _KEYS]
-            raise ValueError("ffts_eso: measurement batch size does not match the reset batch size 1 "
-                             f"(got sizes {dict(zip(_KEYS, sizes, strict=True))}, expected 3, 3, 9, 3)")
-        fl = floats(thrust)
-        tq = floats(torque)
-        if len(fl) != 1 or len(tq) != 3:
-            raise ValueError(f"ffts_eso: thrust must have shape (1,) and torque (3,) or (1, 3) for N = 1, "
-                             f"got {np.shape(thrust)} and {np.shape(torque)}")
-        if not math.isfinite(pm0 + pm1 + pm2 + vm0 + vm1 + vm2 + om0 + om1 + om2 + sum(rm)):
-            raise ValueError("ffts_eso: measurement contains non-finite values")
-        tq0, tq1, tq2 = tq
-        if not math.isfinite(fl[0] + tq0 + tq1 + tq2):
-            raise ValueError(f"ffts_eso: thrust/torque contain non-finite values: {fl}, {tq}")
-        flat = self._single_flat    # the floats of the previous N = 1 step (None after reset)
-        if flat is None:
-            st = self._state
-            flat = np.concatenate([st[k].ravel() for k in ("b", "v", "phi", "w", "tau", "R")]).tolist()
-        (b0, b1, b2, v0, v1, v2, ph0, ph1, ph2, w0, w1, w2, th0, th1, th2,
-         h00, h01, h02, h10, h11, h12, h20, h21, h22) = flat
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rm
-        eps, eps_a = self.eps_at(dt)
-        mass, c, k2c, a, tiny = self.mass, self._c, 2.0 * self._k, self._a, _TINY
-        # translational, eqs. (45), (49), (50)
-        eb0, eb1, eb2 = pm0 - b0, pm1 - b1, pm2 - b2
-        ev0, ev1, ev2 = vm0 - v0, vm1 - v1, vm2 - v2
-        r2 = eb0 * eb0 + eb1 * eb1 + eb2 * eb2
-        rb = eps if eps > r2 else r2
-        pw = rb**c
-        coef = k2c * (eb0 * ev0 + eb1 * ev1 + eb2 * ev2) / rb if r2 > eps else 0.0
-        kt = self.kappa_t
-        ps0 = ev0 + kt * (eb0 + pw * eb0)
-        ps1 = ev1 + kt * (eb1 + pw * eb1)
-        ps2 = ev2 + kt * (eb2 + pw * eb2)
-        pa = ps0 * ps0 + ps1 * ps1 + ps2 * ps2
-        pa = (tiny if tiny > pa else pa) ** a
-        g1 = self.kt1 * (self.kt3 + pa)
-        g2 = mass * self.kt2 * (self.kt3 * self.kt3 + self._c1t * pa + self._c2 * pa * pa)
-        fm = fl[0] / mass
-        vd0 = 0.0 - fm * r02 + g1 * ps0 + kt * (pw * (ev0 - coef * eb0) + ev0) + ph0 / mass
-        vd1 = 0.0 - fm * r12 + g1 * ps1 + kt * (pw * (ev1 - coef * eb1) + ev1) + ph1 / mass
-        vd2 = self.gravity - fm * r22 + g1 * ps2 + kt * (pw * (ev2 - coef * eb2) + ev2) + ph2 / mass
-        # rotational, eqs. (46), (47), (66), (68), (69); E = R_hat^T R^m
-        e00 = h00 * r00 + h10 * r10 + h20 * r20
-        e01 = h00 * r01 + h10 * r11 + h20 * r21
-        e02 = h00 * r02 + h10 * r12 + h20 * r22
-        e10 = h01 * r00 + h11 * r10 + h21 * r20
-        e11 = h01 * r01 + h11 * r11 + h21 * r21
-        e12 = h01 * r02 + h11 * r12 + h21 * r22
-        e20 = h02 * r00 + h12 * r10 + h22 * r20
-        e21 = h02 * r01 + h12 * r11 + h22 * r21
-        e22 = h02 * r02 + h12 * r12 + h22 * r22
-        k0, k1, k2 = self._kv
-        er0, er1, er2 = k2 * e21 - k1 * e12, k0 * e02 - k2 * e20, k1 * e10 - k0 * e01
-        eo0 = om0 - (e00 * w0 + e10 * w1 + e20 * w2)
-        eo1 = om1 - (e01 * w0 + e11 * w1 + e21 * w2)
-        eo2 = om2 - (e02 * w0 + e12 * w1 + e22 * w2)
-        tr = k0 * e00 + k1 * e11 + k2 * e22
-        ke0, ke1, ke2 = k0 * eo0, k1 * eo1, k2 * eo2
-        ew0 = tr * eo0 - (e00 * ke0 + e10 * ke1 + e20 * ke2)
-        ew1 = tr * eo1 - (e01 * ke0 + e11 * ke1 + e21 * ke2)
-        ew2 = tr * eo2 - (e02 * ke0 + e12 * ke1 + e22 * ke2)
-        r2a = er0 * er0 + er1 * er1 + er2 * er2
-        ra = eps_a if eps_a > r2a else r2a
-        pwa = ra**c
-        coefa = k2c * (er0 * ew0 + er1 * ew1 + er2 * ew2) / ra if r2a > eps_a else 0.0
-        ka = self.kappa_a
-        pa0 = eo0 + ka * (er0 + pwa * er0)
-        pa1 = eo1 + ka * (er1 + pwa * er1)
-        pa2 = eo2 + ka * (er2 + pwa * er2)
-        qa = pa0 * pa0 + pa1 * pa1 + pa2 * pa2
-        qa = (tiny if tiny > qa else qa) ** a
-        h1 = self.ka1 * (self.ka3 + qa)
-        h2 = self.ka2 * (self.ka3 * self.ka3 + self._c1a * qa + self._c2 * qa * qa)
-        (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._j_list
-        (i00, i01, i02), (i10, i11, i12), (i20, i21, i22) = self._jinv_list
-        jo0 = j00 * om0 + j01 * om1 + j02 * om2
-        jo1 = j10 * om0 + j11 * om1 + j12 * om2
-        jo2 = j20 * om0 + j21 * om1 + j22 * om2
-        t0 = jo1 * om2 - jo2 * om1 + th0 + tq0
-        t1 = jo2 * om0 - jo0 * om2 + th1 + tq1
-        t2 = jo0 * om1 - jo1 * om0 + th2 + tq2
-        bd0 = i00 * t0 + i01 * t1 + i02 * t2 + h1 * pa0 + ka * (pwa * (ew0 - coefa * er0) + ew0)
-        bd1 = i10 * t0 + i11 * t1 + i12 * t2 + h1 * pa1 + ka * (pwa * (ew1 - coefa * er1) + ew1)
-        bd2 = i20 * t0 + i21 * t1 + i22 * t2 + h1 * pa2 + ka * (pwa * (ew2 - coefa * er2) + ew2)
-        ee0 = e00 * eo0 + e01 * eo1 + e02 * eo2
-        ee1 = e10 * eo0 + e11 * eo1 + e12 * eo2
-        ee2 = e20 * eo0 + e21 * eo1 + e22 * eo2
-        wd0 = e00 * bd0 + e01 * bd1 + e02 * bd2 + ee1 * w2 - ee2 * w1
-        wd1 = e10 * bd0 + e11 * bd1 + e12 * bd2 + ee2 * w0 - ee0 * w2
-        wd2 = e20 * bd0 + e21 * bd1 + e22 * bd2 + ee0 * w1 - ee1 * w0
-        # advance (same scheme as _advance)
-        hh = 0.5 * dt * dt
-        hd = 0.5 * dt
-        x0, x1, x2 = dt * (w0 + hd * wd0), dt * (w1 + hd * wd1), dt * (w2 + hd * wd2)
-        q2 = x0 * x0 + x1 * x1 + x2 * x2
-        if q2 < 1e-8:   # the same Taylor branch as lie.exp_so3
-            ca, cb = 1.0 - q2 / 6.0 + q2 * q2 / 120.0, 0.5 - q2 / 24.0 + q2 * q2 / 720.0
-        else:
-            tt = math.sqrt(q2)
-            ca, cb = math.sin(tt) / tt, (1.0 - math.cos(tt)) / (tt * tt)
-        # exp(x^) = (1 - cb t2) I + ca x^ + cb x x^T  (x^ x^ = x x^T - t2 I), same coefficients as lie.exp_so3
-        d0 = 1.0 - cb * q2
-        x00, x11, x22 = d0 + cb * x0 * x0, d0 + cb * x1 * x1, d0 + cb * x2 * x2
-        x01, x02, x12 = -ca * x2 + cb * x0 * x1, ca * x1 + cb * x0 * x2, -ca * x0 + cb * x1 * x2
-        x10, x20, x21 = ca * x2 + cb * x1 * x0, -ca * x1 + cb * x2 * x0, ca * x0 + cb * x2 * x1
-        flat = [b0 + dt * v0 + hh * vd0, b1 + dt * v1 + hh * vd1, b2 + dt * v2 + hh * vd2,
-                v0 + dt * vd0, v1 + dt * vd1, v2 + dt * vd2,
-                ph0 + dt * (g2 * ps0), ph1 + dt * (g2 * ps1), ph2 + dt * (g2 * ps2),
-                w0 + dt * wd0, w1 + dt * wd1, w2 + dt * wd2,
-                th0 + dt * (h2 * (j00 * pa0 + j01 * pa1 + j02 * pa2)),
-                th1 + dt * (h2 * (j10 * pa0 + j11 * pa1 + j12 * pa2)),
-                th2 + dt * (h2 * (j20 * pa0 + j21 * pa1 + j22 * pa2)),
-                h00 * x00 + h01 * x10 + h02 * x20, h00 * x01 + h01 * x11 + h02 * x21, h00 * x02 + h01 * x12 + h02 * x22,
-                h10 * x00 + h11 * x10 + h12 * x20, h10 * x01 + h11 * x11 + h12 * x21, h10 * x02 + h11 * x12 + h12 * x22,
-                h20 * x00 + h21 * x10 + h22 * x20, h20 * x01 + h21 * x11 + h22 * x21, h20 * x02 + h21 * x12 + h22 * x22]
-        if not math.isfinite(sum(flat)):
-            check_finite("ffts_eso", b=np.array(flat[0:3]), v=np.array(flat[3:6]), phi=np.array(flat[6:9]),
-                         w=np.array(flat[9:12]), tau=np.array(flat[12:15]), R=np.array(flat[15:]))
-        self._single_flat = flat    # the numpy state is written from it only when needed (_sync_single)
-        self._dirty = True
-        out = np.fromiter(flat, float, 24)  # fresh returned arrays, not views of the state
-        return ObserverEstimate(force=out[None, 6:9], torque=out[None, 12:15], states={
-            "position": out[None, 0:3], "velocity": out[None, 3:6], "attitude": out[15:].reshape(1, 3, 3),
-            "angular_velocity": out[None, 9:12]})
-
-    def _sync_single(self) -> None:
-        """Write the float state of the last N = 1 fast step into the numpy state dict."""
-        if self._dirty:
-            buf = np.array(self._single_flat)
-            self._state = {"b": buf[None, 0:3], "v": buf[None, 3:6], "phi": buf[None, 6:9], "w": buf[None, 9:12],
-                           "tau": buf[None, 12:15], "R": buf[15:].reshape(1, 3, 3)}
-            self._dirty = False
+    def _update(self, m: dict[str, NDArray[np.float64]], f: NDArray[np.float64], tau: NDArray[np.float64],
+                dt: float) -> tuple[ObserverEstimate, NDArray[np.float64]]:
+        x = self._state
+        eps_t, eps_a = self.eps_at(dt)
+        x_new = np.empty(x.shape)
+        est = np.empty(x.shape)
+        ffts_eso_step(x, m["position"], m["velocity"], m["attitude"], m["angular_velocity"], f, tau, dt, eps_t,
+                      eps_a, self._gains, x_new, est)
+        return _estimate(est), x_new
 
     def estimate(self) -> ObserverEstimate:
-        if self._state is None:
+        if self._n_rows is None:
             raise RuntimeError("ffts_eso: call reset(measurement) first")
-        self._sync_single()
-        s = self._state
-        return ObserverEstimate(force=s["phi"].copy(), torque=s["tau"].copy(), states={
-            "position": s["b"].copy(), "velocity": s["v"].copy(), "attitude": s["R"].copy(),
-            "angular_velocity": s["w"].copy()})
+        est = np.empty_like(self._state)
+        ffts_eso_estimate(self._state, est)
+        return _estimate(est)
 
-    # ---- internals ---------------------------------------------------------------------------
-    @staticmethod
-    def _advance(s: dict[str, NDArray[np.float64]], d: dict[str, NDArray[np.float64]], dt: float
-                 ) -> dict[str, NDArray[np.float64]]:
-        """One step with the derivatives held: the kinematic chains b' = v_hat, R' = R Omega_hat^ are integrated
-        exactly for a held v_hat', Omega_hat' (b += dt v + dt^2/2 v', R <- R exp(dt w + dt^2/2 w')).
 
-        Plain Euler on b would lag the sampled position by dt^2/2 b'' per step, which the fractional
-        injection (|e_b|^(-1/3) near 0) turns into a force bias of ~0.1 N at 1 kHz.
-        """
-        h2 = 0.5 * dt * dt
-        return {"b": s["b"] + dt * s["v"] + h2 * d["v"], "v": s["v"] + dt * d["v"], "phi": s["phi"] + dt * d["phi"],
-                "R": integrate_rotation(s["R"], s["w"] + (0.5 * dt) * d["w"], dt), "w": s["w"] + dt * d["w"],
-                "tau": s["tau"] + dt * d["tau"]}
+def _estimate(est: NDArray[np.float64]) -> ObserverEstimate:
+    """The estimate from the kernel's buffer (N, 24) (views of a fresh buffer, not of the state)."""
+    n = est.shape[0]
+    return ObserverEstimate(force=est[:, E_FORCE:E_FORCE + 3], torque=est[:, E_TORQUE:E_TORQUE + 3], states={
+        "position": est[:, E_POS:E_POS + 3], "velocity": est[:, E_VEL:E_VEL + 3],
+        "attitude": est[:, E_ATT:E_ATT + 9].reshape(n, 3, 3), "angular_velocity": est[:, E_W:E_W + 3]})
 
-    def _rhs(self, s: dict[str, NDArray[np.float64]], m: dict[str, NDArray[np.float64]],
-             f: NDArray[np.float64], tau: NDArray[np.float64], eps: float | None = None,
-             eps_a: float | None = None) -> dict[str, NDArray[np.float64]]:
-        """Time derivatives of (b, v, phi, tau, w) and the body rate of R_hat (key "R").
 
-        Fused forms of phi1/phi2 (eq. 9) and of the regularised fractional power g(e) = max(e^T e, eps)^c e,
-        c = (1-p)/p, and its exact derivative (eqs. 49/68); equal to the hc_ffts functions (tested).
-        ``eps`` / ``eps_a``: the translational / rotational floors (default ``self.eps``; :meth:`update` passes
-        :meth:`eps_at` of its dt).
-        """
-        mass, c = self.mass, self._c
-        eps = self.eps if eps is None else eps
-        eps_a = self.eps if eps_a is None else eps_a
-        # translational, eqs. (45), (49), (50)
-        e_b = m["position"] - s["b"]
-        e_v = m["velocity"] - s["v"]
-        r2 = (e_b * e_b) @ _ONES
-        rb = np.maximum(r2, eps)
-        pw = rb**c
-        inside = r2 > eps
-        psi_t = e_v + self.kappa_t * (e_b + pw * e_b)
-        rate_b = pw * (e_v - (2.0 * self._k * (e_b * e_v) @ _ONES * inside / rb) * e_b)
-        pa = np.maximum((psi_t * psi_t) @ _ONES, _TINY) ** self._a
-        rm = m["attitude"]
-        v_dot = (self._ge3 - (f / mass)[:, None] * rm[:, :, 2] + (self.kt1 * (self.kt3 + pa)) * psi_t
-                 + self.kappa_t * (rate_b + e_v) + s["phi"] / mass)
-        phi_dot = (mass * self.kt2) * (self.kt3 * self.kt3 + self._c1t * pa + self._c2 * pa * pa) * psi_t
-        # rotational, eqs. (46), (47), (66), (68), (69)
-        om = m["angular_velocity"]
-        e_mat = np.swapaxes(s["R"], -1, -2) @ rm
-        kv = self.morse_k
-        e_r = e_mat[:, _VA, _VB] * kv[_VA] - e_mat[:, _VB, _VA] * kv[_VB]      # s_K(E_R) = vee(K E - E^T K)
-        e_om = om - (s["w"][:, None, :] @ e_mat)[:, 0]                           # Omega^m - E^T Omega_hat
-        tr = e_mat[:, 0, 0] * kv[0] + e_mat[:, 1, 1] * kv[1] + e_mat[:, 2, 2] * kv[2]
-        e_w = tr[:, None] * e_om - ((kv * e_om)[:, None, :] @ e_mat)[:, 0]      # eq. (66)
-        r2a = (e_r * e_r) @ _ONES
-        ra = np.maximum(r2a, eps_a)
-        pwa = ra**c
-        psi_a = e_om + self.kappa_a * (e_r + pwa * e_r)
-        rate_r = pwa * (e_w - (2.0 * self._k * (e_r * e_w) @ _ONES * (r2a > eps_a) / ra) * e_r)
-        qa = np.maximum((psi_a * psi_a) @ _ONES, _TINY) ** self._a
-        body = ((cross(om @ self.inertia.T, om) + s["tau"] + tau) @ self.inertia_inv.T
-                + (self.ka1 * (self.ka3 + qa)) * psi_a + self.kappa_a * (rate_r + e_w))
-        w_dot = (e_mat @ body[:, :, None])[:, :, 0] + cross((e_mat @ e_om[:, :, None])[:, :, 0], s["w"])
-        tau_dot = (self.ka2 * (self.ka3 * self.ka3 + self._c1a * qa + self._c2 * qa * qa) * psi_a) @ self.inertia.T
-        return {"b": s["v"], "v": v_dot, "phi": phi_dot, "R": s["w"], "w": w_dot, "tau": tau_dot}
+@njit(cache=True)
+def _estimate_row(x: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+    """The estimate of one state row: phi_hat, tau_hat, b_hat, v_hat, Omega_hat, R_hat."""
+    for j in range(3):
+        est[E_FORCE + j] = x[PHI + j]
+        est[E_TORQUE + j] = x[TAU + j]
+        est[E_POS + j] = x[B + j]
+        est[E_VEL + j] = x[V + j]
+        est[E_W + j] = x[W + j]
+    for j in range(9):
+        est[E_ATT + j] = x[R + j]
+
+
+@njit(cache=True)
+def ffts_eso_estimate(x: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+    """:func:`_estimate_row` of every row of the state ``x`` (N, 24) into ``est`` (N, 24)."""
+    for i in range(x.shape[0]):
+        _estimate_row(x[i], est[i])
+
+
+@njit(cache=True)
+def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray[np.float64],
+                  att: NDArray[np.float64], omega: NDArray[np.float64], thrust: NDArray[np.float64],
+                  torque: NDArray[np.float64], dt: float, eps_t: float, eps_a: float, gains: NDArray[np.float64],
+                  x_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+    """One FFTS-ESO step of every row: state ``x`` (N, 24) -> ``x_new``, estimate into ``est`` (N, 24).
+
+    Measurement b^m (N, 3), v^m (N, 3), R^m (N, 3, 3), Omega^m (N, 3), applied thrust (N,) and torque (N, 3)
+    held over ``dt``; ``eps_t`` / ``eps_a`` the floors of the two fractional terms at this dt; ``gains`` as
+    :data:`GAIN_NAMES`.  Equations as in the module docstring (Wang et al. (2024) eqs. 45-50, 66-69).
+    """
+    mass, g, p = gains[0], gains[1], gains[2]
+    kt1, kt2, kt3, kappa_t = gains[3], gains[4], gains[5], gains[6]
+    ka1, ka2, ka3, kappa_a = gains[7], gains[8], gains[9], gains[10]
+    morse_k = gains[11:14]
+    inertia = gains[14:23].reshape((3, 3))
+    inertia_inv = gains[23:32].reshape((3, 3))
+    half_dt2 = 0.5 * dt * dt
+    vec = np.empty((18, 3))                                                 # the row's 3-vector intermediates
+    e_b, e_v, psi_t, g_b, rate_b, inj1, inj2 = vec[0], vec[1], vec[2], vec[3], vec[4], vec[5], vec[6]
+    e_r, e_om, e_w, psi_a, g_r, rate_r = vec[7], vec[8], vec[9], vec[10], vec[11], vec[12]
+    jw, gyro, body, t1, t2 = vec[13], vec[14], vec[15], vec[16], vec[17]
+    mats = np.empty((4, 3, 3))
+    e_mat, r_hat, step_rot, r_new = mats[0], mats[1], mats[2], mats[3]
+    for i in range(x.shape[0]):
+        xi, xo = x[i], x_new[i]
+        # ---- translational ESO, eqs. (45), (48)-(50)
+        for j in range(3):
+            e_b[j] = pos[i, j] - xi[B + j]                                  # e_b = b^m - b_hat
+            e_v[j] = vel[i, j] - xi[V + j]                                  # e_v = v^m - v_hat
+        frac_power_row(e_b, e_v, p, eps_t, g_b, rate_b)  # |e_b|^(2(1-p)/p) e_b (regularised), its rate (H-term)
+        for j in range(3):
+            psi_t[j] = e_v[j] + kappa_t * (e_b[j] + g_b[j])                 # psi_t, eq. (50)
+        phi_row(psi_t, kt3, p, inj1, inj2)                                  # phi1, phi2 of eq. (9)
+        f_over_m = thrust[i] / mass
+        for j in range(3):
+            # v_hat' = g e3 - (f/m) R^m e3 + k_t1 phi1(psi_t) + kappa_t (g'(e_b) + e_v) + phi_hat / m, eq. (49)
+            v_dot = ((g if j == 2 else 0.0) - f_over_m * att[i, j, 2] + kt1 * inj1[j]
+                     + kappa_t * (rate_b[j] + e_v[j]) + xi[PHI + j] / mass)
+            xo[B + j] = xi[B + j] + dt * xi[V + j] + half_dt2 * v_dot   # b' = v_hat, exact for the held v_hat'
+            xo[V + j] = xi[V + j] + dt * v_dot
+            xo[PHI + j] = xi[PHI + j] + dt * (mass * kt2 * inj2[j])     # phi_hat' = m k_t2 phi2(psi_t)
+        # ---- rotational ESO, eqs. (46)-(47), (66)-(69); E = R_hat^T R^m
+        for j in range(3):
+            for k in range(3):
+                r_hat[j, k] = xi[R + 3 * j + k]
+        for j in range(3):
+            for k in range(3):
+                e_mat[j, k] = r_hat[0, j] * att[i, 0, k] + r_hat[1, j] * att[i, 1, k] + r_hat[2, j] * att[i, 2, k]
+        mat_t_vec_row(e_mat, xi[W:W + 3], t1)                               # E^T Omega_hat
+        for j in range(3):
+            e_om[j] = omega[i, j] - t1[j]                                   # e_Omega, eq. (47)
+        s_k_row(e_mat, morse_k, e_r)                                        # e_R = s_K(E), eq. (41)
+        s_k_rate_row(e_mat, e_om, morse_k, e_w)                             # e_w = d/dt e_R, eq. (66)
+        frac_power_row(e_r, e_w, p, eps_a, g_r, rate_r)
+        for j in range(3):
+            psi_a[j] = e_om[j] + kappa_a * (e_r[j] + g_r[j])                # psi_a, eq. (69)
+        phi_row(psi_a, ka3, p, inj1, inj2)
+        mat_vec_row(inertia, omega[i], jw)
+        cross_row(jw, omega[i], gyro)                                       # J Om^m x Om^m
+        for j in range(3):
+            t1[j] = gyro[j] + xi[TAU + j] + torque[i, j]
+        mat_vec_row(inertia_inv, t1, t2)                                    # J^-1 (J Om x Om + tau_hat + tau)
+        for j in range(3):
+            body[j] = t2[j] + ka1 * inj1[j] + kappa_a * (rate_r[j] + e_w[j])
+        mat_vec_row(e_mat, body, t1)                                        # E [ ... ], eq. (68)
+        mat_vec_row(e_mat, e_om, t2)                                        # E e_Omega
+        cross_row(t2, xi[W:W + 3], jw)                                      # E e_Om^ E^T Om_hat = (E e_Om) x Om_hat
+        for j in range(3):
+            t2[j] = ka2 * inj2[j]
+        mat_vec_row(inertia, t2, gyro)                                      # tau_hat' = J k_a2 phi2(psi_a)
+        for j in range(3):
+            w_dot = t1[j] + jw[j]
+            # R_hat' = R_hat Omega_hat^: exact for the held Omega_hat' (exponential map over the step)
+            t2[j] = dt * (xi[W + j] + 0.5 * dt * w_dot)
+            xo[W + j] = xi[W + j] + dt * w_dot
+            xo[TAU + j] = xi[TAU + j] + dt * gyro[j]
+        exp_so3_row(t2, step_rot)
+        mat_mul_row(r_hat, step_rot, r_new)
+        for j in range(3):
+            for k in range(3):
+                xo[R + 3 * j + k] = r_new[j, k]
+        _estimate_row(xo, est[i])

@@ -42,12 +42,12 @@ from typing import Any
 
 import numpy as np
 import scipy.linalg
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
 from fawtgym.core.rows import write_rows
 
-from ._obs_common import floats
 from .base import Observer, ObserverEstimate, register_observer
 
 #: orders the module supports (eqs. 18-23 for n = 1..4)
@@ -56,12 +56,8 @@ HOLDS = ("zoh", "foh")
 CHANNELS = ("force", "torque")
 _E3 = np.array([0.0, 0.0, 1.0])
 _RATE_NAME = {"force": "velocity", "torque": "angular_velocity"}
+_EYE3 = np.eye(3)[None]      # the attitude argument of the torque channel (not read)
 _DER_NAME = {"force": "force_derivatives", "torque": "torque_derivatives"}
-
-
-def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1], a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
 def _check_order(order: object) -> int:
@@ -180,7 +176,8 @@ class GesoFilter:
         #: observer matrix A - L C and input matrix [B, L] for the inputs (u*, y), eq. 22
         self.f = a - np.outer(self.gains, c[0])
         self.g = np.hstack([b, self.gains[:, None]])
-        self._cache: dict[tuple[float, str], tuple[NDArray[np.float64], ...]] = {}
+        self._cache: dict[tuple[float, str], tuple[NDArray[np.float64], ...]] = {}   # per (dt, hold)
+        self._packed: dict[tuple[float, str], NDArray[np.float64]] = {}
 
     def discretize(self, dt: float, hold: str = "zoh") -> tuple[NDArray[np.float64], ...]:
         """Exact discrete matrices for step ``dt``.
@@ -216,6 +213,21 @@ class GesoFilter:
                 raise ValueError(f"GESO discretization at dt={dt} overflowed (gains {self.gains})")
         return self._cache[key]
 
+    def step_matrix(self, dt: float, hold: str = "zoh") -> NDArray[np.float64]:
+        """:meth:`discretize` packed for :func:`geso_filter_row`: ``[Phi | Gamma | Gamma1]``, shape (n+1, n+5)
+        (Gamma1 = 0 for ``"zoh"``: y held)."""
+        key = (float(dt), hold)
+        packed = self._packed.get(key)
+        if packed is None:
+            mats = self.discretize(dt, hold)
+            m = self.order + 1
+            packed = np.zeros((m, m + 4))
+            packed[:, :m], packed[:, m:m + 2] = mats[0], mats[1]
+            if hold == "foh":
+                packed[:, m + 2:] = mats[2]
+            self._packed[key] = packed
+        return packed
+
     def derivative(self, x: NDArray[np.float64], u_star: ArrayLike, y: ArrayLike) -> NDArray[np.float64]:
         """Continuous right-hand side of eq. 22, ``(A - L C) x + B u* + L y``, batch (..., n+1)."""
         uy = np.stack(np.broadcast_arrays(np.asarray(u_star, float), np.asarray(y, float)), axis=-1)
@@ -223,19 +235,130 @@ class GesoFilter:
 
     def step(self, x: NDArray[np.float64], u_star: ArrayLike, y: ArrayLike, dt: float, hold: str = "zoh",
              y_next: ArrayLike | None = None) -> NDArray[np.float64]:
-        """Advance ``x`` (..., n+1) by ``dt``; ``u_star`` and ``y`` have shape (...,).
+        """Advance ``x`` (..., n+1) by ``dt``; ``u_star`` and ``y`` have shape (...,) (:func:`geso_filter_row`).
 
         With ``hold="foh"`` ``y_next`` (the measurement at the end of the step) is required.
         """
-        mats = self.discretize(dt, hold)
-        uy = np.stack(np.broadcast_arrays(np.asarray(u_star, float), np.asarray(y, float)), axis=-1)
-        out = x @ mats[0].T + uy @ mats[1].T
-        if hold == "foh":
-            if y_next is None:
-                raise ValueError("hold='foh' needs y_next, the measurement at the end of the step")
-            dy = np.asarray(y_next, float) - np.asarray(y, float)
-            out = out + dy[..., None] * mats[2][:, 1]
-        return out
+        packed = self.step_matrix(dt, hold)
+        if hold == "foh" and y_next is None:
+            raise ValueError("hold='foh' needs y_next, the measurement at the end of the step")
+        x = np.asarray(x, dtype=float)
+        u_arr, y_arr = np.asarray(u_star, dtype=float), np.asarray(y, dtype=float)
+        dy = np.zeros(()) if y_next is None else np.asarray(y_next, dtype=float) - y_arr
+        shape = np.broadcast_shapes(x.shape[:-1], u_arr.shape, y_arr.shape, dy.shape)
+        m = self.order + 1
+        rows = np.ascontiguousarray(np.broadcast_to(x, shape + (m,)).reshape(-1, m))
+        flat = [np.ascontiguousarray(np.broadcast_to(a, shape).reshape(-1)) for a in (u_arr, y_arr, dy)]
+        out = np.empty_like(rows)
+        _geso_filter_rows(rows, flat[0], flat[1], flat[2], packed, out)
+        return out.reshape(shape + (m,))
+
+
+@njit(cache=True)
+def geso_filter_row(x: NDArray[np.float64], u: float, y: float, dy: float, mats: NDArray[np.float64],
+                    out: NDArray[np.float64]) -> None:
+    """One exact sampled-data step of eq. 22 on one axis, m = len(x) = n + 1 states::
+
+        out = Phi x + Gamma [u*, y] + Gamma1 [0, y_next - y]
+
+    ``mats`` = [Phi | Gamma | Gamma1] (m, m + 4) of :meth:`GesoFilter.step_matrix` (Gamma1 = 0: y held)."""
+    m = x.shape[0]
+    for r in range(m):
+        acc = mats[r, m] * u + mats[r, m + 1] * y + mats[r, m + 3] * dy
+        for c in range(m):
+            acc += mats[r, c] * x[c]
+        out[r] = acc
+
+
+@njit(cache=True)
+def _geso_filter_rows(x: NDArray[np.float64], u: NDArray[np.float64], y: NDArray[np.float64],
+                      dy: NDArray[np.float64], mats: NDArray[np.float64], out: NDArray[np.float64]) -> None:
+    for i in range(x.shape[0]):
+        geso_filter_row(x[i], u[i], y[i], dy[i], mats, out[i])
+
+
+@njit(cache=True)
+def geso_signals_row(is_force: bool, mass: float, inertia: NDArray[np.float64], rate: NDArray[np.float64],
+                     att: NDArray[np.float64], y: NDArray[np.float64], aux: NDArray[np.float64]) -> None:
+    """The channel's measured momentum y and the state-dependent part of u* (Sec. IV-A):
+
+    force channel: y = m v^m (world NED), aux = R^m e3 (u* = m g e3 - f aux);
+    torque channel: y = J Omega^m (body FRD), aux = J Omega^m x Omega^m (u* = tau + aux)."""
+    if is_force:
+        for j in range(3):
+            y[j] = mass * rate[j]
+            aux[j] = att[j, 2]
+    else:
+        for j in range(3):
+            y[j] = inertia[j, 0] * rate[0] + inertia[j, 1] * rate[1] + inertia[j, 2] * rate[2]
+        aux[0] = y[1] * rate[2] - y[2] * rate[1]
+        aux[1] = y[2] * rate[0] - y[0] * rate[2]
+        aux[2] = y[0] * rate[1] - y[1] * rate[0]
+
+
+@njit(cache=True)
+def geso_signals(is_force: bool, mass: float, inertia: NDArray[np.float64], rate: NDArray[np.float64],
+                 att: NDArray[np.float64], y: NDArray[np.float64], aux: NDArray[np.float64]) -> None:
+    """:func:`geso_signals_row` of every row (``att`` (N, 3, 3) is read only by the force channel; the torque
+    channel may pass one dummy matrix)."""
+    for i in range(rate.shape[0]):
+        geso_signals_row(is_force, mass, inertia, rate[i], att[i if is_force else 0], y[i], aux[i])
+
+
+#: layout of the GESO state (N, K, 3, M + 2) per channel slot k and axis: x_hat (M entries, zero-padded beyond
+#: the slot's n + 1), then the previous signals y and aux (:func:`geso_signals_row`)
+PARAM_NAMES = ("mass", "gravity", "J (9, row-major)", "J^-1 (9, row-major)")
+
+
+@njit(cache=True)
+def geso_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.float64],
+              rate: NDArray[np.float64], thrust: NDArray[np.float64], torque: NDArray[np.float64],
+              slots: NDArray[np.int64], foh: bool, params: NDArray[np.float64], mats: NDArray[np.float64],
+              x_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+    """One GESO step of every row and channel slot.
+
+    ``x`` (N, K, 3, M + 2): per slot k (``slots[k]`` = (kind, n_k + 1), kind 0 = force, 1 = torque channel) and
+    axis, x_hat (n_k + 1 entries, zero-padded to M = max n_k + 1), then the previous
+    signals y, aux.  ``vel`` = v^m, ``att`` = R^m (force channel),
+    ``rate`` = Omega^m (torque channel); ``mats`` (K, M, M + 4) the packed step matrices of each slot at this dt
+    (:meth:`GesoFilter.step_matrix`); ``params`` as :data:`PARAM_NAMES`.  Writes ``x_new`` and ``est``
+    (N, K, M, 3): per slot the disturbance (x_hat[1] of each axis), the rate (v = x0 / m or Omega = J^-1 x0),
+    then the derivatives d', ..., d^(n-1) (rows beyond n_k + 1 are padding).  u* is held over the step: the
+    applied input with its state-dependent part at the previous signals (zoh) or at the mean of the previous
+    and the new (foh).
+    """
+    mass, gravity = params[0], params[1]
+    inertia = params[2:11].reshape((3, 3))
+    inertia_inv = params[11:20].reshape((3, 3))
+    mm = x.shape[3] - 2
+    y_new, aux_new = np.empty(3), np.empty(3)
+    for i in range(x.shape[0]):
+        for k in range(x.shape[1]):
+            is_force = slots[k, 0] == 0
+            m = slots[k, 1]                                    # the slot's n + 1
+            if is_force:
+                geso_signals_row(True, mass, inertia, vel[i], att[i], y_new, aux_new)
+            else:
+                geso_signals_row(False, mass, inertia, rate[i], att[0], y_new, aux_new)
+            for j in range(3):
+                xs, xo = x[i, k, j], x_new[i, k, j]
+                y_old, aux_old = xs[mm], xs[mm + 1]
+                a_held = 0.5 * (aux_old + aux_new[j]) if foh else aux_old
+                u = (mass * gravity * (1.0 if j == 2 else 0.0) - thrust[i] * a_held) if is_force \
+                    else torque[i, j] + a_held
+                geso_filter_row(xs[:m], u, y_old, y_new[j] - y_old, mats[k, :m, :m + 4], xo[:m])
+                for c in range(m, mm):
+                    xo[c] = 0.0
+                xo[mm], xo[mm + 1] = y_new[j], aux_new[j]
+                est[i, k, 0, j] = xo[1]
+                for c in range(2, mm):
+                    est[i, k, c, j] = xo[c]          # 0 beyond the slot's n + 1
+            for j in range(3):
+                if is_force:
+                    est[i, k, 1, j] = x_new[i, k, j, 0] / mass
+                else:
+                    est[i, k, 1, j] = (inertia_inv[j, 0] * x_new[i, k, 0, 0] + inertia_inv[j, 1] * x_new[i, k, 1, 0]
+                                       + inertia_inv[j, 2] * x_new[i, k, 2, 0])
 
 
 def _parse_channels(channels: str | Iterable[str]) -> tuple[str, ...]:
@@ -295,251 +418,78 @@ class GESO(Observer):
         self.hold = hold
         self.rate_key = rate_key
         self.filters = {c: GesoFilter(orders[c], bws[c]) for c in chans}
-        self._x: dict[str, NDArray[np.float64]] = {}
-        self._prev: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
-        # N = 1 fast path: block step matrices per dt, and the last N = 1 state as floats
-        self._single_mats: dict[float, NDArray[np.float64]] = {}
-        self._single: tuple | None = None
-        self._jl, self._jil = self.inertia.tolist(), self.inertia_inv.tolist()
-        self._mg = self.mass * self.gravity
-        offs = np.cumsum([0] + [f.order + 1 for f in self.filters.values()]).tolist()
-        self._info = [(c, f.order + 1, offs[k]) for k, (c, f) in enumerate(self.filters.items())]
+        #: the kernel's channel slots: (kind 0 = force / 1 = torque, n + 1) each, and M = the largest n + 1
+        self._slots = np.array([[CHANNELS.index(c), f.order + 1] for c, f in self.filters.items()], dtype=np.int64)
+        self._m = int(self._slots[:, 1].max())
+        self._params = np.concatenate([[self.mass, self.gravity], self.inertia.ravel(), self.inertia_inv.ravel()])
+        self._mats: dict[float, NDArray[np.float64]] = {}
+        self._state: NDArray[np.float64] = np.empty((0, 0))      # (N, k) after reset
+        keys: tuple[str, ...] = ((M.VELOCITY, M.ATTITUDE) if "force" in chans else ()) + (
+            (rate_key,) if "torque" in chans else ())
+        self.required_keys = keys
+        #: the exact discretisation is stable at any dt, but the sampled observer tracks a disturbance only below
+        #: the Nyquist rate: its bandwidth w_b must satisfy w_b dt < pi; max_dt = 1 / max w_b keeps w_b dt <= 1
+        self.max_dt = 1.0 / max(float(f.gains[0]) / (f.order + 1) for f in self.filters.values())
 
-    # ---- channel signals: (y, state-dependent part of u*) from a batched measurement ------------
-    def _signals(self, chan: str, meas: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.float64], ...]:
-        need = (M.VELOCITY, M.ATTITUDE) if chan == "force" else (self.rate_key,)
-        for key in need:
-            if key not in meas:
-                raise ValueError(f"GESO {chan} channel needs measurement[{key!r}]; got keys {sorted(meas)}")
-            if not np.all(np.isfinite(meas[key])):
-                raise ValueError(f"measurement[{key!r}] contains non-finite values")
-        if chan == "force":
-            y = self.mass * meas[M.VELOCITY]
-            re3 = meas[M.ATTITUDE][..., :, 2].copy()  # R e3, (N, 3); kept in _prev: a copy, not a caller's view
-            return y, re3
-        omega = meas[self.rate_key]
-        jw = omega @ self.inertia.T
-        return jw, _cross(jw, omega)  # y = J Omega, J Omega x Omega
+    def _step_matrices(self, dt: float) -> NDArray[np.float64]:
+        """The packed step matrices of every slot at ``dt`` (K, M, M + 4), slot k's (n_k + 1, n_k + 5) top left."""
+        mats = self._mats.get(dt)
+        if mats is None:
+            mats = np.zeros((len(self.filters), self._m, self._m + 4))
+            for k, filt in enumerate(self.filters.values()):
+                packed = filt.step_matrix(dt, self.hold)
+                mats[k, :packed.shape[0], :packed.shape[1]] = packed
+            self._mats[dt] = mats
+        return mats
 
-    def _u_star(self, chan: str, aux: NDArray[np.float64], thrust: NDArray[np.float64],
-                torque: NDArray[np.float64]) -> NDArray[np.float64]:
-        if chan == "force":
-            return self.mass * self.gravity * _E3 - thrust[:, None] * aux
-        return torque + aux
-
-    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None) -> int:
+    def _reset(self, measurement: Mapping[str, NDArray[np.float64]], force: ArrayLike | None,
+               torque: ArrayLike | None, rows: NDArray[np.bool_] | None) -> int:
         """Start at x0_hat = y, d_hat = the given guess (default 0), higher derivatives 0.
 
-        State per channel: ``_x[chan]`` (N, 3, n+1) and the previous signals ``_prev[chan]`` = (y, aux), (N, 3)
-        each, behind the N = 1 float state ``_single`` when it is set (synced before a masked write).  The
-        per-dt step matrices (``_single_mats``, :meth:`GesoFilter.discretize`) are constants, not state."""
+        State: ``_state`` (N, K, 3, M + 2), per channel slot and axis x_hat (zero-padded to M entries) and the
+        previous signals y, aux (:func:`geso_step`).  The per-dt step matrices are constants, not state."""
         meas = M.batch_measurement(measurement)
-        x_new: dict[str, NDArray[np.float64]] = {}
-        prev_new: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
-        for chan, filt in self.filters.items():
-            y, aux = self._signals(chan, meas)
-            x = np.zeros(y.shape + (filt.order + 1,))
-            x[..., 0] = y
-            guess = force if chan == "force" else torque
+        n = meas[self.required_keys[0]].shape[0]
+        mm = self._m
+        fresh = np.zeros((n, len(self.filters), 3, mm + 2))
+        for k, chan in enumerate(self.filters):
+            is_force = chan == "force"
+            rate = np.ascontiguousarray(meas[M.VELOCITY if is_force else self.rate_key])
+            y, aux = np.empty_like(rate), np.empty_like(rate)
+            geso_signals(is_force, self.mass, self.inertia, rate, meas[M.ATTITUDE] if is_force else _EYE3, y, aux)
+            fresh[:, k, :, 0] = y
+            fresh[:, k, :, mm] = y
+            fresh[:, k, :, mm + 1] = aux
+            guess = force if is_force else torque
             if guess is not None:
                 g = np.asarray(guess, dtype=float)
                 if g.shape[-1:] != (3,) or not np.all(np.isfinite(g)):
                     raise ValueError(f"initial {chan} guess must be finite with shape (3,) or (N, 3), "
                                      f"got {g.shape}")
-                x[..., 1] = np.broadcast_to(g, y.shape)
-            x_new[chan] = x
-            prev_new[chan] = (y, aux)
-        self._sync_single()
-        self._x = write_rows(self._x, x_new, rows)
-        self._prev = write_rows(self._prev, prev_new, rows)
-        self._single = None
-        return next(iter(x_new.values())).shape[0]
+                fresh[:, k, :, 1] = np.broadcast_to(g, (n, 3))
+        self._state = write_rows(self._state, fresh, rows)
+        return n
 
-    def _single_matrix(self, dt: float) -> NDArray[np.float64]:
-        """Block-diagonal step matrix of all channels for N = 1: rows [x, u*, y_k (, y_k+1 - y_k)] per channel."""
-        key = float(dt)
-        blk = self._single_mats.get(key)
-        if blk is None:
-            mats = {c: f.discretize(key, self.hold) for c, f in self.filters.items()}
-            width = 3 if self.hold == "foh" else 2
-            rows = sum(f.order + 1 + width for f in self.filters.values())
-            cols = sum(f.order + 1 for f in self.filters.values())
-            blk = np.zeros((rows, cols))
-            ro = co = 0
-            for c, f in self.filters.items():
-                m = f.order + 1
-                blk[ro:ro + m, co:co + m] = mats[c][0].T
-                blk[ro + m:ro + m + 2, co:co + m] = mats[c][1].T
-                if self.hold == "foh":
-                    blk[ro + m + 2, co:co + m] = mats[c][2][:, 1]
-                ro += m + width
-                co += m
-            self._single_mats[key] = blk
-        return blk
-
-    def _update_single(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
-                       dt: float) -> ObserverEstimate | None:
-        """N = 1 fast path: the signals (y, u*) in Python floats and one product with :meth:`_single_matrix`.
-
-        The same discrete filter as :meth:`GesoFilter.step` per channel (equal to ~1e-15 relative, the
-        order of the sums).  Returns None, touching nothing, unless the step is a well-formed, finite
-        N = 1 step; :meth:`update`'s general path then runs and raises its usual errors.
-        """
-        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-            return None
-        try:
-            fl = floats(thrust)
-            tq = floats(torque)
-            sig: dict[str, tuple[list[float], list[float]]] = {}
-            if "force" in self.filters:
-                vm = floats(measurement[M.VELOCITY])
-                rm = floats(measurement[M.ATTITUDE])
-                if len(vm) != 3 or len(rm) != 9 or not math.isfinite(sum(vm) + sum(rm)):
-                    return None
-                mass = self.mass
-                sig["force"] = ([mass * vm[0], mass * vm[1], mass * vm[2]], [rm[2], rm[5], rm[8]])
-            if "torque" in self.filters:
-                w0, w1, w2 = floats(measurement[self.rate_key])
-                if not math.isfinite(w0 + w1 + w2):
-                    return None
-                (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._jl
-                s0, s1, s2 = (w0 * j00 + w1 * j01 + w2 * j02, w0 * j10 + w1 * j11 + w2 * j12,
-                              w0 * j20 + w1 * j21 + w2 * j22)
-                sig["torque"] = ([s0, s1, s2], [s1 * w2 - s2 * w1, s2 * w0 - s0 * w2, s0 * w1 - s1 * w0])
-        except (KeyError, ValueError, TypeError):
-            return None
-        if len(fl) != 1 or len(tq) != 3 or not math.isfinite(fl[0] + sum(tq)):
-            return None
-        blk = self._single_mats.get(dt)
-        if blk is None:
-            blk = self._single_matrix(dt)
-        cache = self._single
-        if cache is None:       # after reset / a general-path step: read the numpy state
-            rows: list[list[float]] = [[], [], []]
-            prev = {}
-            for c in self.filters:
-                xc = self._x[c][0].tolist()
-                for i in range(3):
-                    rows[i] += xc[i]
-                prev[c] = (self._prev[c][0][0].tolist(), self._prev[c][1][0].tolist())
-        else:
-            rows, prev = cache
-        foh = self.hold == "foh"
-        f = fl[0]
-        r0, r1, r2 = rows
-        z0: list[float] = []
-        z1: list[float] = []
-        z2: list[float] = []
-        for c, m, co in self._info:
-            y_old, aux_old = prev[c]
-            y_new, aux_new = sig[c]
-            if foh:
-                a0, a1, a2 = (0.5 * (aux_old[0] + aux_new[0]), 0.5 * (aux_old[1] + aux_new[1]),
-                              0.5 * (aux_old[2] + aux_new[2]))
-            else:
-                a0, a1, a2 = aux_old
-            if c == "force":
-                u0, u1, u2 = 0.0 - f * a0, 0.0 - f * a1, self._mg - f * a2
-            else:
-                u0, u1, u2 = tq[0] + a0, tq[1] + a1, tq[2] + a2
-            z0 += r0[co:co + m]
-            z1 += r1[co:co + m]
-            z2 += r2[co:co + m]
-            if foh:
-                z0 += (u0, y_old[0], y_new[0] - y_old[0])
-                z1 += (u1, y_old[1], y_new[1] - y_old[1])
-                z2 += (u2, y_old[2], y_new[2] - y_old[2])
-            else:
-                z0 += (u0, y_old[0])
-                z1 += (u1, y_old[1])
-                z2 += (u2, y_old[2])
-        res = np.fromiter(z0 + z1 + z2, float, 3 * len(z0)).reshape(3, -1) @ blk
-        rows = res.tolist()
-        r0, r1, r2 = rows
-        if not math.isfinite(sum(r0) + sum(r1) + sum(r2)):
-            raise ValueError(f"GESO state became non-finite (check dt={dt} and the inputs)")
-        # the new state is kept as floats (self._single); self._x / self._prev are rebuilt from them only when
-        # the general path runs (_sync_single)
-        self._single = (rows, sig)
-        head = [0.0] * 6
-        extra: list[float] = []
-        for c, m, co in self._info:
-            x0, x1, x2 = r0[co], r1[co], r2[co]
-            if c == "force":
-                head[0:3] = r0[co + 1], r1[co + 1], r2[co + 1]
-                mass = self.mass
-                extra += (x0 / mass, x1 / mass, x2 / mass)
-            else:
-                head[3:6] = r0[co + 1], r1[co + 1], r2[co + 1]
-                (i00, i01, i02), (i10, i11, i12), (i20, i21, i22) = self._jil
-                extra += (x0 * i00 + x1 * i01 + x2 * i02, x0 * i10 + x1 * i11 + x2 * i12,
-                          x0 * i20 + x1 * i21 + x2 * i22)
-            for j in range(co + 2, co + m):
-                extra += (r0[j], r1[j], r2[j])
-        out = np.fromiter(head + extra, float, 6 + len(extra))
+    def _update(self, meas: dict[str, NDArray[np.float64]], f: NDArray[np.float64], tau: NDArray[np.float64],
+                dt: float) -> tuple[ObserverEstimate, NDArray[np.float64]]:
+        x = self._state
+        n = x.shape[0]
+        mats = self._mats.get(dt)
+        if mats is None:
+            mats = self._step_matrices(dt)
+        # a channel's absent input is never read: the other channel's array stands in for it
+        vel = meas[M.VELOCITY] if M.VELOCITY in meas else meas[self.rate_key]
+        rate = meas[self.rate_key] if self.rate_key in meas else vel
+        x_new = np.empty(x.shape)
+        est = np.empty((n, x.shape[1], self._m, 3))
+        geso_step(x, vel, meas.get(M.ATTITUDE, _EYE3), rate, f, tau, self._slots, self.hold == "foh", self._params,
+                  mats, x_new, est)
+        out: dict[str, NDArray[np.float64]] = {}
         states: dict[str, NDArray[np.float64]] = {}
-        o = 6
-        for c, m, _ in self._info:
-            states[_RATE_NAME[c]] = out[None, o:o + 3]
-            states[_DER_NAME[c]] = out[o + 3:o + 3 * (m - 1)].reshape(1, m - 2, 3)
-            o += 3 * (m - 1)
-        return ObserverEstimate(force=out[None, 0:3], torque=out[None, 3:6], states=states)
-
-    def _sync_single(self) -> None:
-        """Write the float state of the N = 1 fast path back into the numpy state (self._x, self._prev)."""
-        if self._single is None:
-            return
-        rows, sig = self._single
-        res = np.array(rows)
-        for c, m, co in self._info:
-            self._x[c] = res[None, :, co:co + m].copy()
-            self._prev[c] = (np.array([sig[c][0]]), np.array([sig[c][1]]))
-        self._single = None
-
-    def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
-               dt: float) -> ObserverEstimate:
-        if not self._x:
-            raise ValueError("GESO.update called before reset(measurement)")
-        if next(iter(self._x.values())).shape[0] == 1:
-            est = self._update_single(measurement, thrust, torque, dt)
-            if est is not None:
-                return est
-        self._sync_single()
-        meas, f, tau = self._inputs(measurement, thrust, torque, dt)
-        n_batch = next(iter(self._x.values())).shape[0]
-        try:
-            f = np.broadcast_to(f, (n_batch,))
-            tau = np.broadcast_to(tau, (n_batch, 3))
-        except ValueError:
-            raise ValueError(f"thrust {f.shape} / torque {tau.shape} do not match the batch size {n_batch} "
-                             "set at reset") from None
-        out = {"force": np.zeros((n_batch, 3)), "torque": np.zeros((n_batch, 3))}
-        states: dict[str, NDArray[np.float64]] = {}
-        signals = {chan: self._signals(chan, meas) for chan in self.filters}  # validate all before any change
-        for y_new, _ in signals.values():
-            if y_new.shape[0] != n_batch:
-                raise ValueError(f"measurement batch size {y_new.shape[0]} != {n_batch} set at reset")
-        new_x = {}
-        for chan, filt in self.filters.items():
-            y_new, aux_new = signals[chan]
-            y_old, aux_old = self._prev[chan]
-            if self.hold == "zoh":
-                u = self._u_star(chan, aux_old, f, tau)
-                new_x[chan] = filt.step(self._x[chan], u, y_old, dt, "zoh")
-            else:
-                u = self._u_star(chan, 0.5 * (aux_old + aux_new), f, tau)
-                new_x[chan] = filt.step(self._x[chan], u, y_old, dt, "foh", y_next=y_new)
-            if not np.all(np.isfinite(new_x[chan])):
-                raise ValueError(f"GESO {chan} state became non-finite (check dt={dt} and the inputs)")
-        for chan, x in new_x.items():
-            self._x[chan] = x
-            self._prev[chan] = signals[chan]
-            out[chan] = x[..., 1].copy()
-            if chan == "force":
-                states["velocity"] = x[..., 0] / self.mass
-                states["force_derivatives"] = np.moveaxis(x[..., 2:], -1, 1).copy()
-            else:
-                states["angular_velocity"] = x[..., 0] @ self.inertia_inv.T
-                states["torque_derivatives"] = np.moveaxis(x[..., 2:], -1, 1).copy()
-        return ObserverEstimate(force=out["force"], torque=out["torque"], states=states)
+        for k, (chan, filt) in enumerate(self.filters.items()):
+            out[chan] = est[:, k, 0]
+            states[_RATE_NAME[chan]] = est[:, k, 1]
+            states[_DER_NAME[chan]] = est[:, k, 2:filt.order + 1]
+        if len(out) == 1:                                     # the channel this instance does not estimate
+            out["torque" if "force" in out else "force"] = np.zeros((n, 3))
+        return ObserverEstimate(force=out["force"], torque=out["torque"], states=states), x_new
