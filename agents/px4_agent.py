@@ -245,7 +245,7 @@ class PX4Agent(Agent):
             self._no_estimate if sf is None else np.ascontiguousarray(sf), sf is not None, self._setpoint,
             self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt, self._config,
             self.position_control.params, self.hover_thrust_estimator.params, self.attitude_control.params,
-            self.rate_control.params, self.allocation.mix, self.allocation.effectiveness, self.allocation.scale,
+            self.rate_control.params, self.allocation.mix_t, self.allocation.effectiveness, self.allocation.scale,
             self.allocation.rotor_map, self._state, self.position_control.state, self.hover_thrust_estimator.state,
             self.rate_control.state, self._att_sp, self._action)
         if code == C.BAD_ESTIMATE:

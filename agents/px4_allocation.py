@@ -87,21 +87,21 @@ def _desaturate(act: np.ndarray, vec: np.ndarray, increase_only: bool, upper: fl
 
 
 @njit(cache=True)
-def allocate_row(torque: np.ndarray, thrust: float, mix: np.ndarray, effectiveness: np.ndarray,
+def allocate_row(torque: np.ndarray, thrust: float, mix_t: np.ndarray, effectiveness: np.ndarray,
                  scale: np.ndarray, act: np.ndarray, unallocated: np.ndarray) -> None:
     """PX4 sequential desaturation (airmode off) for one vehicle: normalized torque (3,) and collective thrust
     -> rotor normalized thrusts ``act`` (4,) in [0, 1] and the unallocated control ``unallocated`` (4,) on
-    [roll, pitch, yaw, F_z]."""
+    [roll, pitch, yaw, F_z].  ``mix_t`` (4 axes, 4 rotors) is the transposed normalized mix (one row per axis)."""
     c_z = -thrust
     for j in range(4):  # mix roll, pitch and thrust
-        act[j] = torque[ROLL] * mix[j, ROLL] + torque[PITCH] * mix[j, PITCH] + c_z * mix[j, THRUST_Z]
-    _desaturate(act, mix[:, THRUST_Z], True, 1.0)
-    _desaturate(act, mix[:, ROLL], False, 1.0)
-    _desaturate(act, mix[:, PITCH], False, 1.0)
+        act[j] = torque[ROLL] * mix_t[ROLL, j] + torque[PITCH] * mix_t[PITCH, j] + c_z * mix_t[THRUST_Z, j]
+    _desaturate(act, mix_t[THRUST_Z], True, 1.0)
+    _desaturate(act, mix_t[ROLL], False, 1.0)
+    _desaturate(act, mix_t[PITCH], False, 1.0)
     for j in range(4):  # mixYaw: add yaw with head-room above full thrust, then reduce thrust only
-        act[j] += torque[YAW] * mix[j, YAW]
-    _desaturate(act, mix[:, YAW], False, _YAW_HEADROOM)
-    _desaturate(act, mix[:, THRUST_Z], True, 1.0)
+        act[j] += torque[YAW] * mix_t[YAW, j]
+    _desaturate(act, mix_t[YAW], False, _YAW_HEADROOM)
+    _desaturate(act, mix_t[THRUST_Z], True, 1.0)
     for j in range(4):
         act[j] = min(max(act[j], 0.0), 1.0)
     for a in range(4):  # c_sp - c_achieved, c_achieved = scale * (B act)
@@ -121,10 +121,10 @@ def rotor_command_row(act: np.ndarray, rotor_map: np.ndarray, command: np.ndarra
 
 
 @njit(cache=True)
-def _allocate_kernel(torque: np.ndarray, thrust: np.ndarray, mix: np.ndarray, effectiveness: np.ndarray,
+def _allocate_kernel(torque: np.ndarray, thrust: np.ndarray, mix_t: np.ndarray, effectiveness: np.ndarray,
                      scale: np.ndarray, act: np.ndarray, unallocated: np.ndarray) -> None:
     for i in range(torque.shape[0]):
-        allocate_row(torque[i], thrust[i], mix, effectiveness, scale, act[i], unallocated[i])
+        allocate_row(torque[i], thrust[i], mix_t, effectiveness, scale, act[i], unallocated[i])
 
 
 @njit(cache=True)
@@ -153,7 +153,9 @@ class QuadXAllocation:
         self.scale = np.array([s_rp, s_rp, s_y, s_t])
         mix_n = mix / self.scale
         mix_n[np.abs(mix_n) < 1e-3] = 0.0
-        self.mix = np.ascontiguousarray(mix_n)
+        self.mix = mix_n
+        #: the mix transposed, one row per axis (roll, pitch, yaw, F_z), for :func:`allocate_row`
+        self.mix_t = np.ascontiguousarray(mix_n.T)
         #: N m per unit normalized torque, per axis (roll, pitch, yaw)
         self.torque_scale = 1.0 / self.scale[:3]
         #: N per unit normalized collective thrust
@@ -184,7 +186,7 @@ class QuadXAllocation:
         tau = np.ascontiguousarray(np.atleast_2d(np.asarray(torque_norm, dtype=float)))
         thr = np.ascontiguousarray(np.atleast_1d(np.asarray(thrust_norm, dtype=float)).reshape(-1))
         act, unallocated = np.empty((tau.shape[0], 4)), np.empty((tau.shape[0], 4))
-        _allocate_kernel(tau, thr, self.mix, self.effectiveness, self.scale, act, unallocated)
+        _allocate_kernel(tau, thr, self.mix_t, self.effectiveness, self.scale, act, unallocated)
         return act, unallocated
 
     def motor_commands(self, rotor_thrust_norm: ArrayLike) -> NDArray[np.float64]:

@@ -124,7 +124,7 @@ def _tick(s: np.ndarray, loop: int, period: float, dt: float) -> float:
 def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.ndarray, specific_force: np.ndarray,
                  has_specific_force: bool, setpoint: np.ndarray, yaw: float, force_hat: np.ndarray, use_force: bool,
                  torque_hat: np.ndarray, use_torque: bool, dt: float, cfg: np.ndarray, pos_prm: np.ndarray,
-                 hte_prm: np.ndarray, att_prm: np.ndarray, rate_prm: np.ndarray, mix: np.ndarray,
+                 hte_prm: np.ndarray, att_prm: np.ndarray, rate_prm: np.ndarray, mix_t: np.ndarray,
                  effectiveness: np.ndarray, alloc_scale: np.ndarray, rotor_map: np.ndarray, state: np.ndarray,
                  pos_state: np.ndarray, hte_state: np.ndarray, rate_state: np.ndarray, att_sp: np.ndarray,
                  action: np.ndarray) -> tuple[int, int]:
@@ -191,7 +191,7 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
                 s[TORQUE + j] = torque[j] - torque_hat[i, j] / cfg[TORQUE_SCALE + j] if use_torque else torque[j]
         # 6. allocation, saturation flags for the rate integrator, motor commands
         collective = math.sqrt(s[THR_SP] * s[THR_SP] + s[THR_SP + 1] * s[THR_SP + 1] + s[THR_SP + 2] * s[THR_SP + 2])
-        allocate_row(s[TORQUE:TORQUE + 3], collective, mix, effectiveness, alloc_scale, s[ROTOR:ROTOR + 4],
+        allocate_row(s[TORQUE:TORQUE + 3], collective, mix_t, effectiveness, alloc_scale, s[ROTOR:ROTOR + 4],
                      unallocated)
         missed = unallocated[0] ** 2 + unallocated[1] ** 2 + unallocated[2] ** 2 >= SAT_EPS
         for j in range(3):
