@@ -299,6 +299,8 @@ class PX4ObserverAgent(PX4Agent):
         if not isinstance(observer, Observer):
             raise TypeError(f"observer must be a registered name or an Observer, got {type(observer).__name__}")
         self.observer = observer
+        #: the observer's latest (force (N, 3), torque (N, 3)) estimates, None before the first act
+        self.raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self.force_ff = bool(force_ff) and "force" in observer.channels
         self.torque_ff = bool(torque_ff) and "torque" in observer.channels
 

@@ -116,7 +116,8 @@ def _rots(x: ArrayLike) -> NDArray[np.float64]:
 
 
 def attitude_error_vector(r_e: ArrayLike) -> NDArray[np.float64]:
-    """``2 Im(q)`` of the canonical (w >= 0) quaternion of rotations R_e (N, 3, 3) (:func:`attitude_error_vector_row`)."""
+    """``2 Im(q)`` of the canonical (w >= 0) quaternion of rotations R_e (N, 3, 3) (the row law
+    :func:`attitude_error_vector_row`)."""
     r = _rots(r_e)
     out = np.empty((r.shape[0], 3))
     _error_vector_kernel(r, out)

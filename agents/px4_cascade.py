@@ -38,8 +38,8 @@ from fawtgym.envs.vehicles import GRAVITY
 from .px4_allocation import allocate_row, rotor_command_row
 from .px4_attitude_control import attitude_control_row
 from .px4_filters import N_BIQUAD, butterworth_reset_row, butterworth_row, filtered_derivative_row
-from .px4_hover_thrust import VALID, hover_thrust_row
 from .px4_hover_thrust import HOVER as HTE_HOVER
+from .px4_hover_thrust import VALID, hover_thrust_row
 from .px4_position_control import (
     THR_MAX,
     THR_MIN,

@@ -144,6 +144,7 @@ class HoverThrustEstimator:
         self.max_hover_thrust = min(max(self.initial + rng, 0.2), 0.9)
         self.params = np.array([self.process_var, self.gate, self.vxy_thr, self.vz_thr, self.min_hover_thrust,
                                 self.max_hover_thrust, _BUMP])
+        self.state: NDArray[np.float64] = np.zeros((0, N_STATE))
         self.reset(1)
 
     @property
@@ -173,7 +174,7 @@ class HoverThrustEstimator:
 
     def reset(self, n: int = 1, rows: NDArray[np.bool_] | None = None) -> None:
         """Initial estimate, variances, filters and validity for ``n`` vehicles (only ``rows`` (n,) if given)."""
-        if rows is not None and getattr(self, "state", None) is not None and self.state.shape[0] == n:
+        if rows is not None and self.state.shape[0] == n:
             self.state[rows] = self.fresh_state()
             return
         self.state = np.tile(self.fresh_state(), (n, 1))

@@ -374,6 +374,7 @@ class PositionControl:
             raise ValueError(f"hover_thrust must be in (0, 1) (normalized collective thrust), got {ht!r}")
         self.initial_hover_thrust = float(np.clip(ht, *self.hover_thrust_bounds))
         self.params = self.parameters()
+        self.state: NDArray[np.float64] = np.zeros((0, N_STATE))
         self.reset(1)
 
     def parameters(self) -> NDArray[np.float64]:

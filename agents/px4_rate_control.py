@@ -88,6 +88,7 @@ class RateControl:
         self.gain_ff = np.array([p["MC_ROLLRATE_FF"], p["MC_PITCHRATE_FF"], p["MC_YAWRATE_FF"]])
         self.lim_int = np.array([p["MC_RR_INT_LIM"], p["MC_PR_INT_LIM"], p["MC_YR_INT_LIM"]])
         self.params = np.concatenate([self.gain_p, self.gain_i, self.gain_d, self.gain_ff, self.lim_int])
+        self.state: NDArray[np.float64] = np.zeros((0, N_STATE))
         self.reset(1)
 
     rate_int = property(lambda self: self.state[:, RATE_INT:RATE_INT + 3], doc="rate integrator (N, 3)")
