@@ -9,6 +9,9 @@ One process, interleaved rounds, best round kept (least disturbed by other load 
 * the agent + observer vectorized over N vehicles (batch-first), as aggregate vehicle-seconds per
   wall second.  Target: closed loop >= 100x real time on one core.
 
+All four run after a short warm-up (the compiled kernels load from numba's cache, or compile, on their
+first call), so compile time is in none of them; all ratios come from one run.
+
 Batched (``--batch-sizes``, aggregate over N vehicles: vehicle-seconds simulated per wall second, one
 process, one thread: numpy's OpenBLAS is pinned to 1 thread and MuJoCo's rollout runs on the calling
 thread; the "per CPU s" column counts every thread of the process, so it is the one-core figure):
@@ -173,6 +176,9 @@ def measure(steps: int = 1000, rounds: int = 3, control_rate: float = 200.0,
             "env": (lambda: _time_env(env, steps), sim),
             "agent": (lambda: _time_agent(env, agent, steps, 1), sim),
             "batch": (lambda: _time_agent(env, agent, nb, batch), batch * nb / control_rate)}
+    # warm-up: the compiled kernels load (or compile) on their first call; that is not part of any timing
+    _time_closed_loop(env, agent, 10)
+    _time_agent(env, agent, 2, batch)
     best = {k: [np.inf, np.inf] for k in jobs}
     for _ in range(rounds):
         for k, (job, _) in jobs.items():
