@@ -226,6 +226,8 @@ class PX4Agent(Agent):
         meas, batched = measurement_from_info(info)
         n = meas["position"].shape[0]
         if n != self._n:
+            if self._n == 0:
+                raise RuntimeError(f"{type(self).__name__}.act() before reset(): call reset(info) first")
             raise ValueError(f"act() got {n} vehicles but reset() saw {self._n}; call reset() first")
         if self._pose_delay.steps:
             meas = self._pose_delay(meas)
