@@ -91,7 +91,7 @@ class PoseDelay:
         return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def commanded_wrench_row(rotor: np.ndarray, thrust_per_unit: float, allocation_matrix: np.ndarray,
                          wrench: np.ndarray) -> None:
     """``wrench`` (4,) = (collective thrust [N], torque (3,) [N m]) = B (T rotor) for one vehicle: rotor normalized

@@ -49,7 +49,7 @@ T_MAX, K_THRUST, OMEGA_MIN, OMEGA_MAX = 0, 1, 2, 3
 _YAW_HEADROOM = 1.15  # mixYaw: yaw may use 15 % above full thrust before thrust is reduced
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _desaturation_gain(vec: np.ndarray, act: np.ndarray, upper: float) -> float:
     """computeDesaturationGain: k_min + k_max over the actuators outside [0, upper] along ``vec`` (4,)."""
     k_min, k_max = 0.0, 0.0
@@ -65,7 +65,7 @@ def _desaturation_gain(vec: np.ndarray, act: np.ndarray, upper: float) -> float:
     return k_min + k_max
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _desaturate(act: np.ndarray, vec: np.ndarray, increase_only: bool, upper: float) -> None:
     """desaturateActuators in place: ``act += k vec`` then ``+= 0.5 k' vec``; ``increase_only`` skips k < 0."""
     saturated = False
@@ -110,7 +110,7 @@ def allocate_row(torque: np.ndarray, thrust: float, mix_t: np.ndarray, effective
         unallocated[a] = (torque[a] if a < 3 else c_z) - achieved
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rotor_command_row(act: np.ndarray, rotor_map: np.ndarray, command: np.ndarray) -> None:
     """Rotor normalized thrusts (4,) -> motor commands (4,) in [0, 1] through the controller's thrust curve:
     ``T = T_max t``, ``omega = sqrt(T / k_T)``, ``u = (omega - omega_min) / (omega_max - omega_min)``."""

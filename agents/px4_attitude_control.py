@@ -33,7 +33,7 @@ GAIN, YAW_WEIGHT, RATE_MAX = 0, 3, 4  # gain (3,), yaw weight, rate limits (3,) 
 N_PARAMS = 7
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def attitude_error_vector_row(r_e: np.ndarray, q: np.ndarray, out: np.ndarray) -> None:
     """``2 Im(q)`` (3,) of the canonical (w >= 0) quaternion of the rotation R_e: ``2 sin(angle/2) axis``.
 

@@ -108,7 +108,7 @@ def fresh_state(hover_thrust: float) -> NDArray[np.float64]:
     return row
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _tick(s: np.ndarray, loop: int, period: float, dt: float) -> float:
     """Advance a loop clock by ``dt``; returns the loop's dt if it runs now (elapsed time, the period after a
     reset), else 0."""

@@ -55,7 +55,7 @@ def butterworth_coefficients(sample_rate: float, cutoff: float) -> NDArray[np.fl
     return coef
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def butterworth_reset_row(x: np.ndarray, z: np.ndarray, coef: np.ndarray) -> None:
     """Steady state of the direct-form-II-transposed biquad at the constant input ``x`` (k,) (DC gain 1: y = x).
 
@@ -68,7 +68,7 @@ def butterworth_reset_row(x: np.ndarray, z: np.ndarray, coef: np.ndarray) -> Non
         z[j] = (coef[B1] - coef[A1]) * x[j] + z2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def butterworth_row(x: np.ndarray, z: np.ndarray, coef: np.ndarray, y: np.ndarray) -> None:
     """One sample ``x`` (k,) through the biquad (DF-II transposed) into ``y`` (k,); ``y`` may alias nothing."""
     k = x.shape[0]
@@ -83,7 +83,7 @@ def butterworth_row(x: np.ndarray, z: np.ndarray, coef: np.ndarray, y: np.ndarra
         y[j] = out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def lowpass_alpha(cutoff: float, dt: float) -> float:
     """PX4 ``BlockLowPass`` weight ``a = b / (1 + b)``, ``b = 2 pi f_c dt`` (1 for f_c = 0: a pass-through)."""
     if cutoff == 0.0:
@@ -92,7 +92,7 @@ def lowpass_alpha(cutoff: float, dt: float) -> float:
     return b / (1.0 + b)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def lowpass_row(u: np.ndarray, state: np.ndarray, alpha: float) -> None:
     """``state <- alpha u + (1 - alpha) state`` (k,), PX4 ``BlockLowPass::update``."""
     for j in range(u.shape[0]):

@@ -62,7 +62,7 @@ _E3 = np.array([0.0, 0.0, 1.0])  # world down: the tilt limit's reference axis
 
 
 # ---- row laws (one vehicle) --------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def limit_tilt_row(b: np.ndarray, w: np.ndarray, max_angle: float, out: np.ndarray) -> None:
     """PX4 ControlMath::limitTilt: rotate the unit vector ``b`` towards ``w`` so their angle is <= max_angle.
 
@@ -81,7 +81,7 @@ def limit_tilt_row(b: np.ndarray, w: np.ndarray, max_angle: float, out: np.ndarr
     out[2] = c * w[2] + s * rz / rn
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def constrain_xy_row(v0x: float, v0y: float, v1x: float, v1y: float, max_norm: float) -> tuple[float, float]:
     """PX4 ControlMath::constrainXY: ``v0 + v1`` with ``|.| <= max_norm``, giving priority to ``v0`` (2-vectors)."""
     tx, ty = v0x + v1x, v0y + v1y

@@ -42,7 +42,7 @@ RATE_INT, SAT_POS, SAT_NEG = 0, 3, 6
 N_STATE = 9
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rate_control_row(rate: np.ndarray, rate_sp: np.ndarray, acc: np.ndarray, dt: float, prm: np.ndarray,
                      s: np.ndarray, advance: bool, torque: np.ndarray) -> None:
     """One vehicle's normalized torque ``torque`` (3,) = K_P e + i - K_D omega_dot + K_FF omega_sp, e = sp - rate.
