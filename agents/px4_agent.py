@@ -208,7 +208,7 @@ class PX4Agent(Agent):
         self._state[mask] = C.fresh_state(self.position_control.initial_hover_thrust)
         self._att_sp[mask] = np.eye(3)
         if not self._setpoint_override:
-            self._setpoint = self._setpoint.copy()
+            self._setpoint = _rows3(self._setpoint, n).copy()
             self._setpoint[mask] = new_sp[mask]
         self._reset_estimator(meas, seed, mask)
 
@@ -233,7 +233,8 @@ class PX4Agent(Agent):
             meas = self._pose_delay(meas)
         sp = info.get("setpoint")
         if sp is not None and not self._setpoint_override:
-            self._setpoint = _rows3(sp, n)
+            sp = np.asarray(sp, dtype=float)  # one NED point (3,) for every row is passed as (1, 3), not copied
+            self._setpoint = np.ascontiguousarray(sp.reshape(1, 3) if sp.shape == (3,) else _rows3(sp, n))
         force_hat, torque_hat = self._estimate(meas, info, self.dt)
         self.last_estimate = (force_hat, torque_hat)
         raw = getattr(self, "raw_estimate", None)

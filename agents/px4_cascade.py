@@ -130,7 +130,8 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
                  action: np.ndarray) -> tuple[int, int]:
     """One ``act`` of the cascade for every row (module docstring); writes ``action`` (N, 4) motor commands.
 
-    Inputs (N, 3) / (N, 3, 3) are the measurement (pose possibly delayed), the position setpoint and the
+    Inputs (N, 3) / (N, 3, 3) are the measurement (pose possibly delayed), the position setpoint ((1, 3): the
+    same for every row) and the
     disturbance estimates (zeros without an observer; both checked finite, fed forward if ``use_force`` /
     ``use_torque``); the state arrays are updated in place.
     """
@@ -171,8 +172,8 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
                 if hte_state[i, VALID] != 0.0:  # PX4 applies only valid estimates
                     update_hover_thrust_row(hte_state[i, HTE_HOVER], pos_prm, pos_state[i])
             filtered_derivative_row(vel[i], s[VEL_DERIV:VEL_DERIV + 7], cfg[VELD_CUTOFF], pos_dt, vel_dot)
-            position_control_row(pos[i], vel[i], vel_dot, setpoint[i], zeros, zeros, pos_dt, pos_prm, pos_state[i],
-                                 True, thr)
+            position_control_row(pos[i], vel[i], vel_dot, setpoint[min(i, setpoint.shape[0] - 1)], zeros, zeros,
+                                 pos_dt, pos_prm, pos_state[i], True, thr)
             s[THR0:THR0 + 3] = thr
             s[HAS_THR0] = 1.0
             if use_force:  # F = F0 - phi_hat, limited as PX4's own
