@@ -27,7 +27,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.so3 import hat, log_so3, vee
-from fawtgym.observers._obs_common import cross
+
+from .backstepping_quat import cross3 as cross
 
 _E3 = np.array([0.0, 0.0, 1.0])
 
