@@ -93,8 +93,12 @@ def applied_from_info(info: Mapping[str, Any], n: int, default_thrust: float) ->
     applied = info.get("applied") if isinstance(info, Mapping) else None
     if not isinstance(applied, Mapping) or "thrust" not in applied or "torque" not in applied:
         return np.full(n, float(default_thrust)), np.zeros((n, 3))
-    thrust = np.broadcast_to(np.asarray(applied["thrust"], dtype=float).reshape(-1), (n,)).copy()
-    torque = np.broadcast_to(np.asarray(applied["torque"], dtype=float).reshape(-1, 3), (n, 3)).copy()
+    thrust = np.asarray(applied["thrust"], dtype=float)
+    torque = np.asarray(applied["torque"], dtype=float)
+    if thrust.shape != (n,):
+        thrust = np.broadcast_to(thrust.reshape(-1), (n,)).copy()
+    if torque.shape != (n, 3):
+        torque = np.broadcast_to(torque.reshape(-1, 3), (n, 3)).copy()
     return thrust, torque
 
 

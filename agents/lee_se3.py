@@ -27,7 +27,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.so3 import hat, log_so3, vee
-from fawtgym.observers._obs_common import cross
+
+from .backstepping_quat import cross3 as cross
 
 _E3 = np.array([0.0, 0.0, 1.0])
 
@@ -97,7 +98,9 @@ class LeeSE3Controller:
         w = _b(angular_velocity, (n, 3), "angular_velocity")
         ex = b - _b(b_d, (n, 3), "b_d")
         ev = v - _b(v_d, (n, 3), "v_d")
-        a_cmd = -self.kx * ex - self.kv * ev - self.mass * self.gravity * _E3 + self.mass * _b(a_d, (n, 3), "a_d")
+        kx, kv = self.kx, self.kv
+        assert kx is not None and kv is not None  # set by __post_init__
+        a_cmd = -kx * ex - kv * ev - self.mass * self.gravity * _E3 + self.mass * _b(a_d, (n, 3), "a_d")
         if force_ff is not None:
             a_cmd = a_cmd - _b(force_ff, (n, 3), "force_ff")
         rd = desired_attitude(a_cmd, _b(b1d, (n, 3), "b1d"))

@@ -12,7 +12,8 @@ the values the FAWT study uses and their sources.
   (rotor normalized thrusts through the allocation's effectiveness, i.e. the controller's thrust curve)
   times ``1 + thrust_model_error``: the controller's model of its rotors is off by that stated relative
   error, and it knows nothing of the motor lag.  This replaces the env's ``info["applied"]`` (the exact
-  wrench after motor lag, truth) as the observer's known input.
+  wrench after motor lag, truth) as the observer's known input.  The law is the row function
+  :func:`commanded_wrench_row` (compiled by numba), applied to every row by one kernel.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import math
 from collections.abc import Mapping
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core import measurement as M
@@ -89,6 +91,25 @@ class PoseDelay:
         return out
 
 
+@njit(cache=True, inline="always")
+def commanded_wrench_row(rotor: np.ndarray, thrust_per_unit: float, allocation_matrix: np.ndarray,
+                         wrench: np.ndarray) -> None:
+    """``wrench`` (4,) = (collective thrust [N], torque (3,) [N m]) = B (T rotor) for one vehicle: rotor normalized
+    thrusts (4,), ``thrust_per_unit`` = T_max (1 + thrust_model_error) [N], B (4, 4) the rotor effectiveness."""
+    for a in range(4):
+        total = 0.0
+        for j in range(4):
+            total += allocation_matrix[a, j] * (rotor[j] * thrust_per_unit)
+        wrench[a] = total
+
+
+@njit(cache=True)
+def _commanded_wrench_kernel(rotor: np.ndarray, thrust_per_unit: float, allocation_matrix: np.ndarray,
+                             wrench: np.ndarray) -> None:
+    for i in range(rotor.shape[0]):
+        commanded_wrench_row(rotor[i], thrust_per_unit, allocation_matrix, wrench[i])
+
+
 def commanded_wrench(rotor_thrust_norm: NDArray[np.float64], max_rotor_thrust: float,
                      allocation_matrix: NDArray[np.float64], thrust_model_error: float
                      ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -96,8 +117,10 @@ def commanded_wrench(rotor_thrust_norm: NDArray[np.float64], max_rotor_thrust: f
 
     ``rotor_thrust_norm`` (N, 4) normalized rotor thrusts sent to the motors, ``max_rotor_thrust`` [N] and
     ``allocation_matrix`` (4, 4) (rows f, tau_x, tau_y, tau_z per newton of rotor thrust) the controller's
-    rotor model, scaled by ``1 + thrust_model_error``.
+    rotor model, scaled by ``1 + thrust_model_error`` (:func:`commanded_wrench_row`).
     """
-    w = (np.asarray(rotor_thrust_norm, dtype=float) * (max_rotor_thrust * (1.0 + thrust_model_error))
-         ) @ np.asarray(allocation_matrix, dtype=float).T
-    return w[..., 0], w[..., 1:]
+    rotor = np.ascontiguousarray(np.asarray(rotor_thrust_norm, dtype=float).reshape(-1, 4))
+    wrench = np.empty((rotor.shape[0], 4))
+    _commanded_wrench_kernel(rotor, float(max_rotor_thrust * (1.0 + thrust_model_error)),
+                             np.ascontiguousarray(allocation_matrix, dtype=float), wrench)
+    return wrench[:, 0], wrench[:, 1:]

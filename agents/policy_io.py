@@ -48,9 +48,9 @@ class ActionScale:
                              f"{self.low.tolist()} .. {self.high.tolist()}")
 
     def __call__(self, u: ArrayLike) -> NDArray[np.float64]:
-        u = np.clip(np.asarray(u, dtype=float), -1.0, 1.0)
-        s = np.abs(u)
-        edge = np.where(u >= 0.0, self.high, self.low)
+        unit = np.clip(np.asarray(u, dtype=float), -1.0, 1.0)
+        s = np.abs(unit)
+        edge = np.where(unit >= 0.0, self.high, self.low)
         return self.center * (1.0 - s) + edge * s
 
     def inverse(self, a: ArrayLike) -> NDArray[np.float64]:

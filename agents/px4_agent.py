@@ -49,21 +49,20 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED
-from fawtgym.core.rows import check_row_mask, masked
+from fawtgym.core.rows import check_row_mask
 from fawtgym.envs.motors import allocation_matrix
 from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
 
-from .base import Agent, match_batch, measurement_from_info, observer_step
+from . import px4_cascade as C
+from .base import Agent, applied_from_info, match_batch, measurement_from_info
 from .observer_inputs import OBSERVER_INPUTS, PoseDelay, check_thrust_model_error, commanded_wrench, latency_steps
 from .px4_allocation import QuadXAllocation
 from .px4_attitude_control import AttitudeControl
-from .px4_filters import Butterworth2, FilteredDerivative
+from .px4_filters import butterworth_coefficients
 from .px4_hover_thrust import HoverThrustEstimator
 from .px4_params import PX4Params
-from .px4_position_control import PositionControl, apply_force_feedforward, thrust_to_attitude
+from .px4_position_control import PositionControl
 from .px4_rate_control import RateControl
-
-_SAT_EPS = 1e-6
 
 
 def _rate(name: str, value: float | None, default: float, control_rate: float) -> float:
@@ -73,29 +72,12 @@ def _rate(name: str, value: float | None, default: float, control_rate: float) -
     return float(value)
 
 
-class _Loop:
-    """Runs a loop on the rows whose period has elapsed (per row: rows reset at different times run at
-    different phases); the elapsed time is each row's dt, as PX4's modules run on their input topics."""
-
-    def __init__(self, rate: float) -> None:
-        self.period = 1.0 / rate
-        self.elapsed = np.full(1, math.inf)
-
-    def reset(self, n: int, rows: NDArray[np.bool_] | None = None) -> None:
-        self.elapsed = np.full(n, math.inf) if rows is None else np.where(rows, math.inf, self.elapsed)
-
-    def tick(self, dt: float) -> tuple[NDArray[np.bool_] | None, NDArray[np.float64]] | None:
-        """Advance by ``dt``; None if no row is due, else (due rows or None for all, each row's dt (N,))."""
-        self.elapsed = self.elapsed + dt
-        due = self.elapsed >= self.period - 1e-9
-        if not due.any():
-            return None
-        run_dt = np.where(np.isfinite(self.elapsed), self.elapsed, self.period)
-        if due.all():
-            self.elapsed = np.zeros_like(self.elapsed)
-            return None, run_dt
-        self.elapsed = np.where(due, 0.0, self.elapsed)
-        return due, run_dt
+def _rows3(x: ArrayLike, n: int) -> NDArray[np.float64]:
+    """``x`` as a C-contiguous float (n, 3) array (a (3,) vector is broadcast; no copy if it already is one)."""
+    a = np.asarray(x, dtype=float)
+    if a.shape != (n, 3):
+        a = np.broadcast_to(a, (n, 3))
+    return np.ascontiguousarray(a)
 
 
 class PX4Agent(Agent):
@@ -154,8 +136,12 @@ class PX4Agent(Agent):
             raise ValueError(f"setpoint must be a finite NED position (3,) or (N, 3), got {setpoint!r}")
         self.yaw_setpoint = float(yaw_setpoint)
         self.gyro_key = gyro_key
-        self._loops = {"rate": _Loop(self.rate_loop_rate), "attitude": _Loop(self.attitude_rate),
-                       "position": _Loop(self.position_rate)}
+        fs = self.control_rate
+        self._config = C.configuration(
+            butterworth_coefficients(fs, self.params["IMU_GYRO_CUTOFF"]),
+            butterworth_coefficients(fs, self.params["IMU_DGYRO_CUTOFF"]), self.params["MPC_VELD_LP"],
+            (1.0 / self.position_rate, 1.0 / self.attitude_rate, 1.0 / self.rate_loop_rate), self.use_hte,
+            self.allocation.thrust_scale, self.allocation.torque_scale)
         self._n = 0
 
     @classmethod
@@ -176,6 +162,9 @@ class PX4Agent(Agent):
                          rows: NDArray[np.bool_] | None) -> None:
         return None
 
+    def _bad_estimate(self, row: int) -> str:
+        return f"{type(self).__name__}: non-finite disturbance estimate for row {row}"
+
     # ---- Agent API ------------------------------------------------------------------------------
     def reset(self, info: Mapping[str, Any], seed: int | None = None, rows: ArrayLike | None = None) -> None:
         """Start episodes from the env's reset ``info``: every row, or only the rows of ``rows`` (bool (N,)).
@@ -190,69 +179,45 @@ class PX4Agent(Agent):
             raise ValueError(f"{type(self).__name__}.reset: rows needs an earlier full reset of the same batch; "
                              f"the agent holds {self._n} rows, the info {n}")
         mask = None if rows is None else check_row_mask(rows, n, f"{type(self).__name__}.reset")
-        if mask is not None and not mask.all():
-            if mask.any():
-                self._reset_rows(info, meas, mask, seed)
-            return
-        self._n = n
-        self._pose_delay.reset(meas)
-        self._rotor = np.full((n, 4), self.position_control.initial_hover_thrust)
-        self.position_control.reset(n)
-        self.hover_thrust_estimator.reset(n)
-        self._thr0 = np.zeros((n, 3))
-        self._has_thr0 = np.zeros(n, dtype=bool)
-        self.rate_control.reset(n)
-        fs = self.control_rate
-        self._gyro_lpf = Butterworth2(fs, self.params["IMU_GYRO_CUTOFF"])
-        self._dgyro_lpf = Butterworth2(fs, self.params["IMU_DGYRO_CUTOFF"])
-        self._vel_deriv = FilteredDerivative(self.params["MPC_VELD_LP"])
-        self._gyro_prev: NDArray[np.float64] | None = None
-        self._fresh = np.ones(n, dtype=bool)
-        for loop in self._loops.values():
-            loop.reset(n)
+        if mask is not None and mask.all():
+            mask = None
         sp = info.get("setpoint") if isinstance(info, Mapping) else None
-        self._setpoint = np.broadcast_to(np.asarray(self.setpoint if sp is None else sp, dtype=float), (n, 3)).copy()
-        self._setpoint_override = False
-        self._thr_sp = np.zeros((n, 3))
-        self._thr_sp[:, 2] = -self.position_control.hover_thrust
-        self._att_sp = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
-        self._rate_sp = np.zeros((n, 3))
-        self._torque = np.zeros((n, 3))
-        self.last_estimate: tuple[NDArray[np.float64] | None, NDArray[np.float64] | None] = (None, None)
-        self._reset_estimator(meas, seed, None)
-
-    def _reset_rows(self, info: Mapping[str, Any], meas: dict[str, NDArray[np.float64]], rows: NDArray[np.bool_],
-                    seed: int | None) -> None:
-        """The full reset's state, written into ``rows`` only (masked writes)."""
-        n = self._n
-        self._pose_delay.reset(meas, rows=rows)
-        self._rotor = masked(self._rotor, np.full((n, 4), self.position_control.initial_hover_thrust), rows)
-        self.position_control.reset(n, rows=rows)
-        self.hover_thrust_estimator.reset(n, rows=rows)
-        self._has_thr0 = self._has_thr0 & ~rows
-        self.rate_control.reset(n, rows=rows)
-        self._vel_deriv.reset(rows=rows)
-        self._fresh = self._fresh | rows  # gyro filters restart from the row's next gyro sample
-        for loop in self._loops.values():
-            loop.reset(n, rows=rows)
+        new_sp = _rows3(self.setpoint if sp is None else sp, n)
+        if mask is None:
+            self._n = n
+            self._pose_delay.reset(meas)
+            self.position_control.reset(n)
+            self.hover_thrust_estimator.reset(n)
+            self.rate_control.reset(n)
+            self._state = np.tile(C.fresh_state(self.position_control.initial_hover_thrust), (n, 1))
+            self._att_sp = np.tile(np.eye(3), (n, 1, 1))
+            self._setpoint = new_sp.copy()
+            self._setpoint_override = False
+            self._action = np.empty((n, 4))
+            self._no_estimate = np.zeros((n, 3))
+            self.last_estimate: tuple[NDArray[np.float64] | None, NDArray[np.float64] | None] = (None, None)
+            self._reset_estimator(meas, seed, None)
+            return
+        if not mask.any():
+            return
+        # the full reset's state, written into the rows of mask only
+        self._pose_delay.reset(meas, rows=mask)
+        self.position_control.reset(n, rows=mask)
+        self.hover_thrust_estimator.reset(n, rows=mask)
+        self.rate_control.reset(n, rows=mask)
+        self._state[mask] = C.fresh_state(self.position_control.initial_hover_thrust)
+        self._att_sp[mask] = np.eye(3)
         if not self._setpoint_override:
-            sp = info.get("setpoint") if isinstance(info, Mapping) else None
-            new_sp = np.broadcast_to(np.asarray(self.setpoint if sp is None else sp, dtype=float), (n, 3))
-            self._setpoint = masked(self._setpoint, new_sp, rows)
-        hover = np.zeros((n, 3))
-        hover[:, 2] = -self.position_control.hover_thrust
-        self._thr_sp = masked(self._thr_sp, hover, rows)
-        self._att_sp = masked(self._att_sp, np.broadcast_to(np.eye(3), (n, 3, 3)), rows)
-        self._rate_sp = masked(self._rate_sp, np.zeros((n, 3)), rows)
-        self._torque = masked(self._torque, np.zeros((n, 3)), rows)
-        self._reset_estimator(meas, seed, rows)
+            self._setpoint = _rows3(self._setpoint, n).copy()
+            self._setpoint[mask] = new_sp[mask]
+        self._reset_estimator(meas, seed, mask)
 
     def set_setpoint(self, position: ArrayLike, yaw: float | None = None) -> None:
         """Change the NED position setpoint (and heading) during an episode; overrides ``info["setpoint"]``."""
         pos = np.asarray(position, dtype=float)
         if pos.shape[-1:] != (3,) or not np.all(np.isfinite(pos)):
             raise ValueError(f"setpoint must be a finite NED position (3,) or (N, 3), got {position!r}")
-        self._setpoint = np.broadcast_to(pos, (max(self._n, 1), 3)).copy()
+        self._setpoint = _rows3(pos, max(self._n, 1)).copy()
         self._setpoint_override = True
         if yaw is not None:
             self.yaw_setpoint = float(yaw)
@@ -261,79 +226,43 @@ class PX4Agent(Agent):
         meas, batched = measurement_from_info(info)
         n = meas["position"].shape[0]
         if n != self._n:
+            if self._n == 0:
+                raise RuntimeError(f"{type(self).__name__}.act() before reset(): call reset(info) first")
             raise ValueError(f"act() got {n} vehicles but reset() saw {self._n}; call reset() first")
-        meas = self._pose_delay(meas)
-        dt = self.dt
+        if self._pose_delay.steps:
+            meas = self._pose_delay(meas)
         sp = info.get("setpoint")
         if sp is not None and not self._setpoint_override:
-            self._setpoint = np.broadcast_to(np.asarray(sp, dtype=float), (n, 3))
-        force_hat, torque_hat = self._estimate(meas, info, dt)
+            sp = np.asarray(sp, dtype=float)  # one NED point (3,) for every row is passed as (1, 3), not copied
+            self._setpoint = np.ascontiguousarray(sp.reshape(1, 3) if sp.shape == (3,) else _rows3(sp, n))
+        force_hat, torque_hat = self._estimate(meas, info, self.dt)
         self.last_estimate = (force_hat, torque_hat)
-        # rows reset since the last act (not all: a full reset rebuilds the filters, which start at the first sample)
-        fresh = self._fresh if (self._fresh.any() and not self._fresh.all()) else None
-
-        gyro = meas.get(self.gyro_key, meas["angular_velocity"])
-        rate = self._gyro_lpf.update(gyro)
-        if fresh is not None:
-            self._gyro_lpf.reset(gyro, rows=fresh)
-            rate = masked(rate, gyro, fresh)
-        if self._gyro_prev is None:
-            self._dgyro_lpf.reset(np.zeros_like(gyro))
-            ang_acc = np.zeros_like(gyro)
-        else:
-            ang_acc = self._dgyro_lpf.update((gyro - self._gyro_prev) / dt)
-            if fresh is not None:
-                self._dgyro_lpf.reset(np.zeros_like(gyro), rows=fresh)
-                ang_acc = masked(ang_acc, np.zeros_like(gyro), fresh)
-        self._gyro_prev = gyro
-        self._fresh = np.zeros(n, dtype=bool)
-
-        due = self._loops["position"].tick(dt)
-        if due is not None:
-            rows, pos_dt = due
-            vel = meas["velocity"]
-            hte = self._has_thr0 if rows is None else self._has_thr0 & rows
-            if self.use_hte and "specific_force" in meas and hte.any():
-                # vertical acceleration (up positive) from the accelerometer: a = R f_sp + g e3
-                acc_up = -(np.einsum("nj,nj->n", meas["attitude"][:, 2, :], meas["specific_force"]) + GRAVITY)
-                hte_rows = None if hte.all() else hte
-                hte_est = self.hover_thrust_estimator
-                th = hte_est.update(acc_up, -self._thr0[:, 2], vel, pos_dt, rows=hte_rows)
-                apply = hte_est.valid if hte_rows is None else hte_est.valid & hte_rows
-                if apply.any():  # PX4 applies only valid estimates
-                    self.position_control.update_hover_thrust(th, rows=None if apply.all() else apply)
-            vel_dot = self._vel_deriv.update(vel, pos_dt, rows=rows)
-            thr0 = self.position_control.update(meas["position"], vel, vel_dot, self._setpoint, pos_dt, rows=rows)
-            self._thr0 = masked(self._thr0, thr0, rows)
-            self._has_thr0 = self._has_thr0 | (True if rows is None else rows)
-            if force_hat is not None:
-                pc = self.position_control
-                thr0 = apply_force_feedforward(thr0, force_hat, self.allocation.thrust_scale, pc.lim_tilt,
-                                               pc.lim_thr_min, pc.lim_thr_max)
-            self._thr_sp = masked(self._thr_sp, thr0, rows)
-            self._att_sp, _ = thrust_to_attitude(self._thr_sp, np.full(n, self.yaw_setpoint))
-        due = self._loops["attitude"].tick(dt)
-        if due is not None:
-            self._rate_sp = masked(self._rate_sp, self.attitude_control.update(meas["attitude"], self._att_sp), due[0])
-        due = self._loops["rate"].tick(dt)
-        if due is not None:
-            rows, rate_dt = due
-            torque = self.rate_control.update(rate, self._rate_sp, ang_acc, rate_dt, rows=rows)
-            if torque_hat is not None:
-                torque = torque - self.allocation.torque_to_normalized(torque_hat)
-            self._torque = masked(self._torque, torque, rows)
-        collective = np.sqrt(np.einsum("ni,ni->n", self._thr_sp, self._thr_sp))
-        rotor, unallocated = self.allocation.allocate(self._torque, collective)
-        missed = np.einsum("ni,ni->n", unallocated[:, :3], unallocated[:, :3]) >= _SAT_EPS
-        self.rate_control.set_saturation(missed[:, None] & (unallocated[:, :3] > _SAT_EPS),
-                                         missed[:, None] & (unallocated[:, :3] < -_SAT_EPS))
-        self._rotor = rotor
-        action = self.allocation.motor_commands(rotor)
-        if not np.all(np.isfinite(action)):
-            bad = np.flatnonzero(~np.isfinite(action).all(axis=1)).tolist()
+        raw = getattr(self, "raw_estimate", None)
+        force, torque = (self._no_estimate, self._no_estimate) if raw is None else raw
+        gyro = meas.get(self.gyro_key)
+        sf = meas.get("specific_force")
+        code, row = C.cascade_step(
+            np.ascontiguousarray(meas["position"]), np.ascontiguousarray(meas["velocity"]),
+            np.ascontiguousarray(meas["attitude"]),
+            np.ascontiguousarray(meas["angular_velocity"] if gyro is None else gyro),
+            self._no_estimate if sf is None else np.ascontiguousarray(sf), sf is not None, self._setpoint,
+            self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt, self._config,
+            self.position_control.params, self.hover_thrust_estimator.params, self.attitude_control.params,
+            self.rate_control.params, self.allocation.mix_t, self.allocation.effectiveness, self.allocation.scale,
+            self.allocation.rotor_map, self._state, self.position_control.state, self.hover_thrust_estimator.state,
+            self.rate_control.state, self._att_sp, self._action)
+        if code == C.BAD_ESTIMATE:
+            raise FloatingPointError(self._bad_estimate(row))
+        if code == C.BAD_ACTION:
+            bad = np.flatnonzero(~np.isfinite(self._action).all(axis=1)).tolist()
             raise FloatingPointError(f"PX4Agent produced a non-finite action for rows {bad}; measured position "
                                      f"{meas['position'][bad[0]].tolist()}")
-        return match_batch(action, batched)
+        return match_batch(self._action.copy(), batched)
+
+    @property
+    def _rotor(self) -> NDArray[np.float64]:
+        """Rotor normalized thrusts (N, 4) sent to the motors at the last step."""
+        return self._state[:, C.ROTOR:C.ROTOR + 4]
 
     @property
     def attitude_setpoint(self) -> NDArray[np.float64]:
@@ -344,7 +273,8 @@ class PX4Agent(Agent):
     def collective_thrust(self) -> NDArray[np.float64]:
         """The current collective thrust set point [N] (N,): |thrust vector set point| * ``thrust_scale``, the
         thrust that goes with :attr:`attitude_setpoint` to an autopilot's attitude loop (SET_ATTITUDE_TARGET)."""
-        return np.sqrt(np.einsum("ni,ni->n", self._thr_sp, self._thr_sp)) * self.allocation.thrust_scale
+        thr = self._state[:, C.THR_SP:C.THR_SP + 3]
+        return np.sqrt(np.einsum("ni,ni->n", thr, thr)) * self.allocation.thrust_scale
 
 
 class PX4ObserverAgent(PX4Agent):
@@ -372,6 +302,8 @@ class PX4ObserverAgent(PX4Agent):
         if not isinstance(observer, Observer):
             raise TypeError(f"observer must be a registered name or an Observer, got {type(observer).__name__}")
         self.observer = observer
+        #: the observer's latest (force (N, 3), torque (N, 3)) estimates, None before the first act
+        self.raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self.force_ff = bool(force_ff) and "force" in observer.channels
         self.torque_ff = bool(torque_ff) and "torque" in observer.channels
 
@@ -394,9 +326,16 @@ class PX4ObserverAgent(PX4Agent):
 
     def _estimate(self, meas: dict[str, NDArray[np.float64]], info: Mapping[str, Any],
                   dt: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
-        force, tau = observer_step(self.observer, meas, self.known_inputs(info), dt, self.preset.mass * GRAVITY)
-        self.raw_estimate = (force, tau)
+        n = meas["position"].shape[0]
+        thrust, torque = applied_from_info(self.known_inputs(info), n, self.preset.mass * GRAVITY)
+        est = self.observer.update(meas, thrust, torque, dt)
+        force = np.ascontiguousarray(est.force, dtype=float).reshape(n, 3)
+        tau = np.ascontiguousarray(est.torque, dtype=float).reshape(n, 3)
+        self.raw_estimate = (force, tau)  # checked finite by the cascade kernel before it uses either
         return (force if self.force_ff else None), (tau if self.torque_ff else None)
+
+    def _bad_estimate(self, row: int) -> str:
+        return f"observer {self.observer.name!r} returned a non-finite estimate (row {row})"
 
     def disturbance_estimate(self) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
         """The observer's latest estimates (None for a channel it does not estimate, or before the first act)."""

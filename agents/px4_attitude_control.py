@@ -10,86 +10,117 @@ The law (re-derived; quaternions (w, x, y, z), body FRD -> world NED):
    ``K = (MC_ROLL_P, MC_PITCH_P, MC_YAW_P / w)`` (PX4 compensates the yaw weight in the gain);
 4. yaw-rate feedforward ``omega_sp += (R^T e3) yawspeed_sp``;
 5. limit each axis to ``MC_ROLLRATE_MAX / MC_PITCHRATE_MAX / MC_YAWRATE_MAX``.
+
+The law is written once, as the row function :func:`attitude_control_row` compiled by numba, which the PX4
+cascade kernel (:mod:`fawtgym.agents.px4_cascade`) calls per vehicle and :class:`AttitudeControl` through a
+batch kernel.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.frames import rot_to_quat
+from fawtgym.core.so3_kernels import mat_mul_row, rot_to_quat_row
 
 from .px4_params import PX4Params
 
-
-def quat_mul(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Hamilton product of (..., 4) quaternions (w, x, y, z)."""
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz,
-                     aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw], axis=-1)
+#: parameter vector layout (:attr:`AttitudeControl.params`)
+GAIN, YAW_WEIGHT, RATE_MAX = 0, 3, 4  # gain (3,), yaw weight, rate limits (3,) [rad/s]
+N_PARAMS = 7
 
 
-def quat_inv(q: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Inverse of unit quaternions (the conjugate)."""
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
+@njit(cache=True, inline="always")
+def attitude_error_vector_row(r_e: np.ndarray, q: np.ndarray, out: np.ndarray) -> None:
+    """``2 Im(q)`` (3,) of the canonical (w >= 0) quaternion of the rotation R_e: ``2 sin(angle/2) axis``.
 
-
-def quat_canonical(q: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The representative with w >= 0."""
-    return np.where(q[..., :1] < 0.0, -q, q)
-
-
-def quat_between(src: NDArray[np.float64], dst: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Shortest rotation (..., 4) taking unit vectors ``src`` to ``dst`` (PX4 ``Quaternion(src, dst)``)."""
-    cr = np.cross(src, dst)
-    dt = np.einsum("...i,...i->...", src, dst)
-    opposite = (np.einsum("...i,...i->...", cr, cr) < 1e-12) & (dt < 0)
-    w = dt + np.sqrt(np.einsum("...i,...i->...", src, src) * np.einsum("...i,...i->...", dst, dst))
-    if np.any(opposite):
-        a = np.abs(src[opposite])
-        axis = np.zeros_like(a)
-        idx = np.argmin(a, axis=1)
-        axis[np.arange(a.shape[0]), idx] = 1.0
-        cr = cr.copy()
-        w = w.copy()
-        cr[opposite] = np.cross(src[opposite], axis)
-        w[opposite] = 0.0
-    q = np.concatenate([w[..., None], cr], axis=-1)
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
-
-
-def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Row-wise cross product of (N, 3) arrays (cheaper than np.cross for small N)."""
-    out = np.empty_like(a)
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out
-
-
-def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    k = np.zeros(v.shape[:-1] + (3, 3))
-    k[..., 0, 1], k[..., 0, 2] = -v[..., 2], v[..., 1]
-    k[..., 1, 0], k[..., 1, 2] = v[..., 2], -v[..., 0]
-    k[..., 2, 0], k[..., 2, 1] = -v[..., 1], v[..., 0]
-    return k
-
-
-def attitude_error_vector(r_e: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``2 Im(q)`` of the canonical (w >= 0) quaternion of rotations R_e (N, 3, 3): ``2 sin(angle/2) axis``.
-
-    Uses ``R - R^T = 4 q_w [q_v]^x``; near a half turn (q_w < 1e-3) falls back to Shepperd's method.
+    Uses ``R - R^T = 4 q_w [q_v]^x``; near a half turn (q_w < 1e-3) falls back to Shepperd's method (``q`` (4,)
+    is scratch).
     """
-    tr = r_e[:, 0, 0] + r_e[:, 1, 1] + r_e[:, 2, 2]
-    qw = 0.5 * np.sqrt(np.maximum(1.0 + tr, 0.0))
-    vee = np.stack([r_e[:, 2, 1] - r_e[:, 1, 2], r_e[:, 0, 2] - r_e[:, 2, 0], r_e[:, 1, 0] - r_e[:, 0, 1]], axis=1)
-    small = qw < 1e-3
-    out = vee / (2.0 * np.where(small, 1.0, qw))[:, None]
-    if np.any(small):
-        out[small] = 2.0 * rot_to_quat(r_e[small])[:, 1:]
+    qw = 0.5 * math.sqrt(max(1.0 + r_e[0, 0] + r_e[1, 1] + r_e[2, 2], 0.0))
+    if qw < 1e-3:
+        rot_to_quat_row(r_e, q)
+        out[0], out[1], out[2] = 2.0 * q[1], 2.0 * q[2], 2.0 * q[3]
+        return
+    out[0] = (r_e[2, 1] - r_e[1, 2]) / (2.0 * qw)
+    out[1] = (r_e[0, 2] - r_e[2, 0]) / (2.0 * qw)
+    out[2] = (r_e[1, 0] - r_e[0, 1]) / (2.0 * qw)
+
+
+@njit(cache=True)
+def attitude_control_row(r: np.ndarray, r_sp: np.ndarray, yawspeed_sp: float, prm: np.ndarray,
+                         work: np.ndarray, q: np.ndarray, rate_sp: np.ndarray) -> None:
+    """One vehicle's rate setpoint ``rate_sp`` (3,) [rad/s] from R, R_sp (3, 3) (steps 1-5 of the module docstring).
+
+    ``work`` (3, 3, 3) and ``q`` (4,) are scratch.  Matrix form of PX4's quaternion law: the reduced rotation
+    q(e_z -> e_z,d) is Rodrigues' ``I + [c]^x + [c]^x^2 / (1 + d)`` with ``c = e_z x e_z,d``, ``d = e_z . e_z,d``.
+    """
+    qd, r_e, red = work[0], work[1], work[2]
+    # 1. reduced attitude qd_red = q(e_z -> e_z,d) q
+    cx = r[1, 2] * r_sp[2, 2] - r[2, 2] * r_sp[1, 2]
+    cy = r[2, 2] * r_sp[0, 2] - r[0, 2] * r_sp[2, 2]
+    cz = r[0, 2] * r_sp[1, 2] - r[1, 2] * r_sp[0, 2]
+    d = r[0, 2] * r_sp[0, 2] + r[1, 2] * r_sp[1, 2] + r[2, 2] * r_sp[2, 2]
+    if d < -1.0 + 1e-9:  # thrust axes opposite: PX4 takes the full attitude setpoint
+        qd[:, :] = r_sp
+    else:
+        cc = cx * cx + cy * cy + cz * cz
+        # red = I + [c]^x + (c c^T - |c|^2 I) / (1 + d)
+        red[0, 0], red[0, 1], red[0, 2] = 1.0 + (cx * cx - cc) / (1.0 + d), -cz + cx * cy / (1.0 + d), \
+            cy + cx * cz / (1.0 + d)
+        red[1, 0], red[1, 1], red[1, 2] = cz + cy * cx / (1.0 + d), 1.0 + (cy * cy - cc) / (1.0 + d), \
+            -cx + cy * cz / (1.0 + d)
+        red[2, 0], red[2, 1], red[2, 2] = -cy + cz * cx / (1.0 + d), cx + cz * cy / (1.0 + d), \
+            1.0 + (cz * cz - cc) / (1.0 + d)
+        mat_mul_row(red, r, qd)
+    # 2. yaw mixing: qd_red^T R_sp is a rotation about z by psi; keep w psi of it
+    m00 = qd[0, 0] * r_sp[0, 0] + qd[1, 0] * r_sp[1, 0] + qd[2, 0] * r_sp[2, 0]
+    m10 = qd[0, 1] * r_sp[0, 0] + qd[1, 1] * r_sp[1, 0] + qd[2, 1] * r_sp[2, 0]
+    psi = prm[YAW_WEIGHT] * math.atan2(m10, m00)
+    cps, sps = math.cos(psi), math.sin(psi)
+    for j in range(3):  # qd <- qd_red R_z(w psi)
+        a0, a1 = qd[j, 0], qd[j, 1]
+        qd[j, 0] = a0 * cps + a1 * sps
+        qd[j, 1] = -a0 * sps + a1 * cps
+    # 3. error R_e = R^T qd, e = 2 Im(q_e), rates K e; 4. yaw-rate feedforward (R^T e3) yawspeed; 5. limits
+    for j in range(3):
+        for m in range(3):
+            r_e[j, m] = r[0, j] * qd[0, m] + r[1, j] * qd[1, m] + r[2, j] * qd[2, m]  # R^T qd
+    attitude_error_vector_row(r_e, q, rate_sp)
+    for j in range(3):
+        w = rate_sp[j] * prm[GAIN + j] + r[2, j] * yawspeed_sp
+        rate_sp[j] = min(max(w, -prm[RATE_MAX + j]), prm[RATE_MAX + j])
+
+
+@njit(cache=True)
+def _attitude_kernel(r: np.ndarray, r_sp: np.ndarray, yawspeed_sp: np.ndarray, prm: np.ndarray,
+                     rate_sp: np.ndarray) -> None:
+    work, q = np.empty((3, 3, 3)), np.empty(4)
+    for i in range(r.shape[0]):
+        attitude_control_row(r[i], r_sp[i], yawspeed_sp[i], prm, work, q, rate_sp[i])
+
+
+@njit(cache=True)
+def _error_vector_kernel(r_e: np.ndarray, out: np.ndarray) -> None:
+    q = np.empty(4)
+    for i in range(r_e.shape[0]):
+        attitude_error_vector_row(r_e[i], q, out[i])
+
+
+def _rots(x: ArrayLike) -> NDArray[np.float64]:
+    a = np.asarray(x, dtype=float)
+    return np.ascontiguousarray(a[None] if a.ndim == 2 else a)
+
+
+def attitude_error_vector(r_e: ArrayLike) -> NDArray[np.float64]:
+    """``2 Im(q)`` of the canonical (w >= 0) quaternion of rotations R_e (N, 3, 3) (the row law
+    :func:`attitude_error_vector_row`)."""
+    r = _rots(r_e)
+    out = np.empty((r.shape[0], 3))
+    _error_vector_kernel(r, out)
     return out
 
 
@@ -110,35 +141,19 @@ class AttitudeControl:
             gain[2] /= self.yaw_weight
         self.gain = gain
         self.rate_limit = np.radians([p["MC_ROLLRATE_MAX"], p["MC_PITCHRATE_MAX"], p["MC_YAWRATE_MAX"]])
+        self.params = np.concatenate([self.gain, [self.yaw_weight], self.rate_limit])
 
     def update(self, attitude: ArrayLike, attitude_sp: ArrayLike,
                yawspeed_sp: ArrayLike | None = None) -> NDArray[np.float64]:
         """Rate setpoint (N, 3) FRD [rad/s] from R (N, 3, 3), R_sp (N, 3, 3) and yaw-rate setpoint (N,) [rad/s]."""
-        r = np.asarray(attitude, dtype=float)
-        if r.ndim == 2:
-            r = r[None]
-        r_sp = np.asarray(attitude_sp, dtype=float)
-        if r_sp.shape != r.shape:
-            r_sp = np.broadcast_to(r_sp, r.shape)
-        e_z = r[:, :, 2]
-        e_z_d = r_sp[:, :, 2]
-        c = _cross(e_z, e_z_d)
-        d = np.einsum("ni,ni->n", e_z, e_z_d)
-        degenerate = d < -1.0 + 1e-9  # thrust axes opposite: PX4 takes the full attitude setpoint
-        k = _skew(c)
-        r_red = np.eye(3) + k + (k @ k) / np.where(degenerate, 1.0, 1.0 + d)[:, None, None]
-        qd_red = np.where(degenerate[:, None, None], r_sp, r_red @ r)
-        m = np.swapaxes(qd_red, 1, 2) @ r_sp  # rotation about body z by psi
-        psi = self.yaw_weight * np.arctan2(m[:, 1, 0], m[:, 0, 0])
-        cy, sy = np.cos(psi), np.sin(psi)
-        rz = np.zeros((psi.shape[0], 3, 3))
-        rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = cy, -sy, sy, cy, 1.0
-        r_e = np.swapaxes(r, 1, 2) @ (qd_red @ rz)
-        rate_sp = attitude_error_vector(r_e) * self.gain
-        if yawspeed_sp is not None:
-            ys = np.broadcast_to(np.asarray(yawspeed_sp, dtype=float), (r.shape[0],))
-            rate_sp = rate_sp + r[:, 2, :] * ys[:, None]  # R^T e3: world z in body axes
-        return np.clip(rate_sp, -self.rate_limit, self.rate_limit)
+        r = _rots(attitude)
+        n = r.shape[0]
+        r_sp = np.ascontiguousarray(np.broadcast_to(np.asarray(attitude_sp, dtype=float), r.shape))
+        ys = np.zeros(n) if yawspeed_sp is None else np.ascontiguousarray(
+            np.broadcast_to(np.asarray(yawspeed_sp, dtype=float), (n,)))
+        out = np.empty((n, 3))
+        _attitude_kernel(r, r_sp, ys, self.params, out)
+        return out
 
 
 def principal_angle(attitude: ArrayLike, attitude_sp: ArrayLike) -> NDArray[np.float64]:
@@ -147,4 +162,3 @@ def principal_angle(attitude: ArrayLike, attitude_sp: ArrayLike) -> NDArray[np.f
     rd = np.asarray(attitude_sp, dtype=float)
     tr = np.einsum("...ji,...ji->...", rd, r)
     return np.arccos(np.clip((tr - 1.0) / 2.0, -1.0, 1.0))
-

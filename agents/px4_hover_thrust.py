@@ -33,6 +33,10 @@ changes the thrust needed to hover.  Without the estimator the vertical velocity
 horizontal acceleration ``(1 - a_z,sp / g)`` times the demanded one and bleed the horizontal integrator,
 leaving a steady position offset.  PX4 avoids this by re-estimating ``Th`` (and shifting the integrator,
 ``PositionControl::updateHoverThrust``).
+
+The step is written once, as the row function :func:`hover_thrust_row` compiled by numba, which the PX4
+cascade kernel (:mod:`fawtgym.agents.px4_cascade`) calls per vehicle and :class:`HoverThrustEstimator`
+through a batch kernel.  A vehicle's state is one row of :attr:`HoverThrustEstimator.state`.
 """
 
 from __future__ import annotations
@@ -40,9 +44,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.rows import check_dt, masked
+from fawtgym.core.rows import check_dt
 from fawtgym.envs.vehicles import GRAVITY
 
 from .px4_params import PX4Params
@@ -53,9 +58,66 @@ _STATE_VAR_MIN, _STATE_VAR_MAX = 1e-10, 1.0
 _LPF_TAU = 1.0  # s, residual / test-ratio low-pass
 _NOISE_TAU = 2.0  # s, noise learning time constant
 _OFFSET_RATIO = 0.2  # |low-passed signed test ratio| above which the state variance is bumped
-_BUMP = 1e3  # variance recovery: P += _BUMP q dt^2
+_BUMP = 1e3  # variance recovery: P += _BUMP q dt^2 (PX4's value; :attr:`HoverThrustEstimator.variance_bump`)
 _VALID_VAR = 1e-3  # an estimate is valid when P < this ...
 _VALID_HOLD = 2.0  # s ... for this long (PX4's hysteresis from false to true)
+
+#: parameter vector layout (:attr:`HoverThrustEstimator.params`)
+PROCESS_VAR, GATE, VXY_THR, VZ_THR, HOVER_MIN, HOVER_MAX, BUMP = 0, 1, 2, 3, 4, 5, 6
+N_PARAMS = 7
+#: state row layout (:attr:`HoverThrustEstimator.state`); VALID is 0 or 1
+HOVER, VAR, ACC_VAR, RESIDUAL_LPF, RATIO_LPF, TEST_RATIO, VALID, VALID_TIME = 0, 1, 2, 3, 4, 5, 6, 7
+N_STATE = 8
+
+
+@njit(cache=True)
+def hover_thrust_row(acc_z_up: float, thrust_z_up: float, vel: np.ndarray, dt: float, prm: np.ndarray,
+                     s: np.ndarray) -> None:
+    """One predict + fuse step of one vehicle's estimator (steps 1-6 of the module docstring), state row ``s``.
+
+    A non-finite acceleration or thrust is not fused (PX4's finiteness guard).
+    """
+    if not (math.isfinite(acc_z_up) and math.isfinite(thrust_z_up)):
+        return
+    q_dt2 = prm[PROCESS_VAR] * dt * dt
+    var = s[VAR] + q_dt2  # 1. predict
+    scale = max(1.0, abs(vel[2]) - prm[VZ_THR] + 1.0, math.hypot(vel[0], vel[1]) - prm[VXY_THR] + 1.0)
+    r = s[ACC_VAR] * scale  # 2. noise inflation above the velocity thresholds
+    th = s[HOVER]
+    h = -GRAVITY * thrust_z_up / (th * th)  # 3. fuse
+    innov = acc_z_up - (GRAVITY * thrust_z_up / th - GRAVITY)
+    s_innov = max(h * var * h + r, r)
+    k = var * h / s_innov
+    ratio = innov * innov / (prm[GATE] * prm[GATE] * s_innov)
+    passing = ratio < 1.0
+    residual = innov
+    if passing:
+        th = min(max(th + k * innov, prm[HOVER_MIN]), prm[HOVER_MAX])
+        var = min(max((1.0 - k * h) * var, _STATE_VAR_MIN), _STATE_VAR_MAX)
+        residual = acc_z_up - (GRAVITY * thrust_z_up / th - GRAVITY)
+    elif abs(s[RATIO_LPF]) > _OFFSET_RATIO:  # 4. variance recovery
+        var += prm[BUMP] * q_dt2
+    alpha = dt / (_LPF_TAU + dt)  # 5. low-pass filters and noise adaptation
+    res_lpf = (1.0 - alpha) * s[RESIDUAL_LPF] + alpha * residual
+    signed = ratio if innov > 0.0 else (-ratio if innov < 0.0 else 0.0)
+    s[RATIO_LPF] = (1.0 - alpha) * s[RATIO_LPF] + alpha * min(max(signed, -1.0), 1.0)
+    beta = dt / (_NOISE_TAU + dt)
+    res_nb = residual - res_lpf
+    acc_var = (1.0 - beta) * s[ACC_VAR] + beta * (res_nb * res_nb + h * var * h)
+    s[ACC_VAR] = min(max(acc_var, _ACC_VAR_MIN), _ACC_VAR_MAX)
+    valid = s[VALID] != 0.0
+    candidate = var < _VALID_VAR and (valid or passing)  # 6. validity with a 2 s hysteresis
+    s[VALID_TIME] = s[VALID_TIME] + dt if candidate else 0.0
+    s[VALID] = 1.0 if candidate and (valid or s[VALID_TIME] >= _VALID_HOLD - 1e-9) else 0.0
+    s[HOVER], s[VAR], s[RESIDUAL_LPF], s[TEST_RATIO] = th, var, res_lpf, ratio
+
+
+@njit(cache=True)
+def _hover_thrust_kernel(acc: np.ndarray, thr: np.ndarray, vel: np.ndarray, dt: np.ndarray, prm: np.ndarray,
+                         state: np.ndarray, rows: np.ndarray) -> None:
+    for i in range(state.shape[0]):
+        if rows[i]:
+            hover_thrust_row(acc[i], thr[i], vel[i], dt[i], prm, state[i])
 
 
 class HoverThrustEstimator:
@@ -64,6 +126,7 @@ class HoverThrustEstimator:
     ``hover_thrust``: the initial estimate, also PX4's ``MPC_THR_HOVER`` that centres the bounds
     ``+- HTE_THR_RANGE``.  After :meth:`update`, ``hover_thrust`` (N,) is the estimate and ``valid`` (N,)
     says whether PX4 would publish it as valid (the position controller uses only valid estimates).
+    ``variance_bump`` is the variance-recovery factor (PX4: 1e3; 0 switches the recovery off, for studies).
     """
 
     def __init__(self, params: PX4Params | None = None, hover_thrust: float = 0.5) -> None:
@@ -79,18 +142,42 @@ class HoverThrustEstimator:
         rng = p["HTE_THR_RANGE"]
         self.min_hover_thrust = min(max(self.initial - rng, 0.0), 0.8)
         self.max_hover_thrust = min(max(self.initial + rng, 0.2), 0.9)
+        self.params = np.array([self.process_var, self.gate, self.vxy_thr, self.vz_thr, self.min_hover_thrust,
+                                self.max_hover_thrust, _BUMP])
+        self.state: NDArray[np.float64] = np.zeros((0, N_STATE))
         self.reset(1)
+
+    @property
+    def variance_bump(self) -> float:
+        return float(self.params[BUMP])
+
+    @variance_bump.setter
+    def variance_bump(self, value: float) -> None:
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0.0):
+            raise ValueError(f"variance_bump must be a finite number >= 0, got {value!r}")
+        self.params[BUMP] = float(value)
+
+    def fresh_state(self) -> NDArray[np.float64]:
+        """The state row of a fresh vehicle: initial estimate and variances, filters at 0, not valid."""
+        row = np.zeros(N_STATE)
+        row[HOVER], row[VAR], row[ACC_VAR] = min(max(self.initial, 0.1), 0.9), self.init_var, _ACC_VAR_INIT
+        return row
+
+    hover_thrust = property(lambda self: self.state[:, HOVER], doc="hover-thrust estimate (N,)")
+    var = property(lambda self: self.state[:, VAR], doc="estimate variance (N,)")
+    acc_var = property(lambda self: self.state[:, ACC_VAR], doc="adapted accelerometer noise variance (N,)")
+    residual_lpf = property(lambda self: self.state[:, RESIDUAL_LPF], doc="low-passed residual (N,)")
+    ratio_lpf = property(lambda self: self.state[:, RATIO_LPF], doc="low-passed signed test ratio (N,)")
+    test_ratio = property(lambda self: self.state[:, TEST_RATIO], doc="last innovation test ratio (N,)")
+    valid = property(lambda self: self.state[:, VALID] != 0.0, doc="PX4 would publish the estimate as valid (N,)")
+    valid_time = property(lambda self: self.state[:, VALID_TIME], doc="time the validity condition has held (N,)")
 
     def reset(self, n: int = 1, rows: NDArray[np.bool_] | None = None) -> None:
         """Initial estimate, variances, filters and validity for ``n`` vehicles (only ``rows`` (n,) if given)."""
-        fresh = {"hover_thrust": np.full(n, min(max(self.initial, 0.1), 0.9)), "var": np.full(n, self.init_var),
-                 "acc_var": np.full(n, _ACC_VAR_INIT), "residual_lpf": np.zeros(n), "ratio_lpf": np.zeros(n),
-                 "test_ratio": np.zeros(n), "valid": np.zeros(n, dtype=bool), "valid_time": np.zeros(n)}
-        for name, value in fresh.items():
-            old = getattr(self, name, None)
-            if rows is not None and old is not None and old.shape == (n,):
-                value = masked(old, value, rows)
-            setattr(self, name, value)
+        if rows is not None and self.state.shape[0] == n:
+            self.state[rows] = self.fresh_state()
+            return
+        self.state = np.tile(self.fresh_state(), (n, 1))
 
     def update(self, acc_z_up: ArrayLike, thrust_z_up: ArrayLike, velocity: ArrayLike,
                dt: float | ArrayLike, rows: NDArray[np.bool_] | None = None) -> NDArray[np.float64]:
@@ -101,45 +188,11 @@ class HoverThrustEstimator:
         ``dt`` [s] scalar or per row (N,); ``rows`` (N,): only these rows advance.  Rows with a non-finite
         acceleration or thrust are not fused (PX4's finiteness guard).
         """
-        dt = np.broadcast_to(check_dt(dt), self.hover_thrust.shape).astype(float)
-        acc = np.asarray(acc_z_up, dtype=float).reshape(-1)
-        thr = np.asarray(thrust_z_up, dtype=float).reshape(-1)
-        vel = np.asarray(velocity, dtype=float).reshape(-1, 3)
-        names = ("hover_thrust", "var", "acc_var", "residual_lpf", "ratio_lpf", "test_ratio", "valid", "valid_time")
-        old = {k: getattr(self, k) for k in names}
-        ok = np.isfinite(acc) & np.isfinite(thr)
-        acc, thr = np.where(ok, acc, 0.0), np.where(ok, thr, 0.0)
-
-        var = self.var + self.process_var * dt * dt  # 1. predict
-        scale = np.maximum.reduce([np.ones_like(acc), np.abs(vel[:, 2]) - self.vz_thr + 1.0,
-                                   np.hypot(vel[:, 0], vel[:, 1]) - self.vxy_thr + 1.0])  # 2. noise inflation
-        r = self.acc_var * scale
-        th = self.hover_thrust
-        h = -GRAVITY * thr / (th * th)  # 3. fuse
-        innov = acc - (GRAVITY * thr / th - GRAVITY)
-        s = np.maximum(h * var * h + r, r)
-        k = var * h / s
-        ratio = innov * innov / (self.gate**2 * s)
-        passing = ratio < 1.0
-        th_new = np.where(passing, np.clip(th + k * innov, self.min_hover_thrust, self.max_hover_thrust), th)
-        var = np.where(passing, np.clip((1.0 - k * h) * var, _STATE_VAR_MIN, _STATE_VAR_MAX), var)
-        residual = np.where(passing, acc - (GRAVITY * thr / th_new - GRAVITY), innov)
-        bump = ~passing & (np.abs(self.ratio_lpf) > _OFFSET_RATIO)  # 4. variance recovery
-        var = np.where(bump, var + _BUMP * self.process_var * dt * dt, var)
-        alpha = dt / (_LPF_TAU + dt)  # 5. low-pass filters and noise adaptation
-        res_lpf = (1.0 - alpha) * self.residual_lpf + alpha * residual
-        ratio_lpf = (1.0 - alpha) * self.ratio_lpf + alpha * np.clip(np.sign(innov) * ratio, -1.0, 1.0)
-        beta = dt / (_NOISE_TAU + dt)
-        res_nb = residual - res_lpf
-        acc_var = np.clip((1.0 - beta) * self.acc_var + beta * (res_nb * res_nb + h * var * h),
-                          _ACC_VAR_MIN, _ACC_VAR_MAX)
-        candidate = (var < _VALID_VAR) & (self.valid | passing)  # 6. validity with a 2 s hysteresis
-        valid_time = np.where(candidate, self.valid_time + dt, 0.0)
-        valid = candidate & (self.valid | (valid_time >= _VALID_HOLD - 1e-9))
-
-        new = {"hover_thrust": th_new, "var": var, "acc_var": acc_var, "residual_lpf": res_lpf,
-               "ratio_lpf": ratio_lpf, "test_ratio": ratio, "valid": valid, "valid_time": valid_time}
-        use = ok if rows is None else ok & rows
-        for name in names:
-            setattr(self, name, masked(old[name], new[name], use))
+        n = self.state.shape[0]
+        dt_rows = np.ascontiguousarray(np.broadcast_to(check_dt(dt), (n,)), dtype=float)
+        acc = np.ascontiguousarray(np.asarray(acc_z_up, dtype=float).reshape(-1))
+        thr = np.ascontiguousarray(np.asarray(thrust_z_up, dtype=float).reshape(-1))
+        vel = np.ascontiguousarray(np.asarray(velocity, dtype=float).reshape(-1, 3))
+        advance = np.ones(n, dtype=bool) if rows is None else np.asarray(rows, dtype=bool)
+        _hover_thrust_kernel(acc, thr, vel, dt_rows, self.params, self.state, advance)
         return self.hover_thrust

@@ -26,6 +26,11 @@ FAWT study (|i_z| stays below 2 m/s^2, the estimate within ``MPC_THR_HOVER +- HT
 The observer feedforward of Wang et al. (2024) Sec. 7.2 (F = F0 - phi_hat) is applied to this law's output
 thrust vector by the agent (:func:`apply_force_feedforward`), so the baseline law, its anti-windup and
 the hover-thrust estimator see exactly PX4's own F0.
+
+Each step is written once, as a row function compiled by numba (``*_row``: one vehicle, scalars and
+row views, no allocation) called per vehicle by the PX4 cascade kernel (:mod:`fawtgym.agents.px4_cascade`)
+and, through batch kernels, by :class:`PositionControl` and the functions below.  The controller state of
+a vehicle is one row of :attr:`PositionControl.state` (layout ``VEL_INT`` ... ``HOVER``).
 """
 
 from __future__ import annotations
@@ -33,88 +38,317 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.rows import check_dt, masked, per_row
+from fawtgym.core.rows import check_dt
 from fawtgym.envs.vehicles import GRAVITY
 
-from .px4_attitude_control import _cross
 from .px4_params import PX4Params
 
 _EPS = 1.1920929e-07  # FLT_EPSILON, as PX4 uses single precision
 #: PX4 version -> (hover-thrust bounds, vertical integrator clamped before the velocity step)
 PX4_VERSIONS: dict[str, tuple[tuple[float, float], bool]] = {"1.13": ((0.1, 0.9), False), "1.14": ((0.05, 0.9), True)}
 
+#: parameter vector layout (:meth:`PositionControl.parameters`)
+KP, KV, KI, KD = 0, 3, 6, 9  # (3,) each: position P, velocity P, I, D gains per axis
+VEL_XY_MAX, VEL_UP_MAX, VEL_DN_MAX, TILT_MAX, THR_MIN, THR_MAX, THR_XY_MARGIN = 12, 13, 14, 15, 16, 17, 18
+HOVER_MIN, HOVER_MAX, CLAMP_BEFORE = 19, 20, 21
+N_PARAMS = 22
+#: state row layout (:attr:`PositionControl.state`): integrator, last setpoints, hover thrust
+VEL_INT, ACC_SP, VEL_SP, THR_SP, HOVER = 0, 3, 6, 9, 12
+N_STATE = 13
+_E3 = np.array([0.0, 0.0, 1.0])  # world down: the tilt limit's reference axis
 
-def _norm(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.sqrt(np.einsum("...i,...i->...", v, v))
+
+# ---- row laws (one vehicle) --------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def limit_tilt_row(b: np.ndarray, w: np.ndarray, max_angle: float, out: np.ndarray) -> None:
+    """PX4 ControlMath::limitTilt: rotate the unit vector ``b`` towards ``w`` so their angle is <= max_angle.
+
+    Keeps the direction of the rejection ``b - (b.w) w`` (x if it vanishes) and clamps the angle.
+    ``out`` may alias ``b``.
+    """
+    dot = min(max(b[0] * w[0] + b[1] * w[1] + b[2] * w[2], -1.0), 1.0)
+    angle = min(math.acos(dot), max_angle)
+    rx, ry, rz = b[0] - dot * w[0], b[1] - dot * w[1], b[2] - dot * w[2]
+    if rx * rx + ry * ry + rz * rz < _EPS:
+        rx, ry, rz = 1.0, 0.0, 0.0
+    rn = math.sqrt(rx * rx + ry * ry + rz * rz)
+    c, s = math.cos(angle), math.sin(angle)
+    out[0] = c * w[0] + s * rx / rn
+    out[1] = c * w[1] + s * ry / rn
+    out[2] = c * w[2] + s * rz / rn
+
+
+@njit(cache=True, inline="always")
+def constrain_xy_row(v0x: float, v0y: float, v1x: float, v1y: float, max_norm: float) -> tuple[float, float]:
+    """PX4 ControlMath::constrainXY: ``v0 + v1`` with ``|.| <= max_norm``, giving priority to ``v0`` (2-vectors)."""
+    tx, ty = v0x + v1x, v0y + v1y
+    n0 = math.sqrt(v0x * v0x + v0y * v0y)
+    if math.sqrt(tx * tx + ty * ty) <= max_norm:
+        return tx, ty
+    d0 = n0 if n0 > 0.0 else 1.0
+    if n0 >= max_norm or math.sqrt((v1x - v0x) ** 2 + (v1y - v0y) ** 2) < 0.001:
+        return v0x / d0 * max_norm, v0y / d0 * max_norm
+    n1 = math.sqrt(v1x * v1x + v1y * v1y)
+    d1 = n1 if n1 > 0.0 else 1.0
+    u1x, u1y = v1x / d1, v1y / d1
+    if n0 < 0.001:
+        return u1x * max_norm, u1y * max_norm
+    # the s >= 0 with |v0 + s u1| = max_norm
+    m = u1x * v0x + u1y * v0y
+    c = n0 * n0 - max_norm * max_norm
+    s = -m + math.sqrt(max(m * m - c, 0.0))
+    return v0x + u1x * s, v0y + u1y * s
+
+
+@njit(cache=True)
+def bodyz_to_attitude_row(zx: float, zy: float, zz: float, yaw: float, r: np.ndarray) -> None:
+    """PX4 ControlMath::bodyzToAttitude: R (3, 3) with third column ``z`` (normalized) and heading ``yaw``.
+
+    ``x = y_C x z`` with ``y_C = (-sin yaw, cos yaw, 0)`` (negated when z points up, (0, 0, 1) when z is
+    horizontal), ``y = z x x``.
+    """
+    if zx * zx + zy * zy + zz * zz < _EPS:
+        zx, zy, zz = 0.0, 0.0, 1.0
+    zn = math.sqrt(zx * zx + zy * zy + zz * zz)
+    zx, zy, zz = zx / zn, zy / zn, zz / zn
+    ycx, ycy = -math.sin(yaw), math.cos(yaw)  # y_C, z component 0
+    xx, xy, xz = ycy * zz, -ycx * zz, ycx * zy - ycy * zx
+    if zz < 0.0:
+        xx, xy, xz = -xx, -xy, -xz
+    if abs(zz) < 1e-6:
+        xx, xy, xz = 0.0, 0.0, 1.0
+    xn = math.sqrt(xx * xx + xy * xy + xz * xz)
+    xx, xy, xz = xx / xn, xy / xn, xz / xn
+    r[0, 0], r[1, 0], r[2, 0] = xx, xy, xz
+    r[0, 1], r[1, 1], r[2, 1] = zy * xz - zz * xy, zz * xx - zx * xz, zx * xy - zy * xx
+    r[0, 2], r[1, 2], r[2, 2] = zx, zy, zz
+
+
+@njit(cache=True)
+def acceleration_control_row(ax: float, ay: float, az: float, hover: float, prm: np.ndarray,
+                             thr: np.ndarray) -> None:
+    """PositionControl::_accelerationControl: acceleration setpoint -> normalized thrust vector ``thr`` (3,).
+
+    ``body_z = normalize(-a_x, -a_y, g)`` tilt-limited; collective ``(a_z Th / g - Th) / body_z_z`` capped at
+    ``-MPC_THR_MIN``; ``thr = body_z collective``.
+    """
+    bn = math.sqrt(ax * ax + ay * ay + GRAVITY * GRAVITY)
+    thr[0], thr[1], thr[2] = -ax / bn, -ay / bn, GRAVITY / bn
+    limit_tilt_row(thr, _E3, prm[TILT_MAX], thr)
+    collective = (az * (hover / GRAVITY) - hover) / thr[2]
+    collective = min(collective, -prm[THR_MIN])
+    thr[0] *= collective
+    thr[1] *= collective
+    thr[2] *= collective
+
+
+@njit(cache=True)
+def position_control_row(p: np.ndarray, v: np.ndarray, v_dot: np.ndarray, p_sp: np.ndarray, v_ff: np.ndarray,
+                         a_ff: np.ndarray, dt: float, prm: np.ndarray, s: np.ndarray, advance: bool,
+                         thr: np.ndarray) -> None:
+    """One position/velocity step of one vehicle (steps 1-5 of the module docstring) into ``thr`` (3,).
+
+    ``s`` is the vehicle's state row (``VEL_INT`` ... ``HOVER``); it advances only if ``advance``.
+    """
+    # 1. position P with the horizontal limit (priority to the position part) and the vertical limits
+    vpx, vpy, vpz = (p_sp[0] - p[0]) * prm[KP], (p_sp[1] - p[1]) * prm[KP + 1], (p_sp[2] - p[2]) * prm[KP + 2]
+    vsx, vsy, vsz = v_ff[0] + vpx, v_ff[1] + vpy, v_ff[2] + vpz
+    vsx, vsy = constrain_xy_row(vpx, vpy, vsx - vpx, vsy - vpy, prm[VEL_XY_MAX])
+    vsz = min(max(vsz, -prm[VEL_UP_MAX]), prm[VEL_DN_MAX])
+    # 2. velocity PID; v1.14 clamps |i_z| <= g before using it
+    ix, iy, iz = s[VEL_INT], s[VEL_INT + 1], s[VEL_INT + 2]
+    if prm[CLAMP_BEFORE] != 0.0:
+        iz = min(max(iz, -GRAVITY), GRAVITY)
+    ex, ey, ez = vsx - v[0], vsy - v[1], vsz - v[2]
+    accx = a_ff[0] + ex * prm[KV] + ix - v_dot[0] * prm[KD]
+    accy = a_ff[1] + ey * prm[KV + 1] + iy - v_dot[1] * prm[KD + 1]
+    accz = a_ff[2] + ez * prm[KV + 2] + iz - v_dot[2] * prm[KD + 2]
+    hover = s[HOVER]
+    # 3. acceleration -> thrust
+    acceleration_control_row(accx, accy, accz, hover, prm, thr)
+    # 5a. vertical anti-windup: freeze when saturated in the error's direction
+    if (thr[2] >= -prm[THR_MIN] and ez >= 0.0) or (thr[2] <= -prm[THR_MAX] and ez <= 0.0):
+        ez = 0.0
+    # 4. vertical priority, keeping MPC_THR_XY_MARG of horizontal thrust
+    thr_xy = math.sqrt(thr[0] * thr[0] + thr[1] * thr[1])
+    thr_max_sq = prm[THR_MAX] * prm[THR_MAX]
+    allocated_xy = min(thr_xy, prm[THR_XY_MARGIN])
+    thr[2] = max(thr[2], -math.sqrt(max(thr_max_sq - allocated_xy * allocated_xy, 0.0)))
+    thr_max_xy = math.sqrt(max(thr_max_sq - thr[2] * thr[2], 0.0))
+    if thr_xy > thr_max_xy:
+        scale = thr_max_xy / thr_xy
+        thr[0] *= scale
+        thr[1] *= scale
+    # 5b. horizontal tracking anti-windup (Rundqwist 1990), gain 2 / K_vp
+    prod_x, prod_y = thr[0] * (GRAVITY / hover), thr[1] * (GRAVITY / hover)
+    lim_x, lim_y = accx, accy
+    if accx * accx + accy * accy > prod_x * prod_x + prod_y * prod_y:
+        lim_x, lim_y = prod_x, prod_y
+    arw_gain = 2.0 / prm[KV]
+    ex -= arw_gain * (accx - lim_x)
+    ey -= arw_gain * (accy - lim_y)
+    if not advance:
+        return
+    errs = (ex, ey, ez)
+    ints = (ix, iy, iz)
+    for j in range(3):
+        e = errs[j] if math.isfinite(errs[j]) else 0.0
+        s[VEL_INT + j] = ints[j] + e * prm[KI + j] * dt
+    if prm[CLAMP_BEFORE] == 0.0:  # v1.13.2: |i_z| <= g after integrating
+        s[VEL_INT + 2] = min(max(s[VEL_INT + 2], -GRAVITY), GRAVITY)
+    s[VEL_SP], s[VEL_SP + 1], s[VEL_SP + 2] = vsx, vsy, vsz
+    s[ACC_SP], s[ACC_SP + 1], s[ACC_SP + 2] = accx, accy, accz
+    s[THR_SP], s[THR_SP + 1], s[THR_SP + 2] = thr[0], thr[1], thr[2]
+
+
+@njit(cache=True)
+def update_hover_thrust_row(hover_new: float, prm: np.ndarray, s: np.ndarray) -> None:
+    """PositionControl::updateHoverThrust for one vehicle: new hover thrust, z integrator shifted by ``a' - a``
+    with ``a' = (a - g) Th / Th' + g``; v1.13 divides by the unconstrained ``Th'``, v1.14 by the constrained one."""
+    if not (math.isfinite(hover_new) and hover_new > _EPS):
+        return
+    stored = min(max(hover_new, prm[HOVER_MIN]), prm[HOVER_MAX])
+    divisor = stored if prm[CLAMP_BEFORE] != 0.0 else hover_new
+    a_z = s[ACC_SP + 2]
+    s[VEL_INT + 2] += (a_z - GRAVITY) * s[HOVER] / divisor + GRAVITY - a_z
+    s[HOVER] = stored
+
+
+@njit(cache=True)
+def force_feedforward_row(thr: np.ndarray, force_hat: np.ndarray, thrust_scale: float, max_tilt: float,
+                          thr_min: float, thr_max: float, out: np.ndarray) -> None:
+    """F = F0 - phi_hat (Wang et al. (2024) Sec. 7.2) on one normalized thrust vector, then PX4's limits again.
+
+    ``out = -body_z |F|`` with ``body_z`` tilt-limited to ``max_tilt`` and ``|F|`` kept in ``[thr_min, thr_max]``;
+    ``out`` may alias ``thr``.
+    """
+    fx = thr[0] - force_hat[0] / thrust_scale
+    fy = thr[1] - force_hat[1] / thrust_scale
+    fz = thr[2] - force_hat[2] / thrust_scale
+    n = math.sqrt(fx * fx + fy * fy + fz * fz)
+    if n > 0.0:  # thrust acts along -body_z
+        out[0], out[1], out[2] = -fx / n, -fy / n, -fz / n
+    else:
+        out[0], out[1], out[2] = 0.0, 0.0, 1.0
+    limit_tilt_row(out, _E3, max_tilt, out)
+    mag = min(max(n, thr_min), thr_max)
+    out[0], out[1], out[2] = -out[0] * mag, -out[1] * mag, -out[2] * mag
+
+
+
+# ---- batch kernels (the row laws over N vehicles) ------------------------------------------------------
+@njit(cache=True)
+def _position_kernel(p: np.ndarray, v: np.ndarray, v_dot: np.ndarray, p_sp: np.ndarray, v_ff: np.ndarray,
+                     a_ff: np.ndarray, dt: np.ndarray, prm: np.ndarray, state: np.ndarray, advance: np.ndarray,
+                     thr: np.ndarray) -> None:
+    for i in range(p.shape[0]):
+        position_control_row(p[i], v[i], v_dot[i], p_sp[i], v_ff[i], a_ff[i], dt[i], prm, state[i], advance[i],
+                             thr[i])
+
+
+@njit(cache=True)
+def _hover_thrust_kernel(hover_new: np.ndarray, prm: np.ndarray, state: np.ndarray, rows: np.ndarray) -> None:
+    for i in range(state.shape[0]):
+        if rows[i]:
+            update_hover_thrust_row(hover_new[i], prm, state[i])
+
+
+@njit(cache=True)
+def _limit_tilt_kernel(b: np.ndarray, w: np.ndarray, max_angle: float, out: np.ndarray) -> None:
+    for i in range(b.shape[0]):
+        limit_tilt_row(b[i], w[i], max_angle, out[i])
+
+
+@njit(cache=True)
+def _constrain_xy_kernel(v0: np.ndarray, v1: np.ndarray, max_norm: float, out: np.ndarray) -> None:
+    for i in range(v0.shape[0]):
+        out[i, 0], out[i, 1] = constrain_xy_row(v0[i, 0], v0[i, 1], v1[i, 0], v1[i, 1], max_norm)
+
+
+@njit(cache=True)
+def _bodyz_kernel(z: np.ndarray, yaw: np.ndarray, r: np.ndarray) -> None:
+    for i in range(z.shape[0]):
+        bodyz_to_attitude_row(z[i, 0], z[i, 1], z[i, 2], yaw[i], r[i])
+
+
+@njit(cache=True)
+def _feedforward_kernel(thr: np.ndarray, force_hat: np.ndarray, thrust_scale: float, max_tilt: float,
+                        thr_min: float, thr_max: float, out: np.ndarray) -> None:
+    for i in range(thr.shape[0]):
+        force_feedforward_row(thr[i], force_hat[i], thrust_scale, max_tilt, thr_min, thr_max, out[i])
+
+
+def _rows3(x: ArrayLike, n: int | None = None) -> NDArray[np.float64]:
+    """``x`` as a C-contiguous (N, 3) float array (a (3,) vector is broadcast to ``n`` rows)."""
+    a = np.asarray(x, dtype=float)
+    if a.ndim == 1:
+        a = a[None]
+    if n is not None and a.shape[0] != n:
+        a = np.broadcast_to(a, (n, 3))
+    return np.ascontiguousarray(a)
 
 
 def limit_tilt(body_unit: ArrayLike, world_unit: ArrayLike, max_angle: float) -> NDArray[np.float64]:
-    """Rotate unit vectors ``body_unit`` (N, 3) towards ``world_unit`` so the angle between them is <= max_angle.
-
-    PX4 ControlMath::limitTilt: keep the direction of the rejection, clamp the angle.
-    """
-    b = np.asarray(body_unit, dtype=float)
-    w = np.broadcast_to(np.asarray(world_unit, dtype=float), b.shape)
-    dot = np.clip(np.einsum("...i,...i->...", b, w), -1.0, 1.0)
-    angle = np.minimum(np.arccos(dot), max_angle)
-    rej = b - dot[..., None] * w
-    small = np.einsum("...i,...i->...", rej, rej) < _EPS
-    rej = np.where(small[..., None], np.array([1.0, 0.0, 0.0]), rej)
-    rej = rej / _norm(rej)[..., None]
-    return np.cos(angle)[..., None] * w + np.sin(angle)[..., None] * rej
+    """Rotate unit vectors ``body_unit`` (N, 3) towards ``world_unit`` so the angle between them is <= max_angle
+    (PX4 ControlMath::limitTilt, :func:`limit_tilt_row`)."""
+    b = _rows3(body_unit)
+    out = np.empty_like(b)
+    _limit_tilt_kernel(b, _rows3(world_unit, b.shape[0]), float(max_angle), out)
+    return out
 
 
 def constrain_xy(v0: ArrayLike, v1: ArrayLike, max_norm: float) -> NDArray[np.float64]:
     """PX4 ControlMath::constrainXY: limit ``|v0 + v1| <= max`` giving priority to ``v0`` (both (N, 2))."""
-    v0 = np.asarray(v0, dtype=float)
-    v1 = np.broadcast_to(np.asarray(v1, dtype=float), v0.shape)
-    total = v0 + v1
-    n_total, n0, n1 = _norm(total), _norm(v0), _norm(v1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        u0 = v0 / np.where(n0 > 0, n0, 1.0)[..., None]
-        u1 = v1 / np.where(n1 > 0, n1, 1.0)[..., None]
-        m = np.einsum("...i,...i->...", u1, v0)
-        c = n0**2 - max_norm**2
-        s = -m + np.sqrt(np.maximum(m * m - c, 0.0))
-    out = v0 + u1 * s[..., None]
-    out = np.where((n0 < 0.001)[..., None], u1 * max_norm, out)
-    out = np.where((_norm(v1 - v0) < 0.001)[..., None], u0 * max_norm, out)
-    out = np.where((n0 >= max_norm)[..., None], u0 * max_norm, out)
-    return np.where((n_total <= max_norm)[..., None], total, out)
+    a = np.ascontiguousarray(np.atleast_2d(np.asarray(v0, dtype=float)))
+    b = np.ascontiguousarray(np.broadcast_to(np.asarray(v1, dtype=float), a.shape))
+    out = np.empty_like(a)
+    _constrain_xy_kernel(a, b, float(max_norm), out)
+    return out
 
 
 def bodyz_to_attitude(body_z: ArrayLike, yaw: ArrayLike) -> NDArray[np.float64]:
     """Desired R (N, 3, 3) whose third column is ``body_z`` (N, 3) with heading ``yaw`` (N,) [rad].
 
-    PX4 ControlMath::bodyzToAttitude: ``x = y_C x z`` with ``y_C = (-sin yaw, cos yaw, 0)``.
+    PX4 ControlMath::bodyzToAttitude (:func:`bodyz_to_attitude_row`).
     """
-    z = np.array(body_z, dtype=float)
-    yaw = np.broadcast_to(np.asarray(yaw, dtype=float), z.shape[:-1])
-    zero = np.einsum("...i,...i->...", z, z) < _EPS
-    z[zero] = np.array([0.0, 0.0, 1.0])
-    z = z / _norm(z)[..., None]
-    y_c = np.stack([-np.sin(yaw), np.cos(yaw), np.zeros_like(yaw)], axis=-1)
-    x = _cross(y_c, z)
-    x = np.where((z[..., 2] < 0.0)[..., None], -x, x)
-    x = np.where((np.abs(z[..., 2]) < 1e-6)[..., None], np.array([0.0, 0.0, 1.0]), x)
-    x = x / _norm(x)[..., None]
-    y = _cross(z, x)
-    return np.stack([x, y, z], axis=-1)
+    z = _rows3(body_z)
+    yaw_rows = np.ascontiguousarray(np.broadcast_to(np.asarray(yaw, dtype=float), (z.shape[0],)))
+    r = np.empty((z.shape[0], 3, 3))
+    _bodyz_kernel(z, yaw_rows, r)
+    return r
 
 
 def thrust_to_attitude(thrust_sp: ArrayLike, yaw: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Thrust vector setpoint (N, 3) NED normalized -> (R_sp (N, 3, 3), collective thrust (N,) >= 0)."""
-    thr = np.asarray(thrust_sp, dtype=float)
-    return bodyz_to_attitude(-thr, yaw), _norm(thr)
+    thr = _rows3(thrust_sp)
+    return bodyz_to_attitude(-thr, yaw), np.sqrt(np.einsum("ni,ni->n", thr, thr))
+
+
+def apply_force_feedforward(thrust_sp: ArrayLike, force_hat: ArrayLike, thrust_scale: float, max_tilt: float,
+                            thr_min: float, thr_max: float) -> NDArray[np.float64]:
+    """F = F0 - phi_hat (Wang et al. (2024) Sec. 7.2) on PX4's normalized thrust vector, then PX4's limits again.
+
+    ``thrust_sp`` (N, 3) normalized NED thrust vector F0 / thrust_scale, ``force_hat`` (N, 3) the estimated
+    disturbance force [N] world NED, ``thrust_scale`` [N per unit] (``4 T_max``).  The result is tilt-limited
+    to ``max_tilt`` [rad] and its magnitude kept in ``[thr_min, thr_max]`` (:func:`force_feedforward_row`).
+    """
+    thr = _rows3(thrust_sp)
+    out = np.empty_like(thr)
+    _feedforward_kernel(thr, _rows3(force_hat, thr.shape[0]), float(thrust_scale), float(max_tilt), float(thr_min),
+                        float(thr_max), out)
+    return out
 
 
 class PositionControl:
     """PX4 PositionControl for N vehicles; holds gains, limits and the velocity integrator.
 
     ``update`` returns the normalized thrust vector setpoint (N, 3) in NED (``|thr|`` = collective
-    thrust as a fraction of the maximum, pointing along -body_z).
+    thrust as a fraction of the maximum, pointing along -body_z).  The state of the N vehicles is
+    :attr:`state` (N, ``N_STATE``); ``vel_int``, ``acc_sp``, ``vel_sp``, ``thr_sp`` (N, 3) and
+    ``hover_thrust`` (N,) are views of it.
     """
 
     def __init__(self, params: PX4Params | None = None, hover_thrust: float | None = None,
@@ -139,24 +373,41 @@ class PositionControl:
         if not (math.isfinite(ht) and 0.0 < ht < 1.0):
             raise ValueError(f"hover_thrust must be in (0, 1) (normalized collective thrust), got {ht!r}")
         self.initial_hover_thrust = float(np.clip(ht, *self.hover_thrust_bounds))
-        #: hover thrust per vehicle (N,)
-        self.hover_thrust = np.full(1, self.initial_hover_thrust)
-        self.vel_int = np.zeros((1, 3))
-        # last outputs, for logging and tests
-        self.vel_sp = np.zeros((1, 3))
-        self.acc_sp = np.zeros((1, 3))
-        self.thr_sp = np.zeros((1, 3))
+        self.params = self.parameters()
+        self.state: NDArray[np.float64] = np.zeros((0, N_STATE))
+        self.reset(1)
+
+    def parameters(self) -> NDArray[np.float64]:
+        """The parameter vector of the row law (layout ``KP`` ... ``CLAMP_BEFORE``)."""
+        prm = np.empty(N_PARAMS)
+        prm[KP:KP + 3], prm[KV:KV + 3] = self.gain_pos_p, self.gain_vel_p
+        prm[KI:KI + 3], prm[KD:KD + 3] = self.gain_vel_i, self.gain_vel_d
+        prm[VEL_XY_MAX], prm[VEL_UP_MAX], prm[VEL_DN_MAX] = self.lim_vel_horizontal, self.lim_vel_up, self.lim_vel_down
+        prm[TILT_MAX], prm[THR_MIN], prm[THR_MAX] = self.lim_tilt, self.lim_thr_min, self.lim_thr_max
+        prm[THR_XY_MARGIN] = self.lim_thr_xy_margin
+        prm[HOVER_MIN], prm[HOVER_MAX] = self.hover_thrust_bounds
+        prm[CLAMP_BEFORE] = float(self.clamp_before)
+        return prm
+
+    def fresh_state(self) -> NDArray[np.float64]:
+        """The state row of a fresh vehicle: zero integrator and setpoints, the initial hover thrust."""
+        row = np.zeros(N_STATE)
+        row[HOVER] = self.initial_hover_thrust
+        return row
+
+    # views of the state, by name
+    vel_int = property(lambda self: self.state[:, VEL_INT:VEL_INT + 3], doc="velocity integrator (N, 3) [m/s^2]")
+    acc_sp = property(lambda self: self.state[:, ACC_SP:ACC_SP + 3], doc="last acceleration setpoint (N, 3)")
+    vel_sp = property(lambda self: self.state[:, VEL_SP:VEL_SP + 3], doc="last velocity setpoint (N, 3)")
+    thr_sp = property(lambda self: self.state[:, THR_SP:THR_SP + 3], doc="last thrust vector setpoint (N, 3)")
+    hover_thrust = property(lambda self: self.state[:, HOVER], doc="hover thrust per vehicle (N,)")
 
     def reset(self, n: int = 1, rows: NDArray[np.bool_] | None = None) -> None:
         """Zero the integrator and restore the initial hover thrust for ``n`` vehicles (only ``rows`` (n,) if given)."""
-        if rows is not None and self.vel_int.shape[0] == n:
-            self.vel_int = masked(self.vel_int, 0.0 * self.vel_int, rows)
-            self.hover_thrust = masked(self.hover_thrust, np.full(n, self.initial_hover_thrust), rows)
-            self.acc_sp = masked(self.acc_sp, 0.0 * self.acc_sp, rows)
+        if rows is not None and self.state.shape[0] == n:
+            self.state[rows] = self.fresh_state()
             return
-        self.vel_int = np.zeros((n, 3))
-        self.hover_thrust = np.full(n, self.initial_hover_thrust)
-        self.acc_sp = np.zeros((n, 3))
+        self.state = np.tile(self.fresh_state(), (n, 1))
 
     def update_hover_thrust(self, hover_thrust_new: ArrayLike, rows: NDArray[np.bool_] | None = None) -> None:
         """PositionControl::updateHoverThrust: new hover thrust (N,), integrator shifted so the thrust is continuous.
@@ -165,16 +416,10 @@ class PositionControl:
         The stored hover thrust is constrained to the version's bounds; v1.13 computes the shift from the
         unconstrained ``Th'``, v1.14 from the constrained one (module docstring).  Only the rows of ``rows`` (N,).
         """
-        new = np.broadcast_to(np.asarray(hover_thrust_new, dtype=float), self.hover_thrust.shape)
-        ok = np.isfinite(new) & (new > _EPS)
-        if rows is not None:
-            ok &= rows
-        stored = np.clip(new, *self.hover_thrust_bounds)
-        divisor = stored if self.clamp_before else new
-        a_z = self.acc_sp[:, 2]
-        shift = (a_z - GRAVITY) * self.hover_thrust / np.where(ok, divisor, 1.0) + GRAVITY - a_z
-        self.vel_int[:, 2] += np.where(ok, shift, 0.0)
-        self.hover_thrust = np.where(ok, stored, self.hover_thrust)
+        n = self.state.shape[0]
+        new = np.ascontiguousarray(np.broadcast_to(np.asarray(hover_thrust_new, dtype=float), (n,)))
+        apply = np.ones(n, dtype=bool) if rows is None else np.asarray(rows, dtype=bool)
+        _hover_thrust_kernel(new, self.params, self.state, apply)
 
     def update(self, position: ArrayLike, velocity: ArrayLike, velocity_dot: ArrayLike, position_sp: ArrayLike,
                dt: float | ArrayLike, velocity_ff: ArrayLike | None = None,
@@ -186,88 +431,16 @@ class PositionControl:
         returned setpoint is computed for every row).
         """
         dt = check_dt(dt)
-        pos = np.atleast_2d(np.asarray(position, dtype=float))
-        vel = np.atleast_2d(np.asarray(velocity, dtype=float))
-        vel_dot = np.atleast_2d(np.asarray(velocity_dot, dtype=float))
+        pos = _rows3(position)
         n = pos.shape[0]
-        if self.vel_int.shape[0] != n:
+        if self.state.shape[0] != n:
             self.reset(n)
-        pos_sp = np.broadcast_to(np.asarray(position_sp, dtype=float), pos.shape)
-        v_ff = np.zeros_like(pos) if velocity_ff is None else np.broadcast_to(velocity_ff, pos.shape)
-        a_ff = np.zeros_like(pos) if acceleration_ff is None else np.broadcast_to(acceleration_ff, pos.shape)
-
-        # ---- position P (PositionControl::_positionControl)
-        vel_sp_pos = (pos_sp - pos) * self.gain_pos_p
-        vel_sp = v_ff + vel_sp_pos
-        vel_sp_xy = constrain_xy(vel_sp_pos[:, :2], (vel_sp - vel_sp_pos)[:, :2], self.lim_vel_horizontal)
-        vel_sp = np.concatenate([vel_sp_xy, np.clip(vel_sp[:, 2:], -self.lim_vel_up, self.lim_vel_down)], axis=1)
-
-        # ---- velocity PID (PositionControl::_velocityControl); v1.14 clamps |i_z| <= g here, before use
-        vel_int_now = self.vel_int
-        if self.clamp_before:
-            vel_int_now = self.vel_int.copy()
-            vel_int_now[:, 2] = np.clip(vel_int_now[:, 2], -GRAVITY, GRAVITY)
-        vel_err = vel_sp - vel
-        acc_sp = a_ff + vel_err * self.gain_vel_p + vel_int_now - vel_dot * self.gain_vel_d
-        thr_sp = self._acceleration_control(acc_sp)
-
-        # vertical anti-windup: freeze when saturated in the error's direction
-        freeze_z = ((thr_sp[:, 2] >= -self.lim_thr_min) & (vel_err[:, 2] >= 0.0)) | \
-                   ((thr_sp[:, 2] <= -self.lim_thr_max) & (vel_err[:, 2] <= 0.0))
-        vel_err[:, 2] = np.where(freeze_z, 0.0, vel_err[:, 2])
-
-        # vertical priority with a horizontal margin
-        thr_xy = thr_sp[:, :2]
-        thr_xy_norm = _norm(thr_xy)
-        thr_max_sq = self.lim_thr_max**2
-        allocated_xy = np.minimum(thr_xy_norm, self.lim_thr_xy_margin)
-        thr_z_max_sq = thr_max_sq - allocated_xy**2
-        thr_z = np.maximum(thr_sp[:, 2], -np.sqrt(np.maximum(thr_z_max_sq, 0.0)))
-        thr_max_xy = np.sqrt(np.maximum(thr_max_sq - thr_z**2, 0.0))
-        scale = np.where(thr_xy_norm > thr_max_xy, thr_max_xy / np.where(thr_xy_norm > 0, thr_xy_norm, 1.0), 1.0)
-        thr_sp = np.concatenate([thr_xy * scale[:, None], thr_z[:, None]], axis=1)
-
-        # horizontal tracking anti-windup (Rundqwist 1990), gain 2 / K_vp
-        acc_xy_produced = thr_sp[:, :2] * (GRAVITY / self.hover_thrust)[:, None]
-        arw_gain = 2.0 / self.gain_vel_p[0]
-        acc_xy = acc_sp[:, :2]
-        acc_limited_xy = np.where((_norm(acc_xy) ** 2 > _norm(acc_xy_produced) ** 2)[:, None], acc_xy_produced, acc_xy)
-        vel_err[:, :2] = vel_err[:, :2] - arw_gain * (acc_xy - acc_limited_xy)
-
-        vel_err = np.where(np.isfinite(vel_err), vel_err, 0.0)
-        vel_int = vel_int_now + vel_err * self.gain_vel_i * per_row(dt, 2)
-        if not self.clamp_before:  # v1.13.2: |i_z| <= g after integrating
-            vel_int[:, 2] = np.clip(vel_int[:, 2], -GRAVITY, GRAVITY)
-
-        self.vel_int = masked(self.vel_int, vel_int, rows)
-        self.vel_sp = masked(self.vel_sp, vel_sp, rows) if self.vel_sp.shape == vel_sp.shape else vel_sp
-        self.acc_sp = masked(self.acc_sp, acc_sp, rows)
-        self.thr_sp = masked(self.thr_sp, thr_sp, rows) if self.thr_sp.shape == thr_sp.shape else thr_sp
-        return thr_sp
-
-    def _acceleration_control(self, acc_sp: NDArray[np.float64]) -> NDArray[np.float64]:
-        """PositionControl::_accelerationControl: acceleration (N, 3) -> thrust vector (N, 3)."""
-        body_z = np.stack([-acc_sp[:, 0], -acc_sp[:, 1], np.full(acc_sp.shape[0], GRAVITY)], axis=1)
-        body_z = body_z / _norm(body_z)[:, None]
-        body_z = limit_tilt(body_z, np.array([0.0, 0.0, 1.0]), self.lim_tilt)
-        collective = acc_sp[:, 2] * (self.hover_thrust / GRAVITY) - self.hover_thrust
-        collective = collective / body_z[:, 2]
-        collective = np.minimum(collective, -self.lim_thr_min)
-        return body_z * collective[:, None]
-
-
-def apply_force_feedforward(thrust_sp: ArrayLike, force_hat: ArrayLike, thrust_scale: float, max_tilt: float,
-                            thr_min: float, thr_max: float) -> NDArray[np.float64]:
-    """F = F0 - phi_hat (Wang et al. (2024) Sec. 7.2) on PX4's normalized thrust vector, then PX4's limits again.
-
-    ``thrust_sp`` (N, 3) normalized NED thrust vector F0 / thrust_scale, ``force_hat`` (N, 3) the estimated
-    disturbance force [N] world NED, ``thrust_scale`` [N per unit] (``4 T_max``).  The result is tilt-limited
-    to ``max_tilt`` [rad] and its magnitude kept in ``[thr_min, thr_max]``.
-    """
-    thr = np.asarray(thrust_sp, dtype=float) - np.asarray(force_hat, dtype=float) / thrust_scale
-    n = _norm(thr)
-    body_z = -thr / np.where(n > 0, n, 1.0)[:, None]  # thrust acts along -body_z
-    body_z = np.where((n > 0)[:, None], body_z, np.array([0.0, 0.0, 1.0]))
-    body_z = limit_tilt(body_z, np.array([0.0, 0.0, 1.0]), max_tilt)
-    mag = np.clip(n, thr_min, thr_max)
-    return -body_z * mag[:, None]
+        zeros = np.zeros((n, 3))
+        v_ff = zeros if velocity_ff is None else _rows3(velocity_ff, n)
+        a_ff = zeros if acceleration_ff is None else _rows3(acceleration_ff, n)
+        thr = np.empty((n, 3))
+        advance = np.ones(n, dtype=bool) if rows is None else np.asarray(rows, dtype=bool)
+        _position_kernel(pos, _rows3(velocity, n), _rows3(velocity_dot, n), _rows3(position_sp, n), v_ff, a_ff,
+                         np.ascontiguousarray(np.broadcast_to(dt, (n,)), dtype=float), self.params, self.state,
+                         advance, thr)
+        return thr

@@ -99,7 +99,7 @@ class SB3Agent(Agent):
         self.trained_on = {"scenario": cfg.get("scenario"), "steps": self.meta.get("steps_done")}
         space = base_env.single_action_space if hasattr(base_env, "single_action_space") else base_env.action_space
         hover = np.asarray(base_env.hover_action(), dtype=float).reshape(-1, space.shape[0])[0]
-        self.base = None
+        self.base: Any = None  # the residual base agent (a PX4 agent, possibly with an observer)
         self.features = None
         self.shared = False
         if cfg["action"] == "residual":

@@ -47,11 +47,12 @@ GRAMMAR = "px4, px4+<observer>, px4+<observer>(key=value, ...), module:Class, sb
 
 @dataclasses.dataclass(frozen=True)
 class AgentSpec:
-    """A parsed agent name: ``kind`` in {"px4", "px4+observer", "plugin", "sb3"}."""
+    """A parsed agent name: ``kind`` in {"px4", "px4+observer", "plugin", "sb3"}; ``observer`` (px4+observer) and
+    ``target`` (plugin ``module:Class``, sb3 run path) are "" where the kind has none."""
 
     kind: str
-    observer: str | None = None
-    target: str | None = None
+    observer: str = ""
+    target: str = ""
     kwargs: tuple[tuple[str, Any], ...] = ()
 
     @property
@@ -69,7 +70,9 @@ class AgentSpec:
 
 def split_agents(text: str) -> list[str]:
     """Split a comma list of agent names, keeping commas inside parentheses."""
-    out, depth, cur = [], 0, []
+    out: list[str] = []
+    cur: list[str] = []
+    depth = 0
     for ch in text:
         if ch == "," and depth == 0:
             out.append("".join(cur).strip())

@@ -73,14 +73,13 @@ def test_bounds_are_mpc_thr_hover_plus_minus_range() -> None:
     assert (hte.min_hover_thrust, hte.max_hover_thrust) == pytest.approx((0.2, 0.9))
 
 
-def test_variance_recovery_after_a_hover_thrust_jump(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_variance_recovery_after_a_hover_thrust_jump() -> None:
     """A jump 0.3 -> 0.55 fails the 3-sigma gate every step; only the variance bump lets the EKF follow."""
-    import fawtgym.agents.px4_hover_thrust as hte_module
-
     final = {}
     for bump in (1e3, 0.0):
-        monkeypatch.setattr(hte_module, "_BUMP", bump)
         hte = HoverThrustEstimator(PX4Params.s500(), hover_thrust=0.4)
+        assert hte.variance_bump == 1e3  # PX4's value by default
+        hte.variance_bump = bump
         _run(hte, 0.3, 20.0, noise=0.3)
         assert abs(hte.hover_thrust[0] - 0.3) < 0.01
         est, _ = _run(hte, 0.55, 20.0, noise=0.3, seed=1)

@@ -5,9 +5,13 @@ One process, interleaved rounds, best round kept (least disturbed by other load 
 * ``closed loop``: env (s500, ``fawt-50``, ``mocap_imu`` sensors, 1 kHz physics) + ``PX4ObserverAgent("ffts_eso")``,
   one vehicle; real-time factor = simulated seconds / wall seconds;
 * its parts: the env stepping alone (hover action) and the agent + observer alone (on a recorded
-  measurement), as real-time factors of the same simulated time;
+  measurement), as real-time factors of the same simulated time, and the PX4 agent without its
+  observer (the cascade's own share);
 * the agent + observer vectorized over N vehicles (batch-first), as aggregate vehicle-seconds per
   wall second.  Target: closed loop >= 100x real time on one core.
+
+All four run after a short warm-up (the compiled kernels load from numba's cache, or compile, on their
+first call), so compile time is in none of them; all ratios come from one run.
 
 Batched (``--batch-sizes``, aggregate over N vehicles: vehicle-seconds simulated per wall second, one
 process, one thread: numpy's OpenBLAS is pinned to 1 thread and MuJoCo's rollout runs on the calling
@@ -165,14 +169,22 @@ def measure_batched(batch_sizes: Sequence[int] = (64, 256, 1024), rounds: int = 
 def measure(steps: int = 1000, rounds: int = 3, control_rate: float = 200.0,
             batch: int = 1024) -> dict[str, dict[str, float]]:
     """Real-time factors (simulated s per wall s, and per CPU s of this process), best of ``rounds``."""
+    from fawtgym.agents.px4_agent import PX4Agent
+
     env = _make_env(control_rate)
     agent = _agent(env)
+    px4 = PX4Agent.for_env(env)
     sim = steps / control_rate
     nb = max(steps // 10, 10)
     jobs = {"closed": (lambda: _time_closed_loop(env, agent, steps), sim),
             "env": (lambda: _time_env(env, steps), sim),
             "agent": (lambda: _time_agent(env, agent, steps, 1), sim),
+            "px4": (lambda: _time_agent(env, px4, steps, 1), sim),
             "batch": (lambda: _time_agent(env, agent, nb, batch), batch * nb / control_rate)}
+    # warm-up: the compiled kernels load (or compile) on their first call; that is not part of any timing
+    _time_closed_loop(env, agent, 10)
+    _time_agent(env, agent, 2, batch)
+    _time_agent(env, px4, 10, 1)
     best = {k: [np.inf, np.inf] for k in jobs}
     for _ in range(rounds):
         for k, (job, _) in jobs.items():
@@ -202,7 +214,8 @@ def main(argv: Sequence[str] | None = None) -> int:
           f"(best of {args.rounds} rounds of {r['closed']['sim']:g} simulated s); real-time factors "
           "(simulated s per wall s | per CPU s of this process):")
     rows = (("closed loop, 1 vehicle", "closed"), ("  env stepping alone", "env"),
-            ("  agent + observer alone", "agent"), (f"agent + observer, N = {args.batch} (aggregate)", "batch"))
+            ("  agent + observer alone", "agent"), ("    of it, PX4 alone (no observer)", "px4"),
+            (f"agent + observer, N = {args.batch} (aggregate)", "batch"))
     for label, key in rows:
         print(f"  {label:<42s} {r[key]['wall']:8.1f}x | {r[key]['cpu']:8.1f}x")
     met = r["closed"]["wall"] >= 100.0

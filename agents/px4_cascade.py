@@ -1,0 +1,206 @@
+"""One control step of the PX4 cascade for N vehicles, as one compiled kernel over rows.
+
+:class:`fawtgym.agents.px4_agent.PX4Agent` calls :func:`cascade_step` once per ``act``.  Per vehicle
+(row) it runs, in PX4's order and with each law's row function from its own module (written once there):
+
+1. gyro filters (``VehicleAngularVelocity``): the gyro through the ``IMU_GYRO_CUTOFF`` Butterworth, the
+   backward-difference angular acceleration through the ``IMU_DGYRO_CUTOFF`` one
+   (:func:`~fawtgym.agents.px4_filters.butterworth_row`); a row that was just reset starts both from its
+   sample (rate = gyro, angular acceleration 0);
+2. the three loop clocks: a loop runs when its period has elapsed, with the elapsed time as its dt;
+3. position loop: hover-thrust EKF (:func:`~fawtgym.agents.px4_hover_thrust.hover_thrust_row`, applied to
+   the position law only once valid), the filtered velocity derivative, the position/velocity law
+   (:func:`~fawtgym.agents.px4_position_control.position_control_row`), the observer feedforward
+   F = F0 - phi_hat (Wang et al. (2024) Sec. 7.2), and the attitude setpoint (``bodyzToAttitude``);
+4. attitude loop (:func:`~fawtgym.agents.px4_attitude_control.attitude_control_row`);
+5. rate loop (:func:`~fawtgym.agents.px4_rate_control.rate_control_row`) and tau = tau0 - tau_hat;
+6. allocation with desaturation (:func:`~fawtgym.agents.px4_allocation.allocate_row`), the rate loop's
+   saturation flags from the unallocated torque, and the motor commands.
+
+State.  Everything the cascade itself keeps is one row of the agent state (layout below); the laws' own
+state rows are those of :class:`PositionControl`, :class:`HoverThrustEstimator` and :class:`RateControl`.
+A per-row reset writes a fresh row (:func:`fresh_state`): a masked write.
+
+Status.  The kernel returns ``(code, row)``: ``OK``, ``BAD_ESTIMATE`` (a non-finite disturbance estimate,
+found before any state changes) or ``BAD_ACTION`` (a non-finite motor command); the agent raises.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from fawtgym.envs.vehicles import GRAVITY
+
+from .px4_allocation import allocate_row, rotor_command_row
+from .px4_attitude_control import attitude_control_row
+from .px4_filters import N_BIQUAD, butterworth_reset_row, butterworth_row, filtered_derivative_row
+from .px4_hover_thrust import HOVER as HTE_HOVER
+from .px4_hover_thrust import VALID, hover_thrust_row
+from .px4_position_control import (
+    THR_MAX,
+    THR_MIN,
+    TILT_MAX,
+    bodyz_to_attitude_row,
+    force_feedforward_row,
+    position_control_row,
+    update_hover_thrust_row,
+)
+from .px4_rate_control import SAT_NEG, SAT_POS, rate_control_row
+
+#: kernel status codes
+OK, BAD_ESTIMATE, BAD_ACTION = 0, 1, 2
+#: |unallocated roll/pitch/yaw|^2 above which the allocation reports saturation to the rate loop
+SAT_EPS = 1e-6
+
+#: configuration vector layout (:func:`configuration`)
+GYRO_COEF, DGYRO_COEF = 0, N_BIQUAD  # the two Butterworth coefficient vectors
+VELD_CUTOFF = 2 * N_BIQUAD  # Hz, MPC_VELD_LP
+PERIOD = VELD_CUTOFF + 1  # (3,) loop periods [s]: position, attitude, rate
+POS_LOOP, ATT_LOOP, RATE_LOOP = 0, 1, 2
+USE_HTE = PERIOD + 3  # 1: the hover-thrust estimator runs (MPC_USE_HTE)
+THRUST_SCALE = USE_HTE + 1  # N per unit normalized collective thrust
+TORQUE_SCALE = THRUST_SCALE + 1  # (3,) N m per unit normalized torque
+N_CONFIG = TORQUE_SCALE + 3
+
+#: agent state row layout (:func:`fresh_state`)
+GYRO_Z = 0  # (6,) gyro Butterworth registers
+DGYRO_Z = 6  # (6,) angular-acceleration Butterworth registers
+GYRO_PREV = 12  # (3,) previous gyro sample
+FRESH = 15  # 1: the row was reset; its filters start from its next sample
+ELAPSED = 16  # (3,) time since each loop last ran (inf: run at the next step)
+VEL_DERIV = 19  # (7,) filtered velocity derivative: previous velocity, low-pass state, first-sample flag
+THR0 = 26  # (3,) PX4's own thrust vector setpoint F0 (what the hover-thrust EKF sees)
+HAS_THR0 = 29  # 1 once F0 exists
+THR_SP = 30  # (3,) thrust vector setpoint after the feedforward
+RATE_SP = 33  # (3,) body rate setpoint [rad/s]
+TORQUE = 36  # (3,) normalized torque setpoint
+ROTOR = 39  # (4,) rotor normalized thrusts sent to the motors
+N_STATE = 43
+
+
+def configuration(gyro_coef: NDArray[np.float64], dgyro_coef: NDArray[np.float64], veld_cutoff: float,
+                  periods: tuple[float, float, float], use_hte: bool, thrust_scale: float,
+                  torque_scale: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The configuration vector of :func:`cascade_step` (layout ``GYRO_COEF`` ... ``TORQUE_SCALE``)."""
+    cfg = np.zeros(N_CONFIG)
+    cfg[GYRO_COEF:GYRO_COEF + N_BIQUAD] = gyro_coef
+    cfg[DGYRO_COEF:DGYRO_COEF + N_BIQUAD] = dgyro_coef
+    cfg[VELD_CUTOFF] = veld_cutoff
+    cfg[PERIOD:PERIOD + 3] = periods
+    cfg[USE_HTE] = float(use_hte)
+    cfg[THRUST_SCALE] = thrust_scale
+    cfg[TORQUE_SCALE:TORQUE_SCALE + 3] = torque_scale
+    return cfg
+
+
+def fresh_state(hover_thrust: float) -> NDArray[np.float64]:
+    """The agent state row of a vehicle starting an episode: filters fresh, every loop due, hover thrust set point."""
+    row = np.zeros(N_STATE)
+    row[FRESH] = 1.0
+    row[ELAPSED:ELAPSED + 3] = math.inf
+    row[VEL_DERIV + 6] = 1.0  # the next velocity is a first sample
+    row[THR_SP + 2] = -hover_thrust
+    row[ROTOR:ROTOR + 4] = hover_thrust
+    return row
+
+
+@njit(cache=True, inline="always")
+def _tick(s: np.ndarray, loop: int, period: float, dt: float) -> float:
+    """Advance a loop clock by ``dt``; returns the loop's dt if it runs now (elapsed time, the period after a
+    reset), else 0."""
+    elapsed = s[ELAPSED + loop] + dt
+    if elapsed < period - 1e-9:
+        s[ELAPSED + loop] = elapsed
+        return 0.0
+    s[ELAPSED + loop] = 0.0
+    return elapsed if math.isfinite(elapsed) else period
+
+
+@njit(cache=True)
+def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.ndarray, specific_force: np.ndarray,
+                 has_specific_force: bool, setpoint: np.ndarray, yaw: float, force_hat: np.ndarray, use_force: bool,
+                 torque_hat: np.ndarray, use_torque: bool, dt: float, cfg: np.ndarray, pos_prm: np.ndarray,
+                 hte_prm: np.ndarray, att_prm: np.ndarray, rate_prm: np.ndarray, mix_t: np.ndarray,
+                 effectiveness: np.ndarray, alloc_scale: np.ndarray, rotor_map: np.ndarray, state: np.ndarray,
+                 pos_state: np.ndarray, hte_state: np.ndarray, rate_state: np.ndarray, att_sp: np.ndarray,
+                 action: np.ndarray) -> tuple[int, int]:
+    """One ``act`` of the cascade for every row (module docstring); writes ``action`` (N, 4) motor commands.
+
+    Inputs (N, 3) / (N, 3, 3) are the measurement (pose possibly delayed), the position setpoint ((1, 3): the
+    same for every row) and the
+    disturbance estimates (zeros without an observer; both checked finite, fed forward if ``use_force`` /
+    ``use_torque``); the state arrays are updated in place.
+    """
+    n = pos.shape[0]
+    for i in range(n):  # a diverging observer stops the step before anything changes
+        for j in range(3):
+            if not (math.isfinite(force_hat[i, j]) and math.isfinite(torque_hat[i, j])):
+                return BAD_ESTIMATE, i
+    gyro_coef = cfg[GYRO_COEF:GYRO_COEF + N_BIQUAD]
+    dgyro_coef = cfg[DGYRO_COEF:DGYRO_COEF + N_BIQUAD]
+    zeros = np.zeros(3)
+    rate, ang_acc, raw, vel_dot, thr, torque = (np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3),
+                                                np.empty(3))
+    unallocated, work, q = np.empty(4), np.empty((3, 3, 3)), np.empty(4)
+    for i in range(n):
+        s = state[i]
+        # 1. gyro filters
+        if s[FRESH] != 0.0:
+            butterworth_reset_row(gyro[i], s[GYRO_Z:GYRO_Z + 6], gyro_coef)
+            s[DGYRO_Z:DGYRO_Z + 6] = 0.0
+            rate[:] = gyro[i]
+            ang_acc[:] = 0.0
+            s[FRESH] = 0.0
+        else:
+            butterworth_row(gyro[i], s[GYRO_Z:GYRO_Z + 6], gyro_coef, rate)
+            for j in range(3):
+                raw[j] = (gyro[i, j] - s[GYRO_PREV + j]) / dt
+            butterworth_row(raw, s[DGYRO_Z:DGYRO_Z + 6], dgyro_coef, ang_acc)
+        s[GYRO_PREV:GYRO_PREV + 3] = gyro[i]
+        # 2.-3. position loop
+        pos_dt = _tick(s, POS_LOOP, cfg[PERIOD + POS_LOOP], dt)
+        if pos_dt > 0.0:
+            if cfg[USE_HTE] != 0.0 and has_specific_force and s[HAS_THR0] != 0.0:
+                r = att[i]  # vertical acceleration (up positive) from the accelerometer: a = R f + g e3
+                acc_up = -(r[2, 0] * specific_force[i, 0] + r[2, 1] * specific_force[i, 1]
+                           + r[2, 2] * specific_force[i, 2] + GRAVITY)
+                hover_thrust_row(acc_up, -s[THR0 + 2], vel[i], pos_dt, hte_prm, hte_state[i])
+                if hte_state[i, VALID] != 0.0:  # PX4 applies only valid estimates
+                    update_hover_thrust_row(hte_state[i, HTE_HOVER], pos_prm, pos_state[i])
+            filtered_derivative_row(vel[i], s[VEL_DERIV:VEL_DERIV + 7], cfg[VELD_CUTOFF], pos_dt, vel_dot)
+            position_control_row(pos[i], vel[i], vel_dot, setpoint[min(i, setpoint.shape[0] - 1)], zeros, zeros,
+                                 pos_dt, pos_prm, pos_state[i], True, thr)
+            s[THR0:THR0 + 3] = thr
+            s[HAS_THR0] = 1.0
+            if use_force:  # F = F0 - phi_hat, limited as PX4's own
+                force_feedforward_row(thr, force_hat[i], cfg[THRUST_SCALE], pos_prm[TILT_MAX], pos_prm[THR_MIN],
+                                      pos_prm[THR_MAX], thr)
+            s[THR_SP:THR_SP + 3] = thr
+            bodyz_to_attitude_row(-thr[0], -thr[1], -thr[2], yaw, att_sp[i])
+        # 4. attitude loop
+        if _tick(s, ATT_LOOP, cfg[PERIOD + ATT_LOOP], dt) > 0.0:
+            attitude_control_row(att[i], att_sp[i], 0.0, att_prm, work, q, s[RATE_SP:RATE_SP + 3])
+        # 5. rate loop, tau = tau0 - tau_hat in normalized units
+        rate_dt = _tick(s, RATE_LOOP, cfg[PERIOD + RATE_LOOP], dt)
+        if rate_dt > 0.0:
+            rate_control_row(rate, s[RATE_SP:RATE_SP + 3], ang_acc, rate_dt, rate_prm, rate_state[i], True, torque)
+            for j in range(3):
+                s[TORQUE + j] = torque[j] - torque_hat[i, j] / cfg[TORQUE_SCALE + j] if use_torque else torque[j]
+        # 6. allocation, saturation flags for the rate integrator, motor commands
+        collective = math.sqrt(s[THR_SP] * s[THR_SP] + s[THR_SP + 1] * s[THR_SP + 1] + s[THR_SP + 2] * s[THR_SP + 2])
+        allocate_row(s[TORQUE:TORQUE + 3], collective, mix_t, effectiveness, alloc_scale, s[ROTOR:ROTOR + 4],
+                     unallocated)
+        missed = unallocated[0] ** 2 + unallocated[1] ** 2 + unallocated[2] ** 2 >= SAT_EPS
+        for j in range(3):
+            rate_state[i, SAT_POS + j] = 1.0 if missed and unallocated[j] > SAT_EPS else 0.0
+            rate_state[i, SAT_NEG + j] = 1.0 if missed and unallocated[j] < -SAT_EPS else 0.0
+        rotor_command_row(s[ROTOR:ROTOR + 4], rotor_map, action[i])
+    for i in range(n):
+        for j in range(4):
+            if not math.isfinite(action[i, j]):
+                return BAD_ACTION, i
+    return OK, -1
