@@ -23,8 +23,9 @@ over the control step, exact first-order motor lag (mid-substep thrust, end-of-s
 observation from measurements, the same dense reward, termination (ground contact, box,
 divergence) and truncation.  What is batched:
 
-* physics: one ``mujoco.rollout`` call per control step on the env's own one-vehicle model with
-  one ``MjData`` on the calling thread (one core): state spec ``mjSTATE_FULLPHYSICS`` (time, qpos,
+* physics: one ``mujoco.rollout`` call per control step on the env's own one-vehicle model, on the
+  calling thread below :data:`THREADED_ROWS` rows, else on one thread per core, each with its own ``MjData``
+  (:func:`physics_threads`): state spec ``mjSTATE_FULLPHYSICS`` (time, qpos,
   qvel; 14 numbers, round-trips this model's state exactly: no actuator activations, contacts
   disabled so no warm start matters), control spec ``mjSTATE_CTRL | mjSTATE_QFRC_APPLIED`` with the
   whole (N, n_substeps, 10) array (rotor thrusts per substep, held world force and body torque as the
@@ -96,7 +97,7 @@ autoresets in the next-step mode reports reward 0 and all terms 0 on its reset s
 
 ``action_type="ctbr"``: the inner rate loop (:mod:`fawtgym.envs.ctbr`) runs at the physics rate on the
 true body rates, so the physics is one single-substep rollout per substep (``n_substeps`` calls per
-control step), with :class:`BatchRateLoop` (RateLoop's law row by row) in between.
+control step), with :class:`fawtgym.envs.ctbr.RateLoop` (batch-first) in between.
 
 Not implemented: rendering (render a single ``fawtgym/Hover-v0``).
 """
@@ -104,11 +105,13 @@ Not implemented: rendering (render a single ``fawtgym/Hover-v0``).
 from __future__ import annotations
 
 import copy
+import os
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import mujoco
 import numpy as np
+from gymnasium import spaces
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
@@ -119,16 +122,23 @@ from fawtgym.core import measurement as M
 from fawtgym.core.frames import SIGN2_MJ_NED, SIGN_MJ_NED, rot_ned_to_quat_mj
 from fawtgym.core.so3 import exp_so3
 
+from .aero import AeroModel
 from .ctbr import MAX_RATES, RateLoop
-from .hover_env import INIT_SPREAD, HoverEnv, check_init_noise
-from .mjcf import hull_points
+from .mjcf import hull_points, vehicle_mjcf
 from .motors import allocation_matrix
-from .observation import hover_observation
+from .observation import hover_observation, observation_bounds
+from .options import (
+    INIT_SPREAD,
+    check_actions,
+    check_reset_options,
+    check_setpoint,
+    hover_action,
+    hover_action_space,
+    hover_options,
+)
 from .sensors_batch import BatchSensorModel
 from .wind import WindModel
-from .wind.base import CalmWind
-from .wind.fawt import FawtWind
-from .wind.outdoor import DrydenWind
+from .wind_cohorts import BatchWind
 
 _MJ_T0 = 1.0  #: MuJoCo time at the start of every rollout (a MuJoCo reset sets it to 0: divergence test)
 _STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
@@ -138,6 +148,16 @@ _SIGN, _SIGN2 = SIGN_MJ_NED, SIGN2_MJ_NED
 AUTORESET_MODES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP}
 #: what a randomizer's draws may set, one value per starting row (module docstring)
 RANDOMIZER_KEYS = ("mass_scale", "inertia_scale", "drag_scale", "gyro_bias", "accel_bias", "wind")
+#: below this many rows the rollout runs on the calling thread (a thread hand-off costs more than it saves)
+THREADED_ROWS = 64
+
+
+def physics_threads(n: int) -> int:
+    """Threads of the env's ``mujoco.rollout`` for ``n`` rows, each with its own ``MjData``: one per core this
+    process may use (at most one per :data:`THREADED_ROWS` rows), or 0 (the calling thread) if that is one."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    threads = min(cores, n // THREADED_ROWS)
+    return threads if threads > 1 else 0
 
 
 def quat_mj_to_rot_ned_batch(q: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -158,118 +178,19 @@ def quat_mj_to_rot_ned_batch(q: NDArray[np.float64]) -> NDArray[np.float64]:
     return r * _SIGN2
 
 
-def _time_invariant(wind: WindModel) -> bool:
-    """Whether ``wind``'s output depends on the time argument (models known to ignore it)."""
-    if type(wind) is CalmWind or type(wind) is DrydenWind:
-        return True
-    return type(wind) is FawtWind and wind.schedule.steady
+def _check_seeds(seed: Any, n: int) -> list[int | None]:
+    """``reset``'s ``seed``: None, an int >= 0 (row i gets seed + i) or a list of n ints >= 0 / None."""
+    def ok(x: Any) -> bool:
+        return isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_)) and x >= 0
 
-
-class BatchWind:
-    """Runs one :class:`WindModel` for N rows whose episodes start at different times (module docstring).
-
-    ``shared``: one model steps every row (time-invariant models); else cohorts: one model copy per set of
-    rows that started together (or per row, for rows given their own model by a randomizer).
-    """
-
-    def __init__(self, template: WindModel, n: int) -> None:
-        self.template = copy.deepcopy(template)  # pristine copy: cohorts are copied from it
-        self.n = n
-        self.shared = _time_invariant(template)
-        self.model: WindModel | None = None
-        self.cohorts: list[list[Any]] = []  # [model, rows (k,), alive (k,) bool]
-        self._started: list[list[Any]] = []  # the cohorts of the last reset_rows (cohort mode)
-        self._scratch: WindModel | None = None  # shared mode: restarts rows while the others go on
-        self._last: tuple[NDArray[np.intp], Sequence[int], Sequence[np.random.SeedSequence]] = (
-            np.zeros(0, dtype=np.intp), [], [])  # (rows, seed ints, seeds) of the last reset_rows
-
-    @staticmethod
-    def _seed(ints: Sequence[int], seeds: Sequence[np.random.SeedSequence]) -> np.random.SeedSequence:
-        # one row: exactly the single env's wind seed; several: all rows' seed integers pooled
-        return seeds[0] if len(seeds) == 1 else np.random.SeedSequence([int(i) for i in ints])
-
-    def reset_rows(self, rows: NDArray[np.intp], ints: Sequence[int], seeds: Sequence[np.random.SeedSequence],
-                   models: Sequence[WindModel] | None = None) -> None:
-        """New episodes (time 0) for ``rows``; ``ints``/``seeds`` are the rows' wind seeds; ``models``: one own
-        model per row (each then runs as a cohort of one row; a shared model becomes a cohort of its rows)."""
-        self._last = (rows, ints, seeds)
-        if models is not None:
-            if self.shared:
-                if self.model is not None:  # the rows still flying keep the shared model, as a cohort
-                    self.cohorts = [[self.model, np.arange(self.n), np.ones(self.n, dtype=bool)]]
-                self.shared, self.model = False, None
-            for c in self.cohorts:
-                c[2] &= ~np.isin(c[1], rows)
-            self.cohorts = [c for c in self.cohorts if c[2].any()]
-            self._started = []
-            for row, model, seed in zip(rows.tolist(), models, seeds, strict=True):
-                model.reset(1, seed=seed)
-                self._started.append([model, np.array([row]), np.ones(1, dtype=bool)])
-            self.cohorts.extend(self._started)
-            return
-        if self.shared:
-            if self.model is None or rows.size == self.n:
-                self.model = copy.deepcopy(self.template)
-                self.model.reset(self.n, seed=self._seed(ints, seeds))
-                return
-            process = getattr(self.model, "process", None)
-            if process is not None:  # fresh stationary gust-filter state for the reset rows
-                p = process.p_stat
-                w, v = np.linalg.eigh(p)
-                root = v * np.sqrt(np.clip(w, 0.0, None))
-                x = process.x.copy()
-                for k, row in enumerate(rows.tolist()):  # reset path only
-                    x[row] = root @ np.random.default_rng(seeds[k]).standard_normal(process.n_states)
-                process.x = x
-            return
-        for c in self.cohorts:
-            c[2] &= ~np.isin(c[1], rows)
-        self.cohorts = [c for c in self.cohorts if c[2].any()]
-        model = copy.deepcopy(self.template)
-        model.reset(rows.size, seed=self._seed(ints, seeds))
-        self._started = [[model, rows.copy(), np.ones(rows.size, dtype=bool)]]
-        self.cohorts.append(self._started[0])
-
-    def first_step(self, dt: float, points: NDArray[np.float64], velocity: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The first wind sample (k, K, 3) of the rows of the last :meth:`reset_rows` (at their ``points``
-        (k, K, 3)), without stepping the other rows (same-step autoreset, module docstring)."""
-        rows, ints, seeds = self._last
-        if not self.shared:  # the cohorts just started step alone, at episode time 0, as in step()
-            out = np.empty(points.shape)
-            pos = {row: j for j, row in enumerate(rows.tolist())}
-            for model, crows, _ in self._started:
-                idx = np.array([pos[r] for r in crows.tolist()])
-                out[idx] = model.step(0.0, dt, points[idx], velocity[idx])
-            return out
-        if rows.size == self.n:  # a full restart: the fresh shared model steps every row
-            return self.model.step(0.0, dt, points, velocity)
-        # the shared model goes on for the other rows: a k-row copy takes the restarted rows' fresh filter state
-        # (reset_rows drew it) one step forward, with noise from the rows' pooled wind seed, and hands it back
-        if self._scratch is None:
-            self._scratch = copy.deepcopy(self.template)
-        scratch = self._scratch
-        scratch.reset(rows.size, seed=self._seed(ints, seeds))
-        process = getattr(self.model, "process", None)
-        if process is not None:
-            scratch.process.x = process.x[rows].copy()
-        out = scratch.step(0.0, dt, points, velocity)
-        if process is not None:
-            x = process.x.copy()
-            x[rows] = scratch.process.x
-            process.x = x
-        return out
-
-    def step(self, times: NDArray[np.float64], dt: float, points: NDArray[np.float64],
-             velocity: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Wind (N, K, 3) at ``points`` (N, K, 3); ``times`` (N,) are the rows' episode times."""
-        if self.shared:
-            return self.model.step(float(times[0]), dt, points, velocity)
-        out = np.empty(points.shape)
-        for model, rows, alive in self.cohorts:  # one call per cohort (rows that reset together)
-            live = rows[alive]
-            got = model.step(float(times[live[0]]), dt, points[rows], velocity[rows])
-            out[live] = got[alive]
-        return out
+    if seed is None:
+        return [None] * n
+    if ok(seed):
+        return [int(seed) + i for i in range(n)]
+    if isinstance(seed, Sequence) and not isinstance(seed, str) and len(seed) == n and all(
+            x is None or ok(x) for x in seed):
+        return [None if x is None else int(x) for x in seed]
+    raise ValueError(f"seed must be None, an int >= 0 or a list of {n} ints >= 0 / None (one per row), got {seed!r}")
 
 
 def _with_masks(info: Mapping[str, Any], mask: NDArray[np.bool_]) -> dict[str, Any]:
@@ -314,47 +235,6 @@ def _measure_rows(sensor: BatchSensorModel, rows: NDArray[np.intp], rngs: Sequen
     return out
 
 
-class BatchRateLoop:
-    """:class:`fawtgym.envs.ctbr.RateLoop` for N vehicles: the same gains and law, row by row (batch-first)."""
-
-    def __init__(self, loop: RateLoop, n: int) -> None:
-        self.dt = loop.dt
-        self.kp, self.ki, self.kd = loop.kp, loop.ki, loop.kd
-        self.i_lim = loop.i_lim
-        self.j_t = loop.j.T
-        self.b_thrust = loop.b_inv[:, 0]
-        self.b_torque_t = loop.b_inv[:, 1:].T
-        self.t_min, self.t_max = loop.t_min, loop.t_max
-        self.integral = np.zeros((n, 3))
-        self.prev_rate = np.zeros((n, 3))
-        self.has_prev = np.zeros(n, dtype=bool)
-
-    def reset_rows(self, rows: NDArray[np.intp]) -> None:
-        self.integral[rows] = 0.0
-        self.prev_rate[rows] = 0.0
-        self.has_prev[rows] = False
-
-    def rotor_thrusts(self, collective: NDArray[np.float64], rate_sp: NDArray[np.float64],
-                      rate: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Rotor thrusts (N, 4) [N] for collective thrusts (N,) [N] and body-rate setpoints (N, 3) [rad/s]."""
-        err = rate_sp - rate
-        rate_dot = np.where(self.has_prev[:, None], (rate - self.prev_rate) / self.dt, 0.0)
-        self.prev_rate = rate.copy()
-        self.has_prev[:] = True
-        ang_acc = self.kp * err + self.integral - self.kd * rate_dot
-        torque = ang_acc @ self.j_t + np.cross(rate, rate @ self.j_t)
-        thrust_part = self.b_thrust * collective[:, None]
-        torque_part = torque @ self.b_torque_t
-        lo, hi = self.t_min - thrust_part, self.t_max - thrust_part
-        with np.errstate(divide="ignore", invalid="ignore"):
-            room = np.where(torque_part > 0, hi / torque_part, np.where(torque_part < 0, lo / torque_part, np.inf))
-        scale = np.clip(room.min(axis=1), 0.0, 1.0)
-        free = scale >= 1.0  # PX4: freeze the integrator while the actuators saturate
-        self.integral = np.where(free[:, None], np.clip(self.integral + self.ki * err * self.dt, -self.i_lim,
-                                                        self.i_lim), self.integral)
-        return np.clip(thrust_part + scale[:, None] * torque_part, self.t_min, self.t_max)
-
-
 class HoverBatchEnv(VectorEnv):
     """N hover vehicles stepped together; per-row semantics of :class:`HoverEnv` (module docstring).
 
@@ -388,34 +268,41 @@ class HoverBatchEnv(VectorEnv):
         if render_mode is not None:
             raise ValueError(f"HoverBatchEnv does not render; render_mode must be None, got {render_mode!r} "
                              "(render a single fawtgym/Hover-v0 instead)")
-        single = HoverEnv(vehicle=vehicle, wind=wind, action_type=action_type, sensors=sensors,
-                          control_rate=control_rate, physics_rate=physics_rate, episode_seconds=episode_seconds,
-                          setpoint=setpoint, init_noise=init_noise, reward_weights=reward_weights,
-                          max_position_error=max_position_error, integrator=integrator,
-                          render_width=render_width, render_height=render_height)
+        opts = hover_options(vehicle=vehicle, wind=wind, action_type=action_type, sensors=sensors,
+                             control_rate=control_rate, physics_rate=physics_rate, episode_seconds=episode_seconds,
+                             setpoint=setpoint, init_noise=init_noise, reward_weights=reward_weights,
+                             max_position_error=max_position_error, integrator=integrator,
+                             render_width=render_width, render_height=render_height)
+        self.options = opts
         n = self.num_envs = int(num_envs)
         self.autoreset_mode = modes[autoreset_mode]
         self._same_step = self.autoreset_mode is AutoresetMode.SAME_STEP
+        self._autoreset_on = True  # HoverEnv (a batch of one, Gymnasium's single-env API) turns it off
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self.randomizer = randomizer
-        self.preset = single.preset
-        self.action_type = action_type
-        self.n_substeps, self.physics_dt, self.dt = single.n_substeps, single.physics_dt, single.dt
-        self.episode_seconds, self.max_steps = single.episode_seconds, single.max_steps
-        self.max_position_error = single.max_position_error
-        self.init_noise = single.init_noise
-        self.reward_weights = dict(single.reward_weights)
+        self.preset = opts.preset
+        self.action_type = opts.action_type
+        self.n_substeps, self.physics_dt, self.dt = opts.n_substeps, opts.physics_dt, opts.dt
+        self.episode_seconds, self.max_steps = opts.episode_seconds, opts.max_steps
+        self.max_position_error = opts.max_position_error
+        self.init_noise = opts.init_noise
+        self.reward_weights = dict(opts.reward_weights)
         w = self.reward_weights
         self._reward_w = np.repeat([w["pos"], w["vel"], 0.0, w["rate"], w["action"]], [3, 3, 6, 3, 4])
-        self.single_action_space = single.action_space
-        self.single_observation_space = single.observation_space
+        self.single_action_space = hover_action_space(opts.action_type)
+        low, high = observation_bounds(opts.max_position_error, self.single_action_space.low,
+                                       self.single_action_space.high)
+        self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
         self.action_space = batch_space(self.single_action_space, n)
         self.observation_space = batch_space(self.single_observation_space, n)
         self.render_mode = None
-        self.setpoint = np.tile(single.setpoint, (n, 1))
-        self.model = single.model
-        self._data = mujoco.MjData(self.model)
-        self._rollout = rollout.Rollout(nthread=0)  # rollouts on the calling thread: one core
+        self._setpoint = np.tile(opts.setpoint, (n, 1))
+        self.model = mujoco.MjModel.from_xml_string(vehicle_mjcf(opts.preset, opts.physics_dt, opts.integrator,
+                                                                 opts.render_width, opts.render_height))
+        self._nthread = physics_threads(n)
+        self._datas = [mujoco.MjData(self.model) for _ in range(max(self._nthread, 1))]
+        self._data = self._datas[0]
+        self._rollout = rollout.Rollout(nthread=self._nthread)
         self._models = [self.model] * n  # one per row: a row with a randomized vehicle gets its own copy
         self._body = self.model.body("vehicle").id
         self._nominal_mass = float(self.model.body_mass[self._body])
@@ -423,17 +310,16 @@ class HoverBatchEnv(VectorEnv):
         self.mass_scale, self.inertia_scale, self.drag_scale = np.ones(n), np.ones(n), np.ones(n)
         self._drag_scaled = False
         self._qfrc_col = self.model.nu  # qfrc_applied follows ctrl in the control vector
-        self.wind = BatchWind(single.wind, n)
-        self.aero = single.aero
-        self.sensor = BatchSensorModel(single.sensor.spec, self.dt, n)
-        single.close()
+        self.wind = BatchWind(opts.wind, n)
+        self.aero = AeroModel(opts.preset)
+        self.sensor = BatchSensorModel(opts.sensors, self.dt, n, self.physics_dt)
 
         p = self.preset
         self._hull_t = hull_points(p).T
         self._alloc_t = allocation_matrix(p).T
         self._rotor_pos_t = np.ascontiguousarray(p.rotor_positions.T)
-        self._hover = single.hover_action().astype(np.float32)
-        self._rate_loop = BatchRateLoop(RateLoop(p, self.physics_dt), n) if action_type == "ctbr" else None
+        self._hover = hover_action(p, self.action_type)
+        self._rate_loop = RateLoop(p, self.physics_dt, n) if action_type == "ctbr" else None
         sub_times = np.array([[0.5 * self.physics_dt], [self.physics_dt]])
         self._sub_decay_up, self._sub_decay_down = np.exp(-sub_times / p.tau_up), np.exp(-sub_times / p.tau_down)
         self._max_thrust = 4.0 * p.max_thrust_per_rotor
@@ -462,6 +348,26 @@ class HoverBatchEnv(VectorEnv):
     def hover_action(self) -> NDArray[np.float32]:
         """(N, 4) actions holding the weight at rest."""
         return np.tile(self._hover, (self.num_envs, 1))
+
+    @property
+    def setpoint(self) -> NDArray[np.float64]:
+        """Hover set points, world NED [m] (N, 3); assign (3,) or (N, 3) any time (validated, from the next step)."""
+        return self._setpoint
+
+    @setpoint.setter
+    def setpoint(self, value: ArrayLike) -> None:
+        sp = check_setpoint(value, self.options.floor_clearance, self.num_envs)
+        self._setpoint = np.broadcast_to(sp, (self.num_envs, 3)).copy()
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle/deepcopy: MuJoCo's model and data are copied; the rollout (threads, not picklable) is rebuilt."""
+        state = self.__dict__.copy()
+        state["_rollout"] = None
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._rollout = rollout.Rollout(nthread=self._nthread)
 
     def set_external_wrench(self, force_ned: ArrayLike = (0.0, 0.0, 0.0),
                             torque_frd: ArrayLike = (0.0, 0.0, 0.0)) -> None:
@@ -520,7 +426,7 @@ class HoverBatchEnv(VectorEnv):
         winds = None if self.randomizer is None else self._apply_draws(rows, self.randomizer(rows, draw_rngs))
         self.wind.reset_rows(rows, ints, wind_seeds, winds)
         if self._rate_loop is not None:
-            self._rate_loop.reset_rows(rows)
+            self._rate_loop.reset(rows)
         if self.num_envs == 1:  # N = 1: the row's own sensor stream, as HoverEnv
             self.sensor.set_noise_rng(sensor_rngs[0])
         return sensor_rngs
@@ -579,14 +485,8 @@ class HoverBatchEnv(VectorEnv):
     def reset(self, *, seed: int | Sequence[int | None] | None = None,
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32], dict[str, Any]]:
         n = self.num_envs
-        if seed is None:
-            seeds: list[int | None] = [None] * n
-        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            seeds = [int(seed) + i for i in range(n)]
-        else:
-            seeds = list(seed)
-            if len(seeds) != n:
-                raise ValueError(f"seed must be an int, None or a list of {n} ints/None, got {len(seeds)} entries")
+        seeds = _check_seeds(seed, n)
+        sp, noise = check_reset_options(options, self.options.floor_clearance, n)  # checked before anything changes
         if self._row_rngs is None or seed is not None:
             old = self._row_rngs
             self._row_rngs = [seeding.np_random(s)[0] if (s is not None or old is None) else old[i]
@@ -596,18 +496,10 @@ class HoverBatchEnv(VectorEnv):
             entropy = None if len(ints) < n else [*ints, n, 0x5E45]  # reproducible iff every row has a seed
             self.sensor.set_noise_rng(np.random.default_rng(entropy))
             self._noise_seeded = True
-        if options:
-            unknown = set(options) - {"setpoint", "init_noise"}
-            if unknown:
-                raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid: ['init_noise', 'setpoint']")
-            if "setpoint" in options:
-                sp = np.asarray(options["setpoint"], dtype=float)
-                if sp.shape not in ((3,), (n, 3)) or not np.all(np.isfinite(sp)):
-                    raise ValueError(f"setpoint must be 3 finite NED coordinates or ({n}, 3), "
-                                     f"got {options['setpoint']!r}")
-                self.setpoint = np.broadcast_to(sp, (n, 3)).copy()
-            if "init_noise" in options:
-                self.init_noise = check_init_noise(options["init_noise"])
+        if sp is not None:
+            self.setpoint = sp
+        if noise is not None:
+            self.init_noise = noise
         self._pos, self._vel = np.zeros((n, 3)), np.zeros((n, 3))
         self._rot, self._omega = np.zeros((n, 3, 3)), np.zeros((n, 3))
         self.rotor_speeds, self._applied = np.zeros((n, 4)), np.zeros((n, 4))
@@ -622,26 +514,13 @@ class HoverBatchEnv(VectorEnv):
         obs, _, info["reward_terms"] = self._observation_and_reward(info["measurement"], self._last_action)
         return obs, info
 
-    def _check_actions(self, actions: ArrayLike, stepping: NDArray[np.bool_]) -> NDArray[np.float64]:
-        n = self.num_envs
-        a = np.asarray(actions, dtype=float)
-        if a.shape != (n, 4):
-            raise ValueError(f"actions must have shape ({n}, 4), got {np.shape(actions)}")
-        bad = ~np.isfinite(a)
-        bad &= stepping[:, None]
-        if bad.any():
-            row, i = (int(x) for x in np.argwhere(bad)[0])
-            raise ValueError(f"actions[{row}, {i}] is {a[row, i]}; every action entry must be finite "
-                             f"(bounds {self._act_low.tolist()} .. {self._act_high.tolist()})")
-        return a
-
     def step(self, actions: ArrayLike) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_],
                                                  NDArray[np.bool_], dict[str, Any]]:
         if self._row_rngs is None:
             raise RuntimeError("call reset() before step()")
         resetting = self._autoreset
         stepping = ~resetting
-        a = self._check_actions(actions, stepping)
+        a = check_actions(actions, (self.num_envs, 4), self._act_low, self._act_high, "actions", stepping)
         clipped = np.minimum(np.maximum(a, self._act_low), self._act_high)
         any_reset = bool(resetting.any())
         if any_reset:
@@ -692,7 +571,9 @@ class HoverBatchEnv(VectorEnv):
                 v[resetting] = 0.0
         info["reward_terms"] = terms
         ended = terminated | truncated
-        if not self._same_step:
+        if not self._autoreset_on:
+            pass
+        elif not self._same_step:
             self._autoreset = ended
         elif ended.any():
             obs, info = self._restart(ended, obs, info)
@@ -755,7 +636,7 @@ class HoverBatchEnv(VectorEnv):
         (all C-contiguous float64: the checks are skipped); returns (final states, diverged rows)."""
         nstep = ctrl.shape[1]
         state[:, 0] = _MJ_T0
-        self._rollout.rollout(self._models, [self._data], state, ctrl, control_spec=_CONTROL_SPEC,
+        self._rollout.rollout(self._models, self._datas, state, ctrl, control_spec=_CONTROL_SPEC,
                               skip_checks=True, nstep=nstep, state=out)
         final = out[:, -1]
         t_end = _MJ_T0 + nstep * self.physics_dt
