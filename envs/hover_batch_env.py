@@ -137,6 +137,7 @@ from .options import (
     hover_options,
 )
 from .sensors_batch import BatchSensorModel
+from .step_kernels import DIVERGED, FAILURES, REWARD_TERMS, hover_reward, motor_controls, read_states, states_to_ned
 from .wind import WindModel
 from .wind_cohorts import BatchWind
 
@@ -158,24 +159,6 @@ def physics_threads(n: int) -> int:
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     threads = min(cores, n // THREADED_ROWS)
     return threads if threads > 1 else 0
-
-
-def quat_mj_to_rot_ned_batch(q: NDArray[np.float64]) -> NDArray[np.float64]:
-    """MuJoCo quaternions (N, 4) to R (N, 3, 3) FRD -> NED, with ``mju_quat2Mat``'s arithmetic."""
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    q00, q01, q02, q03 = w * w, w * x, w * y, w * z
-    q11, q12, q13, q22, q23, q33 = x * x, x * y, x * z, y * y, y * z, z * z
-    r = np.empty((q.shape[0], 3, 3))
-    r[:, 0, 0] = q00 + q11 - q22 - q33
-    r[:, 1, 1] = q00 - q11 + q22 - q33
-    r[:, 2, 2] = q00 - q11 - q22 + q33
-    r[:, 0, 1] = 2 * (q12 - q03)
-    r[:, 0, 2] = 2 * (q13 + q02)
-    r[:, 1, 0] = 2 * (q12 + q03)
-    r[:, 1, 2] = 2 * (q23 - q01)
-    r[:, 2, 0] = 2 * (q13 - q02)
-    r[:, 2, 1] = 2 * (q23 + q01)
-    return r * _SIGN2
 
 
 def _check_seeds(seed: Any, n: int) -> list[int | None]:
@@ -288,7 +271,7 @@ class HoverBatchEnv(VectorEnv):
         self.init_noise = opts.init_noise
         self.reward_weights = dict(opts.reward_weights)
         w = self.reward_weights
-        self._reward_w = np.repeat([w["pos"], w["vel"], 0.0, w["rate"], w["action"]], [3, 3, 6, 3, 4])
+        self._reward_w = np.array([w[key] for key in REWARD_TERMS])
         self.single_action_space = hover_action_space(opts.action_type)
         low, high = observation_bounds(opts.max_position_error, self.single_action_space.low,
                                        self.single_action_space.high)
@@ -315,12 +298,12 @@ class HoverBatchEnv(VectorEnv):
         self.sensor = BatchSensorModel(opts.sensors, self.dt, n, self.physics_dt)
 
         p = self.preset
-        self._hull_t = hull_points(p).T
+        self._hull = np.ascontiguousarray(hull_points(p))
         self._alloc_t = allocation_matrix(p).T
         self._rotor_pos_t = np.ascontiguousarray(p.rotor_positions.T)
         self._hover = hover_action(p, self.action_type)
         self._rate_loop = RateLoop(p, self.physics_dt, n) if action_type == "ctbr" else None
-        sub_times = np.array([[0.5 * self.physics_dt], [self.physics_dt]])
+        sub_times = np.array([0.5 * self.physics_dt, self.physics_dt])
         self._sub_decay_up, self._sub_decay_down = np.exp(-sub_times / p.tau_up), np.exp(-sub_times / p.tau_down)
         self._max_thrust = 4.0 * p.max_thrust_per_rotor
         self._act_low = self.single_action_space.low.astype(float)
@@ -328,11 +311,13 @@ class HoverBatchEnv(VectorEnv):
         self._obs_low = self.single_observation_space.low.astype(float)
         self._obs_high = self.single_observation_space.high.astype(float)
         k = self.n_substeps
-        step_times = np.append((np.arange(k) + 0.5) * self.physics_dt, self.dt)[:, None]
-        self._decay_up = np.exp(-step_times / p.tau_up)  # (K + 1, 1), as HoverEnv
+        step_times = np.append((np.arange(k) + 0.5) * self.physics_dt, self.dt)  # mid-substep times, end of step
+        self._decay_up = np.exp(-step_times / p.tau_up)  # (K + 1,) motor lag decay factors (step_kernels)
         self._decay_down = np.exp(-step_times / p.tau_down)
         self._omega_min, self._omega_span = p.omega_min, p.omega_max - p.omega_min
-        self._inv_substeps = 1.0 / k
+        self._k_thrust = float(p.k_thrust)
+        if self._qfrc_col != 4:  # motor_controls writes [4 rotor thrusts, qfrc_applied 6]
+            raise RuntimeError(f"the vehicle model must have 4 actuators, got {self._qfrc_col}")
         self._ctrl = np.zeros((n, k, mujoco.mj_stateSize(self.model, _CONTROL_SPEC)))
         self._mj_state = np.zeros((n, mujoco.mj_stateSize(self.model, _STATE_SPEC)))
         self._out = np.zeros((n, k, self._mj_state.shape[1]))
@@ -342,6 +327,8 @@ class HoverBatchEnv(VectorEnv):
         self.external_torque = np.zeros((n, 3))
         self._row_rngs: list[np.random.Generator] | None = None
         self._autoreset = np.zeros(n, dtype=bool)
+        self._no_rows, self._all_rows = np.zeros(n, dtype=bool), np.ones(n, dtype=bool)
+        self._failure_code = np.zeros(n, dtype=np.int8)
         self.time = np.zeros(n)
 
     # ---- public helpers -------------------------------------------------------------------
@@ -384,10 +371,6 @@ class HoverBatchEnv(VectorEnv):
         self.external_force, self.external_torque = f, t
 
     # ---- state ------------------------------------------------------------------------------
-    def _readout(self, s: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray, NDArray]:
-        """NED/FRD (position, velocity, R, Omega) from FULLPHYSICS states (k, 14) = [time, qpos 7, qvel 6]."""
-        return s[:, 1:4] * _SIGN, s[:, 8:11] * _SIGN, quat_mj_to_rot_ned_batch(s[:, 4:8]), s[:, 11:14] * _SIGN
-
     def _reset_rows(self, rows: NDArray[np.intp]) -> list[np.random.Generator]:
         """HoverEnv.reset for ``rows`` (each row draws from its own generator, in HoverEnv's order), then the
         randomizer's draws; returns the rows' sensor generators."""
@@ -413,7 +396,8 @@ class HoverBatchEnv(VectorEnv):
         s[:, 8:11] = du[:, 1] * _SIGN
         s[:, 11:14] = du[:, 3] * _SIGN
         self._mj_state[rows] = s
-        b, v, r, w = self._readout(s)
+        b, v, r, w = np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3, 3)), np.empty((k, 3))
+        states_to_ned(s, b, v, r, w)
         self._pos[rows], self._vel[rows], self._rot[rows], self._omega[rows] = b, v, r, w
         self.rotor_speeds[rows] = self.preset.hover_omega
         self._applied[rows] = self.preset.k_thrust * self.preset.hover_omega**2
@@ -527,39 +511,28 @@ class HoverBatchEnv(VectorEnv):
             clipped[resetting] = self._hover
         action_clipped = (clipped != a).any(axis=1) & stepping
 
-        state = self._mj_state
         if self._rate_loop is None:
-            final, diverged = self._run_motors(clipped)
+            ref = clipped * self._omega_span + self._omega_min
+            motor_controls(ref, self.rotor_speeds, self._k_thrust, self._decay_up, self._decay_down,
+                           self._force + self.external_force, self._torque + self.external_torque, self._ctrl,
+                           self._applied)
+            final, diverged = self._rollout_rows(self._mj_state, self._ctrl, self._out), self._no_rows
+            t_end = _MJ_T0 + self.n_substeps * self.physics_dt
         else:
             final, diverged = self._run_ctbr(clipped)
-        diverged &= stepping
-        ok = stepping & ~diverged
-        self.time = self.time + np.where(stepping, self.dt, 0.0)
-        self._steps = self._steps + stepping
-
-        v_before = self._vel
-        b, v, r, w = self._readout(final)
-        if ok.all():
-            self._mj_state = final.copy()
-            self._pos, self._vel, self._rot, self._omega = b, v, r, w
-            self._accel = (v - v_before) / self.dt
-        else:
-            self._mj_state = np.where(ok[:, None], final, state)
-            self._pos = np.where(ok[:, None], b, self._pos)
-            self._vel = np.where(ok[:, None], v, self._vel)
-            self._rot = np.where(ok[:, None, None], r, self._rot)
-            self._omega = np.where(ok[:, None], w, self._omega)
-            self._accel = np.where(ok[:, None], (self._vel - v_before) / self.dt, self._accel)
-        self._failure = np.where(diverged, "diverged", "").astype("<U14")
+            t_end = _MJ_T0 + self.physics_dt
+        codes = self._failure_code
+        read_states(final, t_end, self.physics_dt, self.dt, stepping,
+                    diverged, self._mj_state, self._pos, self._vel, self._rot, self._omega, self._accel, self._hull,
+                    self._setpoint, self.max_position_error, codes)
+        self.time += np.where(stepping, self.dt, 0.0)
+        self._steps += stepping
+        self._failure = FAILURES[codes]
+        diverged = codes == DIVERGED
         self._last_action_prev = self._last_action
         if any_reset:
             self._reset_rows(np.flatnonzero(resetting))
-        self._update_disturbance(~diverged)
-        pos, rot = self._pos, self._rot
-        ground = pos[:, 2] + (rot[:, 2, :] @ self._hull_t).max(axis=1) >= 0.0
-        out = np.abs(pos - self.setpoint).max(axis=1) > self.max_position_error
-        self._failure[ok & ground] = "ground_contact"
-        self._failure[ok & ~ground & out] = "out_of_bounds"
+        self._update_disturbance(~diverged if diverged.any() else self._all_rows)
         info = self._info(action_clipped)
         obs, reward, terms = self._observation_and_reward(info["measurement"], clipped, self._last_action_prev)
         self._last_action = clipped
@@ -631,62 +604,37 @@ class HoverBatchEnv(VectorEnv):
         return out
 
     def _rollout_rows(self, state: NDArray[np.float64], ctrl: NDArray[np.float64], out: NDArray[np.float64]
-                      ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+                      ) -> NDArray[np.float64]:
         """One rollout from ``state`` (N, 14) with controls ``ctrl`` (N, nstep, 10) into ``out`` (N, nstep, 14)
-        (all C-contiguous float64: the checks are skipped); returns (final states, diverged rows)."""
-        nstep = ctrl.shape[1]
+        (all C-contiguous float64: the checks are skipped); returns the final states (N, 14), MuJoCo time
+        ``_MJ_T0 + nstep physics_dt`` unless MuJoCo reset a diverging row."""
         state[:, 0] = _MJ_T0
         self._rollout.rollout(self._models, self._datas, state, ctrl, control_spec=_CONTROL_SPEC,
-                              skip_checks=True, nstep=nstep, state=out)
-        final = out[:, -1]
-        t_end = _MJ_T0 + nstep * self.physics_dt
-        diverged = (np.abs(final[:, 0] - t_end) > 0.5 * self.physics_dt) | ~np.isfinite(final).all(axis=1)
-        return final, diverged
-
-    def _held_wrench(self, ctrl: NDArray[np.float64]) -> None:
-        """The disturbance force (world) and torque (body), held: the free joint's qfrc_applied (envs/mjcf.py)."""
-        c = self._qfrc_col
-        ctrl[:, :, c:c + 3] = ((self._force + self.external_force) * _SIGN)[:, None, :]
-        ctrl[:, :, c + 3:c + 6] = ((self._torque + self.external_torque) * _SIGN)[:, None, :]
-
-    def _run_motors(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        """HoverEnv._run_motors for every row: exact lag, mid-substep thrusts, one rollout of the control step."""
-        ref = (u * self._omega_span + self._omega_min)[:, None, :]
-        w0 = self.rotor_speeds[:, None, :]
-        speeds = ref + (w0 - ref) * np.where(ref > w0, self._decay_up, self._decay_down)  # (N, K + 1, 4)
-        thrusts = speeds[:, :-1] ** 2 * self.preset.k_thrust
-        self._ctrl[:, :, 0:4] = thrusts
-        self._held_wrench(self._ctrl)
-        final, diverged = self._rollout_rows(self._mj_state, self._ctrl, self._out)
-        self.rotor_speeds = speeds[:, -1].copy()
-        self._applied = thrusts.sum(axis=1) * self._inv_substeps
-        return final, diverged
+                              skip_checks=True, nstep=ctrl.shape[1], state=out)
+        return out[:, -1]
 
     def _run_ctbr(self, a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        """HoverEnv._run_ctbr for every row: the rate loop on the true rates at each substep, one rollout each."""
-        k_t = self.preset.k_thrust
+        """The rate loop (:mod:`.ctbr`) on the true rates at each physics substep, then the rotor lag and a
+        one-substep rollout; returns the final states and the rows that diverged before the last substep."""
         collective = a[:, 0] * self._max_thrust
         rate_sp = a[:, 1:] * MAX_RATES
-        self._held_wrench(self._ctrl1)
+        force, torque = self._force + self.external_force, self._torque + self.external_torque
         state = self._mj_state.copy()
         total = np.zeros((self.num_envs, 4))
         diverged = np.zeros(self.num_envs, dtype=bool)
-        speeds = self.rotor_speeds
-        for _ in range(self.n_substeps):  # substeps (the rate loop closes the loop at the physics rate)
+        half, t_end = 0.5 * self.physics_dt, _MJ_T0 + self.physics_dt
+        final = state
+        for k in range(self.n_substeps):  # substeps (the rate loop closes the loop at the physics rate)
+            if k:
+                diverged |= (np.abs(final[:, 0] - t_end) > half) | ~np.isfinite(final).all(axis=1)
+                state = final.copy()
             t_cmd = self._rate_loop.rotor_thrusts(collective, rate_sp, state[:, 11:14] * _SIGN)
-            ref = np.sqrt(t_cmd / k_t)[:, None, :]
-            w0 = speeds[:, None, :]
-            mid_end = ref + (w0 - ref) * np.where(ref > w0, self._sub_decay_up, self._sub_decay_down)  # (N, 2, 4)
-            thrust = k_t * mid_end[:, 0] ** 2
-            self._ctrl1[:, 0, 0:4] = thrust
-            final, bad = self._rollout_rows(state, self._ctrl1, self._out1)
-            diverged |= bad
-            state = final.copy()
-            speeds = mid_end[:, 1]
-            total += thrust
-        self.rotor_speeds = speeds.copy()
+            motor_controls(np.sqrt(t_cmd / self._k_thrust), self.rotor_speeds, self._k_thrust, self._sub_decay_up,
+                           self._sub_decay_down, force, torque, self._ctrl1, self._applied)
+            final = self._rollout_rows(state, self._ctrl1, self._out1)
+            total += self._applied
         self._applied = total / self.n_substeps
-        return state, diverged
+        return final, diverged
 
     def _wind_points(self) -> NDArray[np.float64]:
         """The wind sample points (N, 5, 3) NED: CoM and rotor hubs."""
@@ -736,26 +684,16 @@ class HoverBatchEnv(VectorEnv):
 
     def _observation_and_reward(self, meas: Mapping[str, NDArray[np.float64]], action: NDArray[np.float64],
                                 prev_action: NDArray[np.float64] | None = None
-                                ) -> tuple[NDArray[np.float32], NDArray[np.float64]]:
-        """Observations (N, 19), rewards (N,) and the reward's terms (dict of (N,)) (HoverEnv's layout and formula,
-        row by row; the terms are its module docstring's table)."""
-        r = meas[M.ATTITUDE]
-        obs = hover_observation(meas, self.setpoint, action, self._obs_low, self._obs_high)
-        x = np.concatenate([meas[M.POSITION] - self.setpoint, meas[M.VELOCITY], r[:, :, 0], r[:, :, 1],
-                            meas[M.ANGULAR_VELOCITY], action], axis=1)
-        cos = np.clip(0.5 * (r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2] - 1.0), -1.0, 1.0)
-        phi = np.arccos(cos)
-        x[:, 15:] -= self._last_action if prev_action is None else prev_action
-        sq = x * x * self._reward_w
-        w = self.reward_weights
-        failed = self._failure != ""
-        terms = {"pos": sq[:, 0:3].sum(axis=1), "vel": sq[:, 3:6].sum(axis=1), "att": w["att"] * phi * phi,
-                 "rate": sq[:, 12:15].sum(axis=1), "action": sq[:, 15:19].sum(axis=1),
-                 "failure": np.where(failed, w["failure"], 0.0)}
-        reward = np.exp(-(terms["pos"] + terms["vel"] + terms["rate"] + terms["action"] + terms["att"]))
-        if failed.any():
-            reward[failed] = -w["failure"]
-        return obs, reward, terms
+                                ) -> tuple[NDArray[np.float32], NDArray[np.float64], dict[str, NDArray[np.float64]]]:
+        """Observations (N, 19) (:func:`hover_observation`), rewards (N,) and the reward's terms (dict of (N,)) (the
+        law :func:`fawtgym.envs.step_kernels.hover_reward`; the terms are HoverEnv's module docstring's table)."""
+        obs = hover_observation(meas, self._setpoint, action, self._obs_low, self._obs_high)
+        n = self.num_envs
+        reward, terms = np.empty(n), np.empty((6, n))
+        hover_reward(meas[M.POSITION], meas[M.VELOCITY], meas[M.ATTITUDE], meas[M.ANGULAR_VELOCITY], self._setpoint,
+                     action, self._last_action if prev_action is None else prev_action, self._reward_w,
+                     self._failure != "", reward, terms)
+        return obs, reward, dict(zip(REWARD_TERMS, terms, strict=True))
 
     def close_extras(self, **kwargs: Any) -> None:
         if getattr(self, "_rollout", None) is not None:
