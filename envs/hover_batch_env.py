@@ -126,7 +126,7 @@ from .aero import AeroModel
 from .ctbr import MAX_RATES, RateLoop
 from .mjcf import hull_points, vehicle_mjcf
 from .motors import allocation_matrix
-from .observation import hover_observation, observation_bounds
+from .observation import OBS_SIZE, hover_observation, observation_bounds, observation_rows
 from .options import (
     INIT_SPREAD,
     check_actions,
@@ -137,7 +137,16 @@ from .options import (
     hover_options,
 )
 from .sensors_batch import BatchSensorModel
-from .step_kernels import DIVERGED, FAILURES, REWARD_TERMS, hover_reward, motor_controls, read_states, states_to_ned
+from .step_kernels import (
+    DIVERGED,
+    FAILURES,
+    REWARD_TERMS,
+    hover_reward,
+    motor_controls,
+    read_states,
+    states_to_ned,
+    wind_points,
+)
 from .wind import WindModel
 from .wind_cohorts import BatchWind
 
@@ -300,7 +309,7 @@ class HoverBatchEnv(VectorEnv):
         p = self.preset
         self._hull = np.ascontiguousarray(hull_points(p))
         self._alloc_t = allocation_matrix(p).T
-        self._rotor_pos_t = np.ascontiguousarray(p.rotor_positions.T)
+        self._rotor_pos = np.ascontiguousarray(p.rotor_positions)
         self._hover = hover_action(p, self.action_type)
         self._rate_loop = RateLoop(p, self.physics_dt, n) if action_type == "ctbr" else None
         sub_times = np.array([0.5 * self.physics_dt, self.physics_dt])
@@ -501,10 +510,15 @@ class HoverBatchEnv(VectorEnv):
     def step(self, actions: ArrayLike) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_],
                                                  NDArray[np.bool_], dict[str, Any]]:
         if self._row_rngs is None:
-            raise RuntimeError("call reset() before step()")
+            raise RuntimeError("HoverBatchEnv.step() called before reset(): call reset() first")
+        a = check_actions(actions, (self.num_envs, 4), self._act_low, self._act_high, "actions", ~self._autoreset)
+        return self._step(a)
+
+    def _step(self, a: NDArray[np.float64]) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_],
+                                                    NDArray[np.bool_], dict[str, Any]]:
+        """One control step of every row with checked actions ``a`` (N, 4) float64 (:func:`check_actions`)."""
         resetting = self._autoreset
         stepping = ~resetting
-        a = check_actions(actions, (self.num_envs, 4), self._act_low, self._act_high, "actions", stepping)
         clipped = np.minimum(np.maximum(a, self._act_low), self._act_high)
         any_reset = bool(resetting.any())
         if any_reset:
@@ -536,7 +550,7 @@ class HoverBatchEnv(VectorEnv):
         info = self._info(action_clipped)
         obs, reward, terms = self._observation_and_reward(info["measurement"], clipped, self._last_action_prev)
         self._last_action = clipped
-        terminated = self._failure != ""
+        terminated = codes != 0
         truncated = ~terminated & (self._steps >= self.max_steps)
         if any_reset:
             reward[resetting] = 0.0
@@ -638,10 +652,8 @@ class HoverBatchEnv(VectorEnv):
 
     def _wind_points(self) -> NDArray[np.float64]:
         """The wind sample points (N, 5, 3) NED: CoM and rotor hubs."""
-        b, r = self._pos, self._rot
         points = np.empty((self.num_envs, 5, 3))
-        points[:, 0] = b
-        points[:, 1:] = b[:, None, :] + np.matmul(self._rotor_pos_t.T, r.transpose(0, 2, 1))
+        wind_points(self._pos, self._rot, self._rotor_pos, points)
         return points
 
     def _aero_wrench(self, wind: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -687,11 +699,14 @@ class HoverBatchEnv(VectorEnv):
                                 ) -> tuple[NDArray[np.float32], NDArray[np.float64], dict[str, NDArray[np.float64]]]:
         """Observations (N, 19) (:func:`hover_observation`), rewards (N,) and the reward's terms (dict of (N,)) (the
         law :func:`fawtgym.envs.step_kernels.hover_reward`; the terms are HoverEnv's module docstring's table)."""
-        obs = hover_observation(meas, self._setpoint, action, self._obs_low, self._obs_high)
         n = self.num_envs
+        pos, vel, att, rate = meas[M.POSITION], meas[M.VELOCITY], meas[M.ATTITUDE], meas[M.ANGULAR_VELOCITY]
+        obs = np.empty((n, OBS_SIZE), dtype=np.float32)
+        if observation_rows(pos, vel, att, rate, self._setpoint, action, self._obs_low, self._obs_high, obs) >= 0:
+            hover_observation(meas, self._setpoint, action, self._obs_low, self._obs_high)  # raises, naming the entry
         reward, terms = np.empty(n), np.empty((6, n))
-        hover_reward(meas[M.POSITION], meas[M.VELOCITY], meas[M.ATTITUDE], meas[M.ANGULAR_VELOCITY], self._setpoint,
-                     action, self._last_action if prev_action is None else prev_action, self._reward_w,
+        prev = self._last_action if prev_action is None else prev_action
+        hover_reward(pos, vel, att, rate, self._setpoint, action, prev, self._reward_w,
                      self._failure != "", reward, terms)
         return obs, reward, dict(zip(REWARD_TERMS, terms, strict=True))
 

@@ -178,13 +178,6 @@ from .wind_cohorts import BatchWind
 __all__ = ["ACTION_TYPES", "DEFAULT_REWARD_WEIGHTS", "INIT_SPREAD", "RENDER_MODES", "HoverEnv", "check_init_noise"]
 
 
-def _row(value: Any) -> Any:
-    """Row 0 of a batched info entry: arrays lose their row axis (shape (1,) -> a numpy/Python scalar)."""
-    if isinstance(value, dict):
-        return {k: _row(v) for k, v in value.items()}
-    return value[0]
-
-
 class HoverEnv(gym.Env):
     """Quadrotor hover in (optionally turbulent) wind.  See the module docstring for the details.
 
@@ -323,19 +316,26 @@ class HoverEnv(gym.Env):
         if self._batch._row_rngs is None:
             raise RuntimeError("HoverEnv.step() called before reset(): call reset() first")
         a = check_actions(action, (4,), self._act_low, self._act_high, "action")
-        obs, reward, terminated, truncated, info = self._batch.step(a[None])
+        obs, reward, terminated, truncated, info = self._batch._step(a[None])
         obs, info = self._single(obs, info)
         return obs, float(reward[0]), bool(terminated[0]), bool(truncated[0]), info
 
     def _single(self, obs: NDArray[np.float32], info: dict[str, Any]) -> tuple[NDArray[np.float32], dict[str, Any]]:
         """Row 0 of the batch's outputs (Gymnasium's single-env shapes and Python scalars)."""
-        out = {key: _row(value) for key, value in info.items()}
-        out["applied"]["thrust"] = float(out["applied"]["thrust"])
-        out["reward_terms"] = {k: float(v) for k, v in out["reward_terms"].items()}
-        out["action_clipped"] = bool(out["action_clipped"])
-        out["failure"] = str(out["failure"])
-        out["time"] = float(out["time"])
-        self._wind_com = out["truth"]["wind"]
+        applied = {key: value[0] for key, value in info["applied"].items()}
+        applied["thrust"] = float(applied["thrust"])
+        truth = {key: value[0] for key, value in info["truth"].items()}
+        self._wind_com = truth["wind"]
+        out = {
+            "measurement": {key: value[0] for key, value in info["measurement"].items()},
+            "applied": applied,
+            "truth": truth,
+            "reward_terms": {key: float(value[0]) for key, value in info["reward_terms"].items()},
+            "setpoint": info["setpoint"][0],
+            "action_clipped": bool(info["action_clipped"][0]),
+            "failure": str(info["failure"][0]),
+            "time": float(info["time"][0]),
+        }
         return obs[0], out
 
     def _sync_data(self) -> None:

@@ -64,6 +64,20 @@ def states_to_ned(states: NDArray[np.float64], pos: NDArray[np.float64], vel: ND
 
 
 @njit(cache=True)
+def wind_points(pos: NDArray[np.float64], rot: NDArray[np.float64], rotor_pos: NDArray[np.float64],
+                points: NDArray[np.float64]) -> None:  # pragma: no cover - jitted
+    """The wind sample points (N, 5, 3) world NED of every row: the CoM ``b`` and the rotor hubs ``b + R r_j``
+    (``rotor_pos`` (4, 3) body FRD)."""
+    for i in range(pos.shape[0]):
+        for c in range(3):
+            points[i, 0, c] = pos[i, c]
+        for j in range(4):
+            for c in range(3):
+                points[i, j + 1, c] = pos[i, c] + (rot[i, c, 0] * rotor_pos[j, 0] + rot[i, c, 1] * rotor_pos[j, 1]
+                                                   + rot[i, c, 2] * rotor_pos[j, 2])
+
+
+@njit(cache=True)
 def motor_controls(ref: NDArray[np.float64], speeds: NDArray[np.float64], k_thrust: float,
                    decay_up: NDArray[np.float64], decay_down: NDArray[np.float64], force: NDArray[np.float64],
                    torque: NDArray[np.float64], ctrl: NDArray[np.float64],
