@@ -141,6 +141,8 @@ from .step_kernels import (
     DIVERGED,
     FAILURES,
     REWARD_TERMS,
+    advance_clock,
+    clip_actions,
     hover_reward,
     motor_controls,
     read_states,
@@ -415,6 +417,7 @@ class HoverBatchEnv(VectorEnv):
         self._steps[rows] = 0
         self.time[rows] = 0.0
         self._failure[rows] = ""
+        self._failure_code[rows] = 0
         self.sensor.reset_rows(rows, sensor_rngs)
         winds = None if self.randomizer is None else self._apply_draws(rows, self.randomizer(rows, draw_rngs))
         self.wind.reset_rows(rows, ints, wind_seeds, winds)
@@ -517,14 +520,12 @@ class HoverBatchEnv(VectorEnv):
     def _step(self, a: NDArray[np.float64]) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_],
                                                     NDArray[np.bool_], dict[str, Any]]:
         """One control step of every row with checked actions ``a`` (N, 4) float64 (:func:`check_actions`)."""
+        n = self.num_envs
         resetting = self._autoreset
         stepping = ~resetting
-        clipped = np.minimum(np.maximum(a, self._act_low), self._act_high)
         any_reset = bool(resetting.any())
-        if any_reset:
-            clipped[resetting] = self._hover
-        action_clipped = (clipped != a).any(axis=1) & stepping
-
+        clipped, action_clipped = np.empty((n, 4)), np.empty(n, dtype=bool)
+        clip_actions(a, self._act_low, self._act_high, stepping, self._hover, clipped, action_clipped)
         if self._rate_loop is None:
             ref = clipped * self._omega_span + self._omega_min
             motor_controls(ref, self.rotor_speeds, self._k_thrust, self._decay_up, self._decay_down,
@@ -539,8 +540,8 @@ class HoverBatchEnv(VectorEnv):
         read_states(final, t_end, self.physics_dt, self.dt, stepping,
                     diverged, self._mj_state, self._pos, self._vel, self._rot, self._omega, self._accel, self._hull,
                     self._setpoint, self.max_position_error, codes)
-        self.time += np.where(stepping, self.dt, 0.0)
-        self._steps += stepping
+        terminated, truncated = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+        advance_clock(stepping, self.dt, self.max_steps, codes, self.time, self._steps, terminated, truncated)
         self._failure = FAILURES[codes]
         diverged = codes == DIVERGED
         self._last_action_prev = self._last_action
@@ -550,8 +551,6 @@ class HoverBatchEnv(VectorEnv):
         info = self._info(action_clipped)
         obs, reward, terms = self._observation_and_reward(info["measurement"], clipped, self._last_action_prev)
         self._last_action = clipped
-        terminated = codes != 0
-        truncated = ~terminated & (self._steps >= self.max_steps)
         if any_reset:
             reward[resetting] = 0.0
             for v in terms.values():
@@ -707,8 +706,9 @@ class HoverBatchEnv(VectorEnv):
         reward, terms = np.empty(n), np.empty((6, n))
         prev = self._last_action if prev_action is None else prev_action
         hover_reward(pos, vel, att, rate, self._setpoint, action, prev, self._reward_w,
-                     self._failure != "", reward, terms)
-        return obs, reward, dict(zip(REWARD_TERMS, terms, strict=True))
+                     self._failure_code != 0, reward, terms)
+        return obs, reward, {"pos": terms[0], "vel": terms[1], "att": terms[2], "rate": terms[3], "action": terms[4],
+                             "failure": terms[5]}  # REWARD_TERMS
 
     def close_extras(self, **kwargs: Any) -> None:
         if getattr(self, "_rollout", None) is not None:

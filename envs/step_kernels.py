@@ -64,6 +64,38 @@ def states_to_ned(states: NDArray[np.float64], pos: NDArray[np.float64], vel: ND
 
 
 @njit(cache=True)
+def clip_actions(a: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64],
+                 stepping: NDArray[np.bool_], hover: NDArray[np.float32], clipped: NDArray[np.float64],
+                 flagged: NDArray[np.bool_]) -> None:  # pragma: no cover - jitted
+    """The applied actions: finite actions (N, 4) clipped to [low, high] (``flagged`` rows where that changed an
+    entry); a row not stepping (it autoresets) applies the hover action and is not flagged."""
+    for i in range(a.shape[0]):
+        flagged[i] = False
+        for j in range(4):
+            if not stepping[i]:
+                clipped[i, j] = hover[j]
+                continue
+            x = min(max(a[i, j], low[j]), high[j])
+            clipped[i, j] = x
+            if x != a[i, j]:
+                flagged[i] = True
+
+
+@njit(cache=True)
+def advance_clock(stepping: NDArray[np.bool_], dt: float, max_steps: int, failure: NDArray[np.int8],
+                  time: NDArray[np.float64], steps: NDArray[np.int64], terminated: NDArray[np.bool_],
+                  truncated: NDArray[np.bool_]) -> None:  # pragma: no cover - jitted
+    """Episode time and step count of the stepping rows; ``terminated`` (a failure code) and ``truncated`` (a
+    stepping row's step count reached ``max_steps`` without a failure) of every row (a row that autoresets: neither)."""
+    for i in range(time.shape[0]):
+        if stepping[i]:
+            time[i] += dt
+            steps[i] += 1
+        terminated[i] = failure[i] != 0
+        truncated[i] = stepping[i] and failure[i] == 0 and steps[i] >= max_steps
+
+
+@njit(cache=True)
 def wind_points(pos: NDArray[np.float64], rot: NDArray[np.float64], rotor_pos: NDArray[np.float64],
                 points: NDArray[np.float64]) -> None:  # pragma: no cover - jitted
     """The wind sample points (N, 5, 3) world NED of every row: the CoM ``b`` and the rotor hubs ``b + R r_j``
