@@ -297,6 +297,7 @@ class HoverBatchEnv(VectorEnv):
         self._datas = [mujoco.MjData(self.model) for _ in range(max(self._nthread, 1))]
         self._data = self._datas[0]
         self._rollout = rollout.Rollout(nthread=self._nthread)
+        self._chunk = -(-n // self._nthread) if self._nthread else None  # one chunk of rows per thread
         self._models = [self.model] * n  # one per row: a row with a randomized vehicle gets its own copy
         self._body = self.model.body("vehicle").id
         self._nominal_mass = float(self.model.body_mass[self._body])
@@ -623,7 +624,7 @@ class HoverBatchEnv(VectorEnv):
         ``_MJ_T0 + nstep physics_dt`` unless MuJoCo reset a diverging row."""
         state[:, 0] = _MJ_T0
         self._rollout.rollout(self._models, self._datas, state, ctrl, control_spec=_CONTROL_SPEC,
-                              skip_checks=True, nstep=ctrl.shape[1], state=out)
+                              skip_checks=True, nstep=ctrl.shape[1], state=out, chunk_size=self._chunk)
         return out[:, -1]
 
     def _run_ctbr(self, a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
