@@ -21,6 +21,9 @@ def _message(make):
     return text
 
 
+#: the s500's hover thrust ratio m g / (4 k_T omega_max^2) per kg (T_max = 1.15e-5 * 880^2 = 8.9056 N per rotor)
+S500_RATIO_PER_KG = 9.80665 / (4 * 1.15e-5 * 880.0**2)
+
 BAD_OPTIONS = [
     ({"control_rate": "100"}, r"control_rate must be a real number, got '100'"),
     ({"control_rate": None}, r"control_rate must be a real number, got None"),
@@ -39,12 +42,11 @@ BAD_OPTIONS = [
     ({"setpoint": ["a", 0.0, -1.0]}, r"setpoint must be 3 finite NED coordinates"),
     ({"init_noise": True}, r"init_noise must be a finite number >= 0, got True"),
     ({"episode_seconds": "10"}, r"episode_seconds must be a real number"),
-    # s500: T_max = k_T omega_max^2 = 1.15e-5 * 880^2 = 8.9056 N per rotor; idle thrust 1 % of it
     ({"vehicle": {"base": "s500", "mass": 100.0}},
-     rf"vehicle 's500' cannot hover: hover thrust ratio m g / \(4 T_max\) = {100.0 * 9.80665 / (4 * 1.15e-5 * 880.0**2):.4g} "
+     rf"vehicle 's500' cannot hover: hover thrust ratio m g / \(4 T_max\) = {100.0 * S500_RATIO_PER_KG:.4g} "
      r"\(mass 100 kg\)"),
     ({"vehicle": {"base": "s500", "mass": 0.001}},
-     rf"vehicle 's500' cannot hover: hover thrust ratio m g / \(4 T_max\) = {0.001 * 9.80665 / (4 * 1.15e-5 * 880.0**2):.4g} "
+     rf"vehicle 's500' cannot hover: hover thrust ratio m g / \(4 T_max\) = {0.001 * S500_RATIO_PER_KG:.4g} "
      r"\(mass 0.001 kg\) must be in \(0.01, 1\)"),
 ]
 
