@@ -15,9 +15,9 @@ end) hold row by row; batched, they read:
 
 Version history: v0 as HoverEnv's; ``info["reward_terms"]`` added within v0.
 
-Per vehicle (row) the semantics are exactly :class:`fawtgym.envs.hover_env.HoverEnv`'s (read its
-module docstring): the same options and their validation (a template ``HoverEnv`` is built from the
-same keyword arguments and its spaces, timing and reward weights are used), action checking and
+This is the env's one step law: :class:`fawtgym.envs.hover_env.HoverEnv` is this env at N = 1 with
+Gymnasium's single-env API.  Per vehicle (row) the semantics are HoverEnv's (read its module docstring):
+the same options and their validation (:mod:`fawtgym.envs.options`, shared), action checking and
 clipping, wind at [CoM, rotor hubs 1-4] held with the aero wrench (plus a per-row external wrench)
 over the control step, exact first-order motor lag (mid-substep thrust, end-of-step speed), 19-D
 observation from measurements, the same dense reward, termination (ground contact, box,
@@ -30,8 +30,14 @@ divergence) and truncation.  What is batched:
   disabled so no warm start matters), control spec ``mjSTATE_CTRL | mjSTATE_QFRC_APPLIED`` with the
   whole (N, n_substeps, 10) array (rotor thrusts per substep, held world force and body torque as the
   free joint's generalized force, see :mod:`fawtgym.envs.mjcf`);
-* wind, aero, sensors (:mod:`fawtgym.envs.sensors_batch`), observation, reward, termination: numpy
-  over the leading axis N (no Python loop over vehicles per step).
+* motor lag, rollout controls, state readout, divergence and termination, reward
+  (:mod:`fawtgym.envs.step_kernels`) and the observation (:func:`fawtgym.envs.observation.observation_rows`):
+  compiled row kernels (numba), the same code at N = 1 and N = 1024; wind (:mod:`fawtgym.envs.wind_cohorts`),
+  aero, sensors (:mod:`fawtgym.envs.sensors_batch`): batch-first over the leading axis N.
+
+Pickling and ``copy.deepcopy`` copy the whole state (models, data, generators); the rollout's thread pool is
+rebuilt on load.  ``setpoint`` is a checked property ((3,) or (N, 3), above the floor); ``reset`` checks
+every option before it applies any (a failed reset changes nothing).
 
 Divergence: MuJoCo resets a row whose state becomes NaN/inf/huge (its warnings).  The rollout starts
 every row at MuJoCo time ``_MJ_T0`` = 1 s, so a reset row ends at a time below 1 s instead of
