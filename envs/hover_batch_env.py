@@ -113,7 +113,7 @@ from __future__ import annotations
 import copy
 import os
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, cast
 
 import mujoco
 import numpy as np
@@ -181,7 +181,7 @@ def physics_threads(n: int) -> int:
 def _check_seeds(seed: Any, n: int) -> list[int | None]:
     """``reset``'s ``seed``: None, an int >= 0 (row i gets seed + i) or a list of n ints >= 0 / None."""
     def ok(x: Any) -> bool:
-        return isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_)) and x >= 0
+        return isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_)) and bool(x >= 0)
 
     if seed is None:
         return [None] * n
@@ -221,7 +221,7 @@ def _measure_rows(sensor: BatchSensorModel, rows: NDArray[np.intp], rngs: Sequen
     written back."""
     saved = (sensor.n, sensor.rng, sensor.gyro_bias, sensor.accel_bias, sensor._count, sensor._pose)
     try:
-        sensor.n, sensor.rng = rows.size, _RowStreams(rngs)
+        sensor.n, sensor.rng = rows.size, cast(np.random.Generator, _RowStreams(rngs))  # standard_normal only
         sensor.gyro_bias, sensor.accel_bias = saved[2][rows], saved[3][rows]
         sensor._count = saved[4][rows]
         sensor._pose = {key: value[rows] for key, value in saved[5].items()}
@@ -259,7 +259,8 @@ class HoverBatchEnv(VectorEnv):
                  ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
-        modes = {**AUTORESET_MODES, **{m: m for m in AUTORESET_MODES.values()}}
+        modes: dict[str | AutoresetMode, AutoresetMode] = {**AUTORESET_MODES}
+        modes.update({m: m for m in AUTORESET_MODES.values()})
         if not isinstance(autoreset_mode, (str, AutoresetMode)) or autoreset_mode not in modes:
             raise ValueError(f"autoreset_mode must be one of {list(AUTORESET_MODES)}, got {autoreset_mode!r}")
         if randomizer is not None and not callable(randomizer):
@@ -394,10 +395,15 @@ class HoverBatchEnv(VectorEnv):
         randomizer's draws; returns the rows' sensor generators."""
         k = rows.size
         du = np.empty((k, 4, 3))
-        ints, wind_seeds, sensor_rngs, draw_rngs = [], [], [], []
+        ints: list[int] = []
+        wind_seeds: list[np.random.SeedSequence] = []
+        sensor_rngs: list[np.random.Generator] = []
+        draw_rngs: list[np.random.Generator] = []
+        row_rngs = self._row_rngs
+        assert row_rngs is not None  # reset() made them
         spread = np.array([INIT_SPREAD[key] for key in ("position", "velocity", "attitude", "angular_velocity")])
         for j, row in enumerate(rows.tolist()):  # reset path only: per-row generators
-            rng = self._row_rngs[row]
+            rng = row_rngs[row]
             for i in range(4):
                 du[j, i] = rng.uniform(-1.0, 1.0, 3) * spread[i] * self.init_noise
             seed_int = int(rng.integers(2**63))
@@ -644,11 +650,13 @@ class HoverBatchEnv(VectorEnv):
         diverged = np.zeros(self.num_envs, dtype=bool)
         half, t_end = 0.5 * self.physics_dt, _MJ_T0 + self.physics_dt
         final = state
+        loop = self._rate_loop
+        assert loop is not None  # action_type "ctbr"
         for k in range(self.n_substeps):  # substeps (the rate loop closes the loop at the physics rate)
             if k:
                 diverged |= (np.abs(final[:, 0] - t_end) > half) | ~np.isfinite(final).all(axis=1)
                 state = final.copy()
-            t_cmd = self._rate_loop.rotor_thrusts(collective, rate_sp, state[:, 11:14] * _SIGN)
+            t_cmd = loop.rotor_thrusts(collective, rate_sp, state[:, 11:14] * _SIGN)
             motor_controls(np.sqrt(t_cmd / self._k_thrust), self.rotor_speeds, self._k_thrust, self._sub_decay_up,
                            self._sub_decay_down, force, torque, self._ctrl1, self._applied)
             final = self._rollout_rows(state, self._ctrl1, self._out1)

@@ -308,7 +308,9 @@ class HoverEnv(gym.Env):
             raise ValueError(f"seed must be None or an int >= 0, got {seed!r}")
         check_reset_options(options, self._batch.options.floor_clearance)  # one vehicle: a (3,) set point
         obs, info = self._batch.reset(seed=seed, options=options)
-        self._np_random = self._batch._row_rngs[0]  # the row's generator is this env's (gym.Env.np_random)
+        rngs = self._batch._row_rngs
+        assert rngs is not None  # the batch's reset made them
+        self._np_random = rngs[0]  # the row's generator is this env's (gym.Env.np_random)
         self._np_random_seed = seed if seed is not None else getattr(self, "_np_random_seed", None)
         return self._single(obs, info)
 

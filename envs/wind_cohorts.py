@@ -106,6 +106,7 @@ class BatchWind:
                 idx = np.array([pos[r] for r in crows.tolist()])
                 out[idx] = model.step(0.0, dt, points[idx], velocity[idx])
             return out
+        assert self.model is not None  # shared mode: reset_rows made it
         if rows.size == self.n:  # a full restart: the fresh shared model steps every row
             return self.model.step(0.0, dt, points, velocity)
         # the shared model goes on for the other rows: a k-row copy takes the restarted rows' fresh filter state
@@ -114,13 +115,13 @@ class BatchWind:
             self._scratch = copy.deepcopy(self.template)
         scratch = self._scratch
         scratch.reset(rows.size, seed=self._seed(ints, seeds))
-        process = getattr(self.model, "process", None)
+        process = getattr(self.model, "process", None)  # a gust filter's state (Dryden, FAWT turbulence)
         if process is not None:
-            scratch.process.x = process.x[rows].copy()
+            getattr(scratch, "process").x = process.x[rows].copy()  # noqa: B009 (not every WindModel has one)
         out = scratch.step(0.0, dt, points, velocity)
         if process is not None:
             x = process.x.copy()
-            x[rows] = scratch.process.x
+            x[rows] = getattr(scratch, "process").x  # noqa: B009
             process.x = x
         return out
 
@@ -128,6 +129,7 @@ class BatchWind:
              velocity: NDArray[np.float64]) -> NDArray[np.float64]:
         """Wind (N, K, 3) at ``points`` (N, K, 3); ``times`` (N,) are the rows' episode times."""
         if self.shared:
+            assert self.model is not None  # reset_rows made it
             return self.model.step(float(times[0]), dt, points, velocity)
         out = np.empty(points.shape)
         for model, rows, alive in self.cohorts:  # one call per cohort (rows that reset together)

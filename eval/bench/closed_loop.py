@@ -109,7 +109,7 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int) -> dict[str, tu
 
     from fawtgym.envs.hover_batch_env import _CONTROL_SPEC, HoverBatchEnv, physics_threads
 
-    kw = dict(vehicle="s500", physics_rate=1000.0, episode_seconds=1e6, init_noise=0.0)
+    kw: dict[str, Any] = dict(vehicle="s500", physics_rate=1000.0, episode_seconds=1e6, init_noise=0.0)
     env = HoverBatchEnv(n, wind="fawt-50", sensors="mocap_imu", control_rate=control_rate, **kw)
     calm = HoverBatchEnv(n, wind="calm", sensors="none", control_rate=100.0, **kw)
     agent = _agent(env)
