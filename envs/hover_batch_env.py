@@ -346,6 +346,7 @@ class HoverBatchEnv(VectorEnv):
         self.external_torque = np.zeros((n, 3))
         self._row_rngs: list[np.random.Generator] | None = None
         self._autoreset = np.zeros(n, dtype=bool)
+        self._n_autoreset = 0  # rows of _autoreset set
         self._no_rows, self._all_rows = np.zeros(n, dtype=bool), np.ones(n, dtype=bool)
         self._failure_code = np.zeros(n, dtype=np.int8)
         self.time = np.zeros(n)
@@ -517,6 +518,7 @@ class HoverBatchEnv(VectorEnv):
         self._failure = np.full(n, "", dtype="<U14")
         self._force, self._torque, self._wind_com = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
         self._autoreset = np.zeros(n, dtype=bool)
+        self._n_autoreset = 0  # rows of _autoreset set
         self._reset_rows(np.arange(n))
         self._update_disturbance(np.ones(n, dtype=bool))
         info = self._info(np.zeros(n, dtype=bool))
@@ -536,7 +538,7 @@ class HoverBatchEnv(VectorEnv):
         n = self.num_envs
         resetting = self._autoreset
         stepping = ~resetting
-        any_reset = bool(resetting.any())
+        any_reset = self._n_autoreset > 0
         clipped, action_clipped = np.empty((n, 4)), np.empty(n, dtype=bool)
         clip_actions(a, self._act_low, self._act_high, stepping, self._hover, clipped, action_clipped)
         if self._rate_loop is None:
@@ -554,13 +556,12 @@ class HoverBatchEnv(VectorEnv):
                     diverged, self._mj_state, self._pos, self._vel, self._rot, self._omega, self._accel, self._hull,
                     self._setpoint, self.max_position_error, codes)
         terminated, truncated = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
-        advance_clock(stepping, self.dt, self.max_steps, codes, self.time, self._steps, terminated, truncated)
+        n_ended = advance_clock(stepping, self.dt, self.max_steps, codes, self.time, self._steps, terminated, truncated)
         self._failure = FAILURES[codes]
-        diverged = codes == DIVERGED
         self._last_action_prev = self._last_action
         if any_reset:
             self._reset_rows(np.flatnonzero(resetting))
-        self._update_disturbance(~diverged if diverged.any() else self._all_rows)
+        self._update_disturbance(codes != DIVERGED if n_ended else self._all_rows)
         info = self._info(action_clipped)
         obs, reward, terms = self._observation_and_reward(info["measurement"], clipped, self._last_action_prev)
         self._last_action = clipped
@@ -573,8 +574,8 @@ class HoverBatchEnv(VectorEnv):
         if not self._autoreset_on:
             pass
         elif not self._same_step:
-            self._autoreset = ended
-        elif ended.any():
+            self._autoreset, self._n_autoreset = ended, n_ended
+        elif n_ended:
             obs, info = self._restart(ended, obs, info)
         return obs, reward, terminated, truncated, info
 
@@ -683,7 +684,7 @@ class HoverBatchEnv(VectorEnv):
         points = self._wind_points()
         wind = self.wind.step(self.time, self.dt, points, self._vel)
         force, torque = self._aero_wrench(wind)
-        if rows.all():
+        if rows is self._all_rows or rows.all():
             self._force, self._torque, self._wind_com = force, torque, wind[:, 0].copy()
         else:
             self._force = np.where(rows[:, None], force, self._force)

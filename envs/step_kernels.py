@@ -84,15 +84,20 @@ def clip_actions(a: NDArray[np.float64], low: NDArray[np.float64], high: NDArray
 @njit(cache=True)
 def advance_clock(stepping: NDArray[np.bool_], dt: float, max_steps: int, failure: NDArray[np.int8],
                   time: NDArray[np.float64], steps: NDArray[np.int64], terminated: NDArray[np.bool_],
-                  truncated: NDArray[np.bool_]) -> None:  # pragma: no cover - jitted
+                  truncated: NDArray[np.bool_]) -> int:  # pragma: no cover - jitted
     """Episode time and step count of the stepping rows; ``terminated`` (a failure code) and ``truncated`` (a
-    stepping row's step count reached ``max_steps`` without a failure) of every row (a row that autoresets: neither)."""
+    stepping row's step count reached ``max_steps`` without a failure) of every row (a row that autoresets: neither).
+    Returns the number of rows that ended (terminated or truncated)."""
+    ended = 0
     for i in range(time.shape[0]):
         if stepping[i]:
             time[i] += dt
             steps[i] += 1
         terminated[i] = failure[i] != 0
         truncated[i] = stepping[i] and failure[i] == 0 and steps[i] >= max_steps
+        if terminated[i] or truncated[i]:
+            ended += 1
+    return ended
 
 
 @njit(cache=True)
