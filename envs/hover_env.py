@@ -138,7 +138,10 @@ height cue (:mod:`fawtgym.envs.render`); ``metadata["render_fps"]`` is the contr
 
 * v0 (fawtgym 0.1): first release.  Within v0: the observation carries the action just applied (not
   the one before); the disturbance wrench enters through the free joint (same trajectories to 5e-14);
-  ``info["reward_terms"]``; ``render_fps`` follows the control rate and the frame shows the fan array.
+  ``info["reward_terms"]``; ``render_fps`` follows the control rate and the frame shows the fan array; this env is the
+  batch env at N = 1 (one step law: trajectories equal to rounding); bad input that was accepted
+  (bool/complex/str numbers, wrongly shaped actions, a set point under the floor, a vehicle that cannot
+  hover, physics rates below 100 Hz) is refused with one ``ValueError``.
 
 ``"mocap_imu"`` sensors: motion-capture pose at 100 Hz (0.5 mm, 0.1 deg) and an IMU with turn-on
 biases, as the VICON-fed PX4 of Wang et al. (2024), Sec. 7 (:mod:`fawtgym.envs.sensors`).
@@ -242,7 +245,7 @@ class HoverEnv(gym.Env):
         self._render_size = (b.options.render_height, b.options.render_width)
         self._renderer: HoverRenderer | None = None
         self.model = b.model
-        self.data = mujoco.MjData(self.model)  #: the state of the last step (MuJoCo's z-up frame), for rendering
+        self._data = mujoco.MjData(self.model)
         self._body = self.model.body("vehicle").id
         self._wind_com = np.zeros(3)
 
@@ -340,15 +343,30 @@ class HoverEnv(gym.Env):
         }
         return obs[0], out
 
+    @property
+    def data(self) -> mujoco.MjData:
+        """MuJoCo's data at the last step's state (MuJoCo's z-up frame), forwarded (``mj_forward``) with the last
+        step's mean rotor thrusts and the held disturbance wrench: for rendering and inspection (the physics
+        steps in the batch of one's rollout)."""
+        if self._batch._row_rngs is not None:
+            self._sync_data()
+        return self._data
+
+    @data.setter
+    def data(self, value: mujoco.MjData) -> None:
+        self._data = value
+
     def _sync_data(self) -> None:
-        """``self.data`` at the last step's state (position, attitude, velocity in MuJoCo's frame)."""
+        """``self._data`` at the last step's state (position, attitude, velocity in MuJoCo's frame)."""
         b = self._batch
-        d = self.data
+        d = self._data
         d.qpos[0:3] = vec_ned_to_mj(b._pos[0])
         d.qpos[3:7] = rot_ned_to_quat_mj(b._rot[0])
         d.qvel[0:3] = vec_ned_to_mj(b._vel[0])
         d.qvel[3:6] = vec_ned_to_mj(b._omega[0])
         d.ctrl[0:4] = b._applied[0]
+        d.qfrc_applied[0:3] = vec_ned_to_mj(b._force[0] + b.external_force[0])  # the free joint: world force,
+        d.qfrc_applied[3:6] = vec_ned_to_mj(b._torque[0] + b.external_torque[0])  # body torque (envs/mjcf.py)
         mujoco.mj_forward(self.model, d)
 
     def __getstate__(self) -> dict[str, Any]:
@@ -364,8 +382,6 @@ class HoverEnv(gym.Env):
         if self._renderer is None:
             height, width = self._render_size
             self._renderer = HoverRenderer(self.model, width, height, self._body)
-        if self._batch._row_rngs is not None:
-            self._sync_data()
         return self._renderer.render(self.data, self.setpoint, np.asarray(self._wind_com, dtype=float))
 
     def close(self) -> None:
