@@ -363,7 +363,7 @@ class HoverBatchEnv(VectorEnv):
 
     @setpoint.setter
     def setpoint(self, value: ArrayLike) -> None:
-        sp = check_setpoint(value, self.options.floor_clearance, self.num_envs)
+        sp = check_setpoint(value, self.num_envs)
         self._setpoint = np.broadcast_to(sp, (self.num_envs, 3)).copy()
 
     def __getstate__(self) -> dict[str, Any]:
@@ -496,7 +496,7 @@ class HoverBatchEnv(VectorEnv):
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32], dict[str, Any]]:
         n = self.num_envs
         seeds = _check_seeds(seed, n)
-        sp, noise = check_reset_options(options, self.options.floor_clearance, n)  # checked before anything changes
+        sp, noise = check_reset_options(options, n)  # checked before anything changes
         if self._row_rngs is None or seed is not None:
             old = self._row_rngs
             self._row_rngs = [seeding.np_random(s)[0] if (s is not None or old is None) else old[i]

@@ -279,7 +279,7 @@ class HoverEnv(gym.Env):
 
     @setpoint.setter
     def setpoint(self, value: ArrayLike) -> None:
-        self._batch.setpoint = check_setpoint(value, self._batch.options.floor_clearance)
+        self._batch.setpoint = check_setpoint(value)
 
     @property
     def rotor_speeds(self) -> NDArray[np.float64]:
@@ -309,7 +309,7 @@ class HoverEnv(gym.Env):
         if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer))
                                  or seed < 0):
             raise ValueError(f"seed must be None or an int >= 0, got {seed!r}")
-        check_reset_options(options, self._batch.options.floor_clearance)  # one vehicle: a (3,) set point
+        check_reset_options(options)  # one vehicle: a (3,) set point
         obs, info = self._batch.reset(seed=seed, options=options)
         rngs = self._batch._row_rngs
         assert rngs is not None  # the batch's reset made them

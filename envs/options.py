@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED
 
-from .mjcf import INTEGRATORS, hull_points
+from .mjcf import INTEGRATORS
 from .motors import hover_command
 from .sensors import SensorSpec, make_sensor_spec
 from .vehicles import GRAVITY, VehiclePreset, make_vehicle
@@ -89,20 +89,19 @@ def _real_array(value: Any, name: str, what: str) -> NDArray[np.float64]:
     return a.astype(np.float64)
 
 
-def check_setpoint(value: Any, floor_clearance: float, n: int | None = None) -> NDArray[np.float64]:
+def check_setpoint(value: Any, n: int | None = None) -> NDArray[np.float64]:
     """A hover set point, world NED [m]: 3 finite numbers (or (n, 3), one per row) above the floor.
 
-    The floor is z_NED = 0; a set point whose z is not below ``-floor_clearance`` (the vehicle's hull radius)
-    would put the hull on or under the floor (a ground contact at once).  Returns (3,) or (n, 3).
+    The floor is z_NED = 0 (NED z points down), so z must be < 0.  A set point just above the floor is allowed
+    (the SITL plant starts resting on the ground; the env then ends the episode with a ground contact).
+    Returns (3,) or (n, 3).
     """
     shapes = "(3,)" if n is None else f"(3,) or ({n}, 3)"
     sp = _real_array(value, "setpoint", f"3 finite NED coordinates [m] of shape {shapes}")
     if sp.shape != (3,) and (n is None or sp.shape != (n, 3)) or not np.all(np.isfinite(sp)):
         raise ValueError(f"setpoint must be 3 finite NED coordinates [m] of shape {shapes}, got {value!r}")
-    z = sp[..., 2]
-    if np.any(z > -floor_clearance):
-        raise ValueError(f"setpoint z must be above the floor (z_NED < -{floor_clearance:.3f} m, the hull's radius; "
-                         f"NED z points down), got {value!r}")
+    if np.any(sp[..., 2] >= 0.0):
+        raise ValueError(f"setpoint z must be above the floor (z_NED < 0: NED z points down), got {value!r}")
     return sp
 
 
@@ -188,7 +187,6 @@ class HoverOptions:
     render_mode: str | None
     render_width: int
     render_height: int
-    floor_clearance: float
 
 
 def hover_options(vehicle: Any = "s500", wind: Any = "calm", action_type: Any = "motors", sensors: Any = "none",
@@ -222,8 +220,7 @@ def hover_options(vehicle: Any = "s500", wind: Any = "calm", action_type: Any = 
     dt = n_substeps * physics_dt
     episode_seconds = positive_number(episode_seconds, "episode_seconds")
     max_position_error = positive_number(max_position_error, "max_position_error")
-    clearance = float(np.linalg.norm(hull_points(preset), axis=1).max())
-    sp = FAWT_HOVER_POINT_NED.copy() if setpoint is None else check_setpoint(setpoint, clearance)
+    sp = FAWT_HOVER_POINT_NED.copy() if setpoint is None else check_setpoint(setpoint)
     return HoverOptions(
         preset=preset, wind=make_wind(wind), action_type=action_type, sensors=check_sensors(sensors),
         control_rate=control_rate, physics_rate=physics_rate, n_substeps=n_substeps, physics_dt=physics_dt, dt=dt,
@@ -231,10 +228,10 @@ def hover_options(vehicle: Any = "s500", wind: Any = "calm", action_type: Any = 
         init_noise=check_init_noise(init_noise), reward_weights=check_reward_weights(reward_weights),
         max_position_error=max_position_error, integrator=integrator, render_mode=render_mode,
         render_width=_render_size(render_width, "render_width"),
-        render_height=_render_size(render_height, "render_height"), floor_clearance=clearance)
+        render_height=_render_size(render_height, "render_height"))
 
 
-def check_reset_options(options: Any, floor_clearance: float, n: int | None = None
+def check_reset_options(options: Any, n: int | None = None
                         ) -> tuple[NDArray[np.float64] | None, float | None]:
     """``reset``'s ``options``: None or a mapping with ``setpoint`` and/or ``init_noise``; returns the checked
     (setpoint or None, init_noise or None).  Nothing is applied here, so a bad option leaves the env unchanged."""
@@ -245,7 +242,7 @@ def check_reset_options(options: Any, floor_clearance: float, n: int | None = No
     unknown = sorted(set(options) - set(RESET_OPTIONS), key=str)
     if unknown:
         raise ValueError(f"unknown reset option(s) {unknown}; valid: {list(RESET_OPTIONS)}")
-    sp = check_setpoint(options["setpoint"], floor_clearance, n) if "setpoint" in options else None
+    sp = check_setpoint(options["setpoint"], n) if "setpoint" in options else None
     noise = check_init_noise(options["init_noise"]) if "init_noise" in options else None
     return sp, noise
 
