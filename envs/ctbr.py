@@ -14,7 +14,10 @@ with the collective thrust kept first (the torque is scaled down until it fits).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from .motors import allocation_matrix
@@ -53,25 +56,62 @@ class RateLoop:
 
     def rotor_thrusts(self, collective: NDArray[np.float64], rate_sp: NDArray[np.float64],
                       rate: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Rotor thrusts (N, 4) [N] for collective thrusts (N,) [N], body-rate set points and rates (N, 3) [rad/s].
+        """Rotor thrusts (N, 4) [N] for collective thrusts (N,) [N], body-rate set points and rates (N, 3) [rad/s]
+        (the law: :func:`rate_loop_rows`)."""
+        out = np.empty((collective.shape[0], 4))
+        rate_loop_rows(np.ascontiguousarray(collective, dtype=np.float64),
+                       np.ascontiguousarray(rate_sp, dtype=np.float64), np.ascontiguousarray(rate, dtype=np.float64),
+                       self.kp, self.ki, self.kd, self.j, self.b_inv, self.t_min, self.t_max, self.i_lim, self.dt,
+                       self.integral, self.prev_rate, self.has_prev, out)
+        return out
 
-        ``tau = J (K_P e + I - K_D Omega_dot) + Omega x J Omega`` (module docstring), then
-        ``T = B^-1 [c, tau]`` with the torque part scaled by the largest s in [0, 1] that keeps every rotor in
-        [t_min, t_max] (the collective thrust first).
-        """
-        err = rate_sp - rate
-        rate_dot = np.where(self.has_prev[:, None], (rate - self.prev_rate) / self.dt, 0.0)
-        self.prev_rate = rate.copy()
-        self.has_prev[:] = True
-        ang_acc = self.kp * err + self.integral - self.kd * rate_dot
-        torque = ang_acc @ self.j.T + np.cross(rate, rate @ self.j.T)
-        thrust_part = self.b_inv[:, 0] * collective[:, None]
-        torque_part = torque @ self.b_inv[:, 1:].T
-        lo, hi = self.t_min - thrust_part, self.t_max - thrust_part
-        with np.errstate(divide="ignore", invalid="ignore"):
-            room = np.where(torque_part > 0, hi / torque_part, np.where(torque_part < 0, lo / torque_part, np.inf))
-        scale = np.clip(room.min(axis=1), 0.0, 1.0)
-        free = scale >= 1.0  # PX4: freeze the integrator while the actuators saturate
-        self.integral = np.where(free[:, None], np.clip(self.integral + self.ki * err * self.dt, -self.i_lim,
-                                                        self.i_lim), self.integral)
-        return np.clip(thrust_part + scale[:, None] * torque_part, self.t_min, self.t_max)
+
+@njit(cache=True)
+def rate_loop_rows(collective: NDArray[np.float64], rate_sp: NDArray[np.float64], rate: NDArray[np.float64],
+                   kp: NDArray[np.float64], ki: NDArray[np.float64], kd: NDArray[np.float64], j: NDArray[np.float64],
+                   b_inv: NDArray[np.float64], t_min: float, t_max: float, i_lim: float, dt: float,
+                   integral: NDArray[np.float64], prev_rate: NDArray[np.float64], has_prev: NDArray[np.bool_],
+                   out: NDArray[np.float64]) -> None:  # pragma: no cover - jitted
+    """The rate loop of every row (module docstring), its state (``integral``, ``prev_rate``, ``has_prev``) updated.
+
+    ``tau = J (K_P e + I - K_D Omega_dot) + Omega x J Omega`` with ``e = Omega_sp - Omega`` and ``Omega_dot`` the
+    rate's backward difference (0 on a row's first call); rotor thrusts ``B^-1 [c, tau]`` with the torque part
+    scaled by the largest s in [0, 1] that keeps every rotor in [t_min, t_max] (the collective thrust first); the
+    integrator ``I += K_I e dt`` (clipped to +- i_lim) only while s = 1 (PX4 freezes it when the rotors saturate).
+    """
+    err = np.empty(3)
+    ang_acc = np.empty(3)
+    h = np.empty(3)
+    torque = np.empty(3)
+    base = np.empty(4)
+    part = np.empty(4)
+    for i in range(collective.shape[0]):
+        for c in range(3):
+            err[c] = rate_sp[i, c] - rate[i, c]
+            rate_dot = (rate[i, c] - prev_rate[i, c]) / dt if has_prev[i] else 0.0
+            prev_rate[i, c] = rate[i, c]
+            ang_acc[c] = kp[c] * err[c] + integral[i, c] - kd[c] * rate_dot
+        has_prev[i] = True
+        for c in range(3):  # J Omega
+            h[c] = j[c, 0] * rate[i, 0] + j[c, 1] * rate[i, 1] + j[c, 2] * rate[i, 2]
+        w0, w1, w2 = rate[i, 0], rate[i, 1], rate[i, 2]
+        gyro = (w1 * h[2] - w2 * h[1], w2 * h[0] - w0 * h[2], w0 * h[1] - w1 * h[0])  # Omega x J Omega
+        for c in range(3):
+            torque[c] = j[c, 0] * ang_acc[0] + j[c, 1] * ang_acc[1] + j[c, 2] * ang_acc[2] + gyro[c]
+        scale = 1.0
+        for r in range(4):  # keep the collective thrust; shrink the torque until every rotor fits
+            base[r] = b_inv[r, 0] * collective[i]
+            part[r] = b_inv[r, 1] * torque[0] + b_inv[r, 2] * torque[1] + b_inv[r, 3] * torque[2]
+            if part[r] > 0.0:
+                room = (t_max - base[r]) / part[r]
+            elif part[r] < 0.0:
+                room = (t_min - base[r]) / part[r]
+            else:
+                room = math.inf
+            scale = min(scale, room)
+        scale = max(scale, 0.0)
+        if scale >= 1.0:
+            for c in range(3):
+                integral[i, c] = min(max(integral[i, c] + ki[c] * err[c] * dt, -i_lim), i_lim)
+        for r in range(4):
+            out[i, r] = min(max(base[r] + scale * part[r], t_min), t_max)
