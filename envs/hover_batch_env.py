@@ -149,6 +149,7 @@ from .step_kernels import (
     REWARD_TERMS,
     advance_clock,
     clip_actions,
+    ctbr_substep,
     hover_reward,
     motor_controls,
     read_states,
@@ -649,19 +650,17 @@ class HoverBatchEnv(VectorEnv):
         state = self._mj_state.copy()
         total = np.zeros((self.num_envs, 4))
         diverged = np.zeros(self.num_envs, dtype=bool)
-        half, t_end = 0.5 * self.physics_dt, _MJ_T0 + self.physics_dt
+        t_end = _MJ_T0 + self.physics_dt
         final = state
         loop = self._rate_loop
         assert loop is not None  # action_type "ctbr"
+        gains = (loop.kp, loop.ki, loop.kd, loop.j, loop.b_inv, loop.t_min, loop.t_max, loop.i_lim, loop.dt)
         for k in range(self.n_substeps):  # substeps (the rate loop closes the loop at the physics rate)
-            if k:
-                diverged |= (np.abs(final[:, 0] - t_end) > half) | ~np.isfinite(final).all(axis=1)
-                state = final.copy()
-            t_cmd = loop.rotor_thrusts(collective, rate_sp, state[:, 11:14] * _SIGN)
-            motor_controls(np.sqrt(t_cmd / self._k_thrust), self.rotor_speeds, self._k_thrust, self._sub_decay_up,
-                           self._sub_decay_down, force, torque, self._ctrl1, self._applied)
+            ctbr_substep(collective, rate_sp, state, final, k == 0, t_end, self.physics_dt, gains,
+                         (loop.integral, loop.prev_rate, loop.has_prev), self.rotor_speeds, self._k_thrust,
+                         self._sub_decay_up, self._sub_decay_down, force, torque, self._ctrl1, self._applied, total,
+                         diverged)
             final = self._rollout_rows(state, self._ctrl1, self._out1)
-            total += self._applied
         self._applied = total / self.n_substeps
         return final, diverged
 

@@ -23,6 +23,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from .ctbr import rate_loop_rows
+
 #: failure codes of :func:`read_states` -> ``info["failure"]`` names (index = code)
 FAILURES = np.array(["", "diverged", "ground_contact", "out_of_bounds"], dtype="<U14")
 DIVERGED, GROUND_CONTACT, OUT_OF_BOUNDS = 1, 2, 3
@@ -147,6 +149,51 @@ def motor_controls(ref: NDArray[np.float64], speeds: NDArray[np.float64], k_thru
         for s in range(k):  # NED/FRD -> MuJoCo world z-up / body FLU
             ctrl[i, s, 4], ctrl[i, s, 5], ctrl[i, s, 6] = force[i, 0], -force[i, 1], -force[i, 2]
             ctrl[i, s, 7], ctrl[i, s, 8], ctrl[i, s, 9] = torque[i, 0], -torque[i, 1], -torque[i, 2]
+
+
+@njit(cache=True)
+def ctbr_substep(collective: NDArray[np.float64], rate_sp: NDArray[np.float64], state: NDArray[np.float64],
+                 final: NDArray[np.float64], first: bool, t_end: float, physics_dt: float,
+                 loop: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                             NDArray[np.float64], float, float, float, float],
+                 loop_state: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]],
+                 speeds: NDArray[np.float64], k_thrust: float, decay_up: NDArray[np.float64],
+                 decay_down: NDArray[np.float64], force: NDArray[np.float64], torque: NDArray[np.float64],
+                 ctrl: NDArray[np.float64], applied: NDArray[np.float64], total: NDArray[np.float64],
+                 diverged: NDArray[np.bool_]) -> None:  # pragma: no cover - jitted
+    """One physics substep of ``action_type="ctbr"`` for every row, up to the rollout.
+
+    Unless ``first``, the previous one-substep rollout's ``final`` states become ``state`` (a row whose MuJoCo
+    time is not ``t_end`` or whose state is not finite is flagged in ``diverged``).  Then the rate loop
+    (:func:`fawtgym.envs.ctbr.rate_loop_rows`, gains ``loop``, state ``loop_state``) on the true body rates
+    (FRD) gives rotor thrusts, i.e. speed references ``sqrt(T / k_T)``, and :func:`motor_controls` the lagged
+    thrusts of the substep (``decay_*`` (2,): mid-substep, end) into ``ctrl`` (N, 1, 10); ``total`` (N, 4)
+    accumulates them.
+    """
+    n = state.shape[0]
+    if not first:
+        for i in range(n):
+            ok = abs(final[i, 0] - t_end) <= 0.5 * physics_dt
+            for c in range(state.shape[1]):
+                ok = ok and math.isfinite(final[i, c])
+                state[i, c] = final[i, c]
+            if not ok:
+                diverged[i] = True
+    rate = np.empty((n, 3))
+    for i in range(n):
+        rate[i, 0], rate[i, 1], rate[i, 2] = state[i, 11], -state[i, 12], -state[i, 13]
+    thrusts = np.empty((n, 4))
+    kp, ki, kd, j, b_inv, t_min, t_max, i_lim, dt = loop
+    integral, prev_rate, has_prev = loop_state
+    rate_loop_rows(collective, rate_sp, rate, kp, ki, kd, j, b_inv, t_min, t_max, i_lim, dt, integral, prev_rate,
+                   has_prev, thrusts)
+    for i in range(n):
+        for r in range(4):
+            thrusts[i, r] = math.sqrt(thrusts[i, r] / k_thrust)  # the speed references
+    motor_controls(thrusts, speeds, k_thrust, decay_up, decay_down, force, torque, ctrl, applied)
+    for i in range(n):
+        for r in range(4):
+            total[i, r] += applied[i, r]
 
 
 @njit(cache=True)
