@@ -125,7 +125,7 @@ from mujoco import rollout
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.frames import SIGN2_MJ_NED, SIGN_MJ_NED, rot_ned_to_quat_mj
+from fawtgym.core.frames import SIGN_MJ_NED, rot_ned_to_quat_mj
 from fawtgym.core.so3 import exp_so3
 
 from .aero import AeroModel
@@ -162,7 +162,7 @@ from .wind_cohorts import BatchWind
 _MJ_T0 = 1.0  #: MuJoCo time at the start of every rollout (a MuJoCo reset sets it to 0: divergence test)
 _STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 _CONTROL_SPEC = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED)
-_SIGN, _SIGN2 = SIGN_MJ_NED, SIGN2_MJ_NED
+_SIGN = SIGN_MJ_NED
 #: the autoreset modes of HoverBatchEnv (module docstring)
 AUTORESET_MODES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP}
 #: what a randomizer's draws may set, one value per starting row (module docstring)
