@@ -23,6 +23,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from fawtgym.core.so3_kernels import quat_to_rot_row
+
 from .ctbr import rate_loop_rows
 
 #: failure codes of :func:`read_states` -> ``info["failure"]`` names (index = code)
@@ -36,21 +38,11 @@ REWARD_TERMS = ("pos", "vel", "att", "rate", "action", "failure")
 def quat_mj_to_rot_ned(q: NDArray[np.float64], r: NDArray[np.float64]) -> None:  # pragma: no cover - jitted
     """One MuJoCo unit quaternion (w, x, y, z) (4,) -> R (3, 3) body FRD -> world NED into ``r``.
 
-    ``mju_quat2Mat``'s arithmetic, then S R S (S = diag(1, -1, -1)): the signs of entries (0, 1), (0, 2), (1, 0),
-    (2, 0) flip.
+    R_MuJoCo from :func:`fawtgym.core.so3_kernels.quat_to_rot_row`, then R_NED = S R_MuJoCo S
+    (S = diag(1, -1, -1)): the signs of entries (0, 1), (0, 2), (1, 0), (2, 0) flip.
     """
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    q00, q01, q02, q03 = w * w, w * x, w * y, w * z
-    q11, q12, q13, q22, q23, q33 = x * x, x * y, x * z, y * y, y * z, z * z
-    r[0, 0] = q00 + q11 - q22 - q33
-    r[1, 1] = q00 - q11 + q22 - q33
-    r[2, 2] = q00 - q11 - q22 + q33
-    r[0, 1] = -2.0 * (q12 - q03)
-    r[0, 2] = -2.0 * (q13 + q02)
-    r[1, 0] = -2.0 * (q12 + q03)
-    r[1, 2] = 2.0 * (q23 - q01)
-    r[2, 0] = -2.0 * (q13 - q02)
-    r[2, 1] = 2.0 * (q23 + q01)
+    quat_to_rot_row(q, r)
+    r[0, 1], r[0, 2], r[1, 0], r[2, 0] = -r[0, 1], -r[0, 2], -r[1, 0], -r[2, 0]
 
 
 @njit(cache=True)
