@@ -38,9 +38,11 @@ class RateLoop:
         self.dt = dt
         self.n = n
         self.j = preset.inertia_matrix
-        self.kp, self.ki, self.kd = (np.asarray(g, dtype=float) for g in (kp, ki, kd))
+        self.kp: NDArray[np.float64] = np.asarray(kp, dtype=np.float64)
+        self.ki: NDArray[np.float64] = np.asarray(ki, dtype=np.float64)
+        self.kd: NDArray[np.float64] = np.asarray(kd, dtype=np.float64)
         self.i_lim = integrator_limit
-        self.b_inv = np.linalg.inv(allocation_matrix(preset))
+        self.b_inv: NDArray[np.float64] = np.linalg.inv(allocation_matrix(preset)).astype(np.float64)
         self.t_min = float(preset.k_thrust * preset.omega_min**2)
         self.t_max = float(preset.max_thrust_per_rotor)
         self.integral = np.zeros((n, 3))  #: the rate integrator (angular acceleration, rad/s^2), (N, 3)

@@ -260,7 +260,7 @@ class HoverBatchEnv(VectorEnv):
                  ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
-        modes: dict[str | AutoresetMode, AutoresetMode] = {**AUTORESET_MODES}
+        modes: dict[str | AutoresetMode, AutoresetMode] = {k: v for k, v in AUTORESET_MODES.items()}
         modes.update({m: m for m in AUTORESET_MODES.values()})
         if not isinstance(autoreset_mode, (str, AutoresetMode)) or autoreset_mode not in modes:
             raise ValueError(f"autoreset_mode must be one of {list(AUTORESET_MODES)}, got {autoreset_mode!r}")
