@@ -14,7 +14,10 @@ with the collective thrust kept first (the torque is scaled down until it fits).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from .motors import allocation_matrix
@@ -25,79 +28,92 @@ MAX_RATES = np.radians([220.0, 220.0, 200.0])
 
 
 class RateLoop:
-    """Body-rate PID + allocation for one vehicle (physics-rate, float arithmetic)."""
+    """Body-rate PID + allocation for N vehicles (batch-first: state rows (N, 3), physics rate)."""
 
-    def __init__(self, preset: VehiclePreset, dt: float, kp: tuple[float, float, float] = (18.0, 18.0, 8.0),
+    def __init__(self, preset: VehiclePreset, dt: float, n: int = 1,
+                 kp: tuple[float, float, float] = (18.0, 18.0, 8.0),
                  ki: tuple[float, float, float] = (15.0, 15.0, 4.0), kd: tuple[float, float, float] = (0.3, 0.3, 0.0),
                  integrator_limit: float = 30.0) -> None:
         self.preset = preset
         self.dt = dt
+        self.n = n
         self.j = preset.inertia_matrix
-        self.kp, self.ki, self.kd = (np.asarray(g, dtype=float) for g in (kp, ki, kd))
+        self.kp: NDArray[np.float64] = np.asarray(kp, dtype=np.float64)
+        self.ki: NDArray[np.float64] = np.asarray(ki, dtype=np.float64)
+        self.kd: NDArray[np.float64] = np.asarray(kd, dtype=np.float64)
         self.i_lim = integrator_limit
-        self.b_inv = np.linalg.inv(allocation_matrix(preset))
+        self.b_inv: NDArray[np.float64] = np.linalg.inv(allocation_matrix(preset)).astype(np.float64)
         self.t_min = float(preset.k_thrust * preset.omega_min**2)
         self.t_max = float(preset.max_thrust_per_rotor)
-        # plain-float copies for rotor_thrusts_floats
-        self._kp, self._ki, self._kd = (tuple(g.tolist()) for g in (self.kp, self.ki, self.kd))
-        self._j = tuple(self.j.ravel().tolist())
-        self._b_rows = [tuple(row) for row in self.b_inv.tolist()]
-        self._inv_dt = 1.0 / dt
-        self.reset()
+        self.integral = np.zeros((n, 3))  #: the rate integrator (angular acceleration, rad/s^2), (N, 3)
+        self.prev_rate = np.zeros((n, 3))
+        self.has_prev = np.zeros(n, dtype=bool)
 
-    def reset(self) -> None:
-        self._integral = [0.0, 0.0, 0.0]
-        self._prev: tuple[float, float, float] | None = None
+    def reset(self, rows: NDArray[np.intp] | None = None) -> None:
+        """Zero the integrator and forget the previous rate of ``rows`` (all rows if None)."""
+        sel = slice(None) if rows is None else rows
+        self.integral[sel] = 0.0
+        self.prev_rate[sel] = 0.0
+        self.has_prev[sel] = False
 
-    @property
-    def integral(self) -> NDArray[np.float64]:
-        """The rate integrator (angular acceleration, rad/s^2), (3,)."""
-        return np.array(self._integral)
-
-    def rotor_thrusts(self, collective: float, rate_sp: NDArray[np.float64],
+    def rotor_thrusts(self, collective: NDArray[np.float64], rate_sp: NDArray[np.float64],
                       rate: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Rotor thrusts [N] (4,) for a collective thrust [N] and a body-rate setpoint [rad/s]."""
-        return np.array(self.rotor_thrusts_floats(float(collective), np.ravel(rate_sp).tolist(),
-                                                  np.ravel(rate).tolist()))
+        """Rotor thrusts (N, 4) [N] for collective thrusts (N,) [N], body-rate set points and rates (N, 3) [rad/s]
+        (the law: :func:`rate_loop_rows`)."""
+        out = np.empty((collective.shape[0], 4))
+        rate_loop_rows(np.ascontiguousarray(collective, dtype=np.float64),
+                       np.ascontiguousarray(rate_sp, dtype=np.float64), np.ascontiguousarray(rate, dtype=np.float64),
+                       self.kp, self.ki, self.kd, self.j, self.b_inv, self.t_min, self.t_max, self.i_lim, self.dt,
+                       self.integral, self.prev_rate, self.has_prev, out)
+        return out
 
-    def rotor_thrusts_floats(self, collective: float, rate_sp: list[float], rate: list[float]) -> list[float]:
-        """:meth:`rotor_thrusts` in float arithmetic (the env runs it every physics step)."""
-        r0, r1, r2 = rate
-        e0, e1, e2 = rate_sp[0] - r0, rate_sp[1] - r1, rate_sp[2] - r2
-        prev = self._prev
-        if prev is None:
-            d0 = d1 = d2 = 0.0
-        else:
-            inv_dt = self._inv_dt
-            d0, d1, d2 = (r0 - prev[0]) * inv_dt, (r1 - prev[1]) * inv_dt, (r2 - prev[2]) * inv_dt
-        self._prev = (r0, r1, r2)
-        (p0, p1, p2), (k0, k1, k2), (i0, i1, i2) = self._kp, self._kd, self._integral
-        a0, a1, a2 = p0 * e0 + i0 - k0 * d0, p1 * e1 + i1 - k1 * d1, p2 * e2 + i2 - k2 * d2
-        j00, j01, j02, j10, j11, j12, j20, j21, j22 = self._j
-        h0, h1, h2 = j00 * r0 + j01 * r1 + j02 * r2, j10 * r0 + j11 * r1 + j12 * r2, j20 * r0 + j21 * r1 + j22 * r2
-        tau = (j00 * a0 + j01 * a1 + j02 * a2 + (r1 * h2 - r2 * h1),
-               j10 * a0 + j11 * a1 + j12 * a2 + (r2 * h0 - r0 * h2),
-               j20 * a0 + j21 * a1 + j22 * a2 + (r0 * h1 - r1 * h0))
-        # keep collective thrust; shrink the torque until every rotor is within limits
-        t_min, t_max = self.t_min, self.t_max
-        base, part, scale = [], [], 1.0
-        for b0, b1, b2, b3 in self._b_rows:
-            tp = b0 * collective
-            q = b1 * tau[0] + b2 * tau[1] + b3 * tau[2]
-            if q > 0.0:
-                room = (t_max - tp) / q
-            elif q < 0.0:
-                room = (t_min - tp) / q
+
+@njit(cache=True)
+def rate_loop_rows(collective: NDArray[np.float64], rate_sp: NDArray[np.float64], rate: NDArray[np.float64],
+                   kp: NDArray[np.float64], ki: NDArray[np.float64], kd: NDArray[np.float64], j: NDArray[np.float64],
+                   b_inv: NDArray[np.float64], t_min: float, t_max: float, i_lim: float, dt: float,
+                   integral: NDArray[np.float64], prev_rate: NDArray[np.float64], has_prev: NDArray[np.bool_],
+                   out: NDArray[np.float64]) -> None:  # pragma: no cover - jitted
+    """The rate loop of every row (module docstring), its state (``integral``, ``prev_rate``, ``has_prev``) updated.
+
+    ``tau = J (K_P e + I - K_D Omega_dot) + Omega x J Omega`` with ``e = Omega_sp - Omega`` and ``Omega_dot`` the
+    rate's backward difference (0 on a row's first call); rotor thrusts ``B^-1 [c, tau]`` with the torque part
+    scaled by the largest s in [0, 1] that keeps every rotor in [t_min, t_max] (the collective thrust first); the
+    integrator ``I += K_I e dt`` (clipped to +- i_lim) only while s = 1 (PX4 freezes it when the rotors saturate).
+    """
+    err = np.empty(3)
+    ang_acc = np.empty(3)
+    h = np.empty(3)
+    torque = np.empty(3)
+    base = np.empty(4)
+    part = np.empty(4)
+    for i in range(collective.shape[0]):
+        for c in range(3):
+            err[c] = rate_sp[i, c] - rate[i, c]
+            rate_dot = (rate[i, c] - prev_rate[i, c]) / dt if has_prev[i] else 0.0
+            prev_rate[i, c] = rate[i, c]
+            ang_acc[c] = kp[c] * err[c] + integral[i, c] - kd[c] * rate_dot
+        has_prev[i] = True
+        for c in range(3):  # J Omega
+            h[c] = j[c, 0] * rate[i, 0] + j[c, 1] * rate[i, 1] + j[c, 2] * rate[i, 2]
+        w0, w1, w2 = rate[i, 0], rate[i, 1], rate[i, 2]
+        gyro = (w1 * h[2] - w2 * h[1], w2 * h[0] - w0 * h[2], w0 * h[1] - w1 * h[0])  # Omega x J Omega
+        for c in range(3):
+            torque[c] = j[c, 0] * ang_acc[0] + j[c, 1] * ang_acc[1] + j[c, 2] * ang_acc[2] + gyro[c]
+        scale = 1.0
+        for r in range(4):  # keep the collective thrust; shrink the torque until every rotor fits
+            base[r] = b_inv[r, 0] * collective[i]
+            part[r] = b_inv[r, 1] * torque[0] + b_inv[r, 2] * torque[1] + b_inv[r, 3] * torque[2]
+            if part[r] > 0.0:
+                room = (t_max - base[r]) / part[r]
+            elif part[r] < 0.0:
+                room = (t_min - base[r]) / part[r]
             else:
-                room = 1.0
-            if room < scale:
-                scale = room
-            base.append(tp)
-            part.append(q)
-        if scale < 0.0:
-            scale = 0.0
-        if scale >= 1.0:  # PX4: freeze the integrator while the actuators saturate
-            lim, ki, dt = self.i_lim, self._ki, self.dt
-            self._integral = [min(max(i + k * e * dt, -lim), lim) for i, k, e in zip(self._integral, ki, (e0, e1, e2),
-                                                                                      strict=True)]
-        return [min(max(tp + scale * q, t_min), t_max) for tp, q in zip(base, part, strict=True)]
+                room = math.inf
+            scale = min(scale, room)
+        scale = max(scale, 0.0)
+        if scale >= 1.0:
+            for c in range(3):
+                integral[i, c] = min(max(integral[i, c] + ki[c] * err[c] * dt, -i_lim), i_lim)
+        for r in range(4):
+            out[i, r] = min(max(base[r] + scale * part[r], t_min), t_max)

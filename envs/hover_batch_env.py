@@ -15,22 +15,29 @@ end) hold row by row; batched, they read:
 
 Version history: v0 as HoverEnv's; ``info["reward_terms"]`` added within v0.
 
-Per vehicle (row) the semantics are exactly :class:`fawtgym.envs.hover_env.HoverEnv`'s (read its
-module docstring): the same options and their validation (a template ``HoverEnv`` is built from the
-same keyword arguments and its spaces, timing and reward weights are used), action checking and
+This is the env's one step law: :class:`fawtgym.envs.hover_env.HoverEnv` is this env at N = 1 with
+Gymnasium's single-env API.  Per vehicle (row) the semantics are HoverEnv's (read its module docstring):
+the same options and their validation (:mod:`fawtgym.envs.options`, shared), action checking and
 clipping, wind at [CoM, rotor hubs 1-4] held with the aero wrench (plus a per-row external wrench)
 over the control step, exact first-order motor lag (mid-substep thrust, end-of-step speed), 19-D
 observation from measurements, the same dense reward, termination (ground contact, box,
 divergence) and truncation.  What is batched:
 
-* physics: one ``mujoco.rollout`` call per control step on the env's own one-vehicle model with
-  one ``MjData`` on the calling thread (one core): state spec ``mjSTATE_FULLPHYSICS`` (time, qpos,
+* physics: one ``mujoco.rollout`` call per control step on the env's own one-vehicle model, on the
+  calling thread below :data:`THREADED_ROWS` rows, else on one thread per core, each with its own ``MjData``
+  (:func:`physics_threads`): state spec ``mjSTATE_FULLPHYSICS`` (time, qpos,
   qvel; 14 numbers, round-trips this model's state exactly: no actuator activations, contacts
   disabled so no warm start matters), control spec ``mjSTATE_CTRL | mjSTATE_QFRC_APPLIED`` with the
   whole (N, n_substeps, 10) array (rotor thrusts per substep, held world force and body torque as the
   free joint's generalized force, see :mod:`fawtgym.envs.mjcf`);
-* wind, aero, sensors (:mod:`fawtgym.envs.sensors_batch`), observation, reward, termination: numpy
-  over the leading axis N (no Python loop over vehicles per step).
+* motor lag, rollout controls, state readout, divergence and termination, reward
+  (:mod:`fawtgym.envs.step_kernels`) and the observation (:func:`fawtgym.envs.observation.observation_rows`):
+  compiled row kernels (numba), the same code at N = 1 and N = 1024; wind (:mod:`fawtgym.envs.wind_cohorts`),
+  aero, sensors (:mod:`fawtgym.envs.sensors_batch`): batch-first over the leading axis N.
+
+Pickling and ``copy.deepcopy`` copy the whole state (models, data, generators); the rollout's thread pool is
+rebuilt on load.  ``setpoint`` is a checked property ((3,) or (N, 3), above the floor); ``reset`` checks
+every option before it applies any (a failed reset changes nothing).
 
 Divergence: MuJoCo resets a row whose state becomes NaN/inf/huge (its warnings).  The rollout starts
 every row at MuJoCo time ``_MJ_T0`` = 1 s, so a reset row ends at a time below 1 s instead of
@@ -96,7 +103,7 @@ autoresets in the next-step mode reports reward 0 and all terms 0 on its reset s
 
 ``action_type="ctbr"``: the inner rate loop (:mod:`fawtgym.envs.ctbr`) runs at the physics rate on the
 true body rates, so the physics is one single-substep rollout per substep (``n_substeps`` calls per
-control step), with :class:`BatchRateLoop` (RateLoop's law row by row) in between.
+control step), with :class:`fawtgym.envs.ctbr.RateLoop` (batch-first) in between.
 
 Not implemented: rendering (render a single ``fawtgym/Hover-v0``).
 """
@@ -104,11 +111,13 @@ Not implemented: rendering (render a single ``fawtgym/Hover-v0``).
 from __future__ import annotations
 
 import copy
+import os
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, cast
 
 import mujoco
 import numpy as np
+from gymnasium import spaces
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
@@ -116,160 +125,73 @@ from mujoco import rollout
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.frames import SIGN2_MJ_NED, SIGN_MJ_NED, rot_ned_to_quat_mj
+from fawtgym.core.frames import SIGN_MJ_NED, rot_ned_to_quat_mj
 from fawtgym.core.so3 import exp_so3
 
+from .aero import AeroModel
 from .ctbr import MAX_RATES, RateLoop
-from .hover_env import INIT_SPREAD, HoverEnv, check_init_noise
-from .mjcf import hull_points
+from .mjcf import hull_points, vehicle_mjcf
 from .motors import allocation_matrix
-from .observation import hover_observation
+from .observation import OBS_SIZE, hover_observation, observation_bounds, observation_rows
+from .options import (
+    INIT_SPREAD,
+    check_actions,
+    check_reset_options,
+    check_setpoint,
+    hover_action,
+    hover_action_space,
+    hover_options,
+)
 from .sensors_batch import BatchSensorModel
+from .step_kernels import (
+    DIVERGED,
+    FAILURES,
+    REWARD_TERMS,
+    advance_clock,
+    clip_actions,
+    ctbr_substep,
+    hover_reward,
+    motor_controls,
+    read_states,
+    states_to_ned,
+    wind_points,
+)
 from .wind import WindModel
-from .wind.base import CalmWind
-from .wind.fawt import FawtWind
-from .wind.outdoor import DrydenWind
+from .wind_cohorts import BatchWind
 
 _MJ_T0 = 1.0  #: MuJoCo time at the start of every rollout (a MuJoCo reset sets it to 0: divergence test)
 _STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 _CONTROL_SPEC = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED)
-_SIGN, _SIGN2 = SIGN_MJ_NED, SIGN2_MJ_NED
+_SIGN = SIGN_MJ_NED
 #: the autoreset modes of HoverBatchEnv (module docstring)
 AUTORESET_MODES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP}
 #: what a randomizer's draws may set, one value per starting row (module docstring)
 RANDOMIZER_KEYS = ("mass_scale", "inertia_scale", "drag_scale", "gyro_bias", "accel_bias", "wind")
+#: below this many rows the rollout runs on the calling thread (a thread hand-off costs more than it saves)
+THREADED_ROWS = 64
 
 
-def quat_mj_to_rot_ned_batch(q: NDArray[np.float64]) -> NDArray[np.float64]:
-    """MuJoCo quaternions (N, 4) to R (N, 3, 3) FRD -> NED, with ``mju_quat2Mat``'s arithmetic."""
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    q00, q01, q02, q03 = w * w, w * x, w * y, w * z
-    q11, q12, q13, q22, q23, q33 = x * x, x * y, x * z, y * y, y * z, z * z
-    r = np.empty((q.shape[0], 3, 3))
-    r[:, 0, 0] = q00 + q11 - q22 - q33
-    r[:, 1, 1] = q00 - q11 + q22 - q33
-    r[:, 2, 2] = q00 - q11 - q22 + q33
-    r[:, 0, 1] = 2 * (q12 - q03)
-    r[:, 0, 2] = 2 * (q13 + q02)
-    r[:, 1, 0] = 2 * (q12 + q03)
-    r[:, 1, 2] = 2 * (q23 - q01)
-    r[:, 2, 0] = 2 * (q13 - q02)
-    r[:, 2, 1] = 2 * (q23 + q01)
-    return r * _SIGN2
+def physics_threads(n: int) -> int:
+    """Threads of the env's ``mujoco.rollout`` for ``n`` rows, each with its own ``MjData``: one per core this
+    process may use (at most one per :data:`THREADED_ROWS` rows), or 0 (the calling thread) if that is one."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    threads = min(cores, n // THREADED_ROWS)
+    return threads if threads > 1 else 0
 
 
-def _time_invariant(wind: WindModel) -> bool:
-    """Whether ``wind``'s output depends on the time argument (models known to ignore it)."""
-    if type(wind) is CalmWind or type(wind) is DrydenWind:
-        return True
-    return type(wind) is FawtWind and wind.schedule.steady
+def _check_seeds(seed: Any, n: int) -> list[int | None]:
+    """``reset``'s ``seed``: None, an int >= 0 (row i gets seed + i) or a list of n ints >= 0 / None."""
+    def ok(x: Any) -> bool:
+        return isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_)) and bool(x >= 0)
 
-
-class BatchWind:
-    """Runs one :class:`WindModel` for N rows whose episodes start at different times (module docstring).
-
-    ``shared``: one model steps every row (time-invariant models); else cohorts: one model copy per set of
-    rows that started together (or per row, for rows given their own model by a randomizer).
-    """
-
-    def __init__(self, template: WindModel, n: int) -> None:
-        self.template = copy.deepcopy(template)  # pristine copy: cohorts are copied from it
-        self.n = n
-        self.shared = _time_invariant(template)
-        self.model: WindModel | None = None
-        self.cohorts: list[list[Any]] = []  # [model, rows (k,), alive (k,) bool]
-        self._started: list[list[Any]] = []  # the cohorts of the last reset_rows (cohort mode)
-        self._scratch: WindModel | None = None  # shared mode: restarts rows while the others go on
-        self._last: tuple[NDArray[np.intp], Sequence[int], Sequence[np.random.SeedSequence]] = (
-            np.zeros(0, dtype=np.intp), [], [])  # (rows, seed ints, seeds) of the last reset_rows
-
-    @staticmethod
-    def _seed(ints: Sequence[int], seeds: Sequence[np.random.SeedSequence]) -> np.random.SeedSequence:
-        # one row: exactly the single env's wind seed; several: all rows' seed integers pooled
-        return seeds[0] if len(seeds) == 1 else np.random.SeedSequence([int(i) for i in ints])
-
-    def reset_rows(self, rows: NDArray[np.intp], ints: Sequence[int], seeds: Sequence[np.random.SeedSequence],
-                   models: Sequence[WindModel] | None = None) -> None:
-        """New episodes (time 0) for ``rows``; ``ints``/``seeds`` are the rows' wind seeds; ``models``: one own
-        model per row (each then runs as a cohort of one row; a shared model becomes a cohort of its rows)."""
-        self._last = (rows, ints, seeds)
-        if models is not None:
-            if self.shared:
-                if self.model is not None:  # the rows still flying keep the shared model, as a cohort
-                    self.cohorts = [[self.model, np.arange(self.n), np.ones(self.n, dtype=bool)]]
-                self.shared, self.model = False, None
-            for c in self.cohorts:
-                c[2] &= ~np.isin(c[1], rows)
-            self.cohorts = [c for c in self.cohorts if c[2].any()]
-            self._started = []
-            for row, model, seed in zip(rows.tolist(), models, seeds, strict=True):
-                model.reset(1, seed=seed)
-                self._started.append([model, np.array([row]), np.ones(1, dtype=bool)])
-            self.cohorts.extend(self._started)
-            return
-        if self.shared:
-            if self.model is None or rows.size == self.n:
-                self.model = copy.deepcopy(self.template)
-                self.model.reset(self.n, seed=self._seed(ints, seeds))
-                return
-            process = getattr(self.model, "process", None)
-            if process is not None:  # fresh stationary gust-filter state for the reset rows
-                p = process.p_stat
-                w, v = np.linalg.eigh(p)
-                root = v * np.sqrt(np.clip(w, 0.0, None))
-                x = process.x.copy()
-                for k, row in enumerate(rows.tolist()):  # reset path only
-                    x[row] = root @ np.random.default_rng(seeds[k]).standard_normal(process.n_states)
-                process.x = x
-            return
-        for c in self.cohorts:
-            c[2] &= ~np.isin(c[1], rows)
-        self.cohorts = [c for c in self.cohorts if c[2].any()]
-        model = copy.deepcopy(self.template)
-        model.reset(rows.size, seed=self._seed(ints, seeds))
-        self._started = [[model, rows.copy(), np.ones(rows.size, dtype=bool)]]
-        self.cohorts.append(self._started[0])
-
-    def first_step(self, dt: float, points: NDArray[np.float64], velocity: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The first wind sample (k, K, 3) of the rows of the last :meth:`reset_rows` (at their ``points``
-        (k, K, 3)), without stepping the other rows (same-step autoreset, module docstring)."""
-        rows, ints, seeds = self._last
-        if not self.shared:  # the cohorts just started step alone, at episode time 0, as in step()
-            out = np.empty(points.shape)
-            pos = {row: j for j, row in enumerate(rows.tolist())}
-            for model, crows, _ in self._started:
-                idx = np.array([pos[r] for r in crows.tolist()])
-                out[idx] = model.step(0.0, dt, points[idx], velocity[idx])
-            return out
-        if rows.size == self.n:  # a full restart: the fresh shared model steps every row
-            return self.model.step(0.0, dt, points, velocity)
-        # the shared model goes on for the other rows: a k-row copy takes the restarted rows' fresh filter state
-        # (reset_rows drew it) one step forward, with noise from the rows' pooled wind seed, and hands it back
-        if self._scratch is None:
-            self._scratch = copy.deepcopy(self.template)
-        scratch = self._scratch
-        scratch.reset(rows.size, seed=self._seed(ints, seeds))
-        process = getattr(self.model, "process", None)
-        if process is not None:
-            scratch.process.x = process.x[rows].copy()
-        out = scratch.step(0.0, dt, points, velocity)
-        if process is not None:
-            x = process.x.copy()
-            x[rows] = scratch.process.x
-            process.x = x
-        return out
-
-    def step(self, times: NDArray[np.float64], dt: float, points: NDArray[np.float64],
-             velocity: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Wind (N, K, 3) at ``points`` (N, K, 3); ``times`` (N,) are the rows' episode times."""
-        if self.shared:
-            return self.model.step(float(times[0]), dt, points, velocity)
-        out = np.empty(points.shape)
-        for model, rows, alive in self.cohorts:  # one call per cohort (rows that reset together)
-            live = rows[alive]
-            got = model.step(float(times[live[0]]), dt, points[rows], velocity[rows])
-            out[live] = got[alive]
-        return out
+    if seed is None:
+        return [None] * n
+    if ok(seed):
+        return [int(seed) + i for i in range(n)]
+    if isinstance(seed, Sequence) and not isinstance(seed, str) and len(seed) == n and all(
+            x is None or ok(x) for x in seed):
+        return [None if x is None else int(x) for x in seed]
+    raise ValueError(f"seed must be None, an int >= 0 or a list of {n} ints >= 0 / None (one per row), got {seed!r}")
 
 
 def _with_masks(info: Mapping[str, Any], mask: NDArray[np.bool_]) -> dict[str, Any]:
@@ -300,7 +222,7 @@ def _measure_rows(sensor: BatchSensorModel, rows: NDArray[np.intp], rngs: Sequen
     written back."""
     saved = (sensor.n, sensor.rng, sensor.gyro_bias, sensor.accel_bias, sensor._count, sensor._pose)
     try:
-        sensor.n, sensor.rng = rows.size, _RowStreams(rngs)
+        sensor.n, sensor.rng = rows.size, cast(np.random.Generator, _RowStreams(rngs))  # standard_normal only
         sensor.gyro_bias, sensor.accel_bias = saved[2][rows], saved[3][rows]
         sensor._count = saved[4][rows]
         sensor._pose = {key: value[rows] for key, value in saved[5].items()}
@@ -312,47 +234,6 @@ def _measure_rows(sensor: BatchSensorModel, rows: NDArray[np.intp], rngs: Sequen
     for key, value in pose.items():
         sensor._pose[key][rows] = value
     return out
-
-
-class BatchRateLoop:
-    """:class:`fawtgym.envs.ctbr.RateLoop` for N vehicles: the same gains and law, row by row (batch-first)."""
-
-    def __init__(self, loop: RateLoop, n: int) -> None:
-        self.dt = loop.dt
-        self.kp, self.ki, self.kd = loop.kp, loop.ki, loop.kd
-        self.i_lim = loop.i_lim
-        self.j_t = loop.j.T
-        self.b_thrust = loop.b_inv[:, 0]
-        self.b_torque_t = loop.b_inv[:, 1:].T
-        self.t_min, self.t_max = loop.t_min, loop.t_max
-        self.integral = np.zeros((n, 3))
-        self.prev_rate = np.zeros((n, 3))
-        self.has_prev = np.zeros(n, dtype=bool)
-
-    def reset_rows(self, rows: NDArray[np.intp]) -> None:
-        self.integral[rows] = 0.0
-        self.prev_rate[rows] = 0.0
-        self.has_prev[rows] = False
-
-    def rotor_thrusts(self, collective: NDArray[np.float64], rate_sp: NDArray[np.float64],
-                      rate: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Rotor thrusts (N, 4) [N] for collective thrusts (N,) [N] and body-rate setpoints (N, 3) [rad/s]."""
-        err = rate_sp - rate
-        rate_dot = np.where(self.has_prev[:, None], (rate - self.prev_rate) / self.dt, 0.0)
-        self.prev_rate = rate.copy()
-        self.has_prev[:] = True
-        ang_acc = self.kp * err + self.integral - self.kd * rate_dot
-        torque = ang_acc @ self.j_t + np.cross(rate, rate @ self.j_t)
-        thrust_part = self.b_thrust * collective[:, None]
-        torque_part = torque @ self.b_torque_t
-        lo, hi = self.t_min - thrust_part, self.t_max - thrust_part
-        with np.errstate(divide="ignore", invalid="ignore"):
-            room = np.where(torque_part > 0, hi / torque_part, np.where(torque_part < 0, lo / torque_part, np.inf))
-        scale = np.clip(room.min(axis=1), 0.0, 1.0)
-        free = scale >= 1.0  # PX4: freeze the integrator while the actuators saturate
-        self.integral = np.where(free[:, None], np.clip(self.integral + self.ki * err * self.dt, -self.i_lim,
-                                                        self.i_lim), self.integral)
-        return np.clip(thrust_part + scale[:, None] * torque_part, self.t_min, self.t_max)
 
 
 class HoverBatchEnv(VectorEnv):
@@ -379,7 +260,8 @@ class HoverBatchEnv(VectorEnv):
                  ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
-        modes = {**AUTORESET_MODES, **{m: m for m in AUTORESET_MODES.values()}}
+        modes: dict[str | AutoresetMode, AutoresetMode] = {k: v for k, v in AUTORESET_MODES.items()}
+        modes.update({m: m for m in AUTORESET_MODES.values()})
         if not isinstance(autoreset_mode, (str, AutoresetMode)) or autoreset_mode not in modes:
             raise ValueError(f"autoreset_mode must be one of {list(AUTORESET_MODES)}, got {autoreset_mode!r}")
         if randomizer is not None and not callable(randomizer):
@@ -388,34 +270,42 @@ class HoverBatchEnv(VectorEnv):
         if render_mode is not None:
             raise ValueError(f"HoverBatchEnv does not render; render_mode must be None, got {render_mode!r} "
                              "(render a single fawtgym/Hover-v0 instead)")
-        single = HoverEnv(vehicle=vehicle, wind=wind, action_type=action_type, sensors=sensors,
-                          control_rate=control_rate, physics_rate=physics_rate, episode_seconds=episode_seconds,
-                          setpoint=setpoint, init_noise=init_noise, reward_weights=reward_weights,
-                          max_position_error=max_position_error, integrator=integrator,
-                          render_width=render_width, render_height=render_height)
+        opts = hover_options(vehicle=vehicle, wind=wind, action_type=action_type, sensors=sensors,
+                             control_rate=control_rate, physics_rate=physics_rate, episode_seconds=episode_seconds,
+                             setpoint=setpoint, init_noise=init_noise, reward_weights=reward_weights,
+                             max_position_error=max_position_error, integrator=integrator,
+                             render_width=render_width, render_height=render_height)
+        self.options = opts
         n = self.num_envs = int(num_envs)
         self.autoreset_mode = modes[autoreset_mode]
         self._same_step = self.autoreset_mode is AutoresetMode.SAME_STEP
+        self._autoreset_on = True  # HoverEnv (a batch of one, Gymnasium's single-env API) turns it off
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self.randomizer = randomizer
-        self.preset = single.preset
-        self.action_type = action_type
-        self.n_substeps, self.physics_dt, self.dt = single.n_substeps, single.physics_dt, single.dt
-        self.episode_seconds, self.max_steps = single.episode_seconds, single.max_steps
-        self.max_position_error = single.max_position_error
-        self.init_noise = single.init_noise
-        self.reward_weights = dict(single.reward_weights)
+        self.preset = opts.preset
+        self.action_type = opts.action_type
+        self.n_substeps, self.physics_dt, self.dt = opts.n_substeps, opts.physics_dt, opts.dt
+        self.episode_seconds, self.max_steps = opts.episode_seconds, opts.max_steps
+        self.max_position_error = opts.max_position_error
+        self.init_noise = opts.init_noise
+        self.reward_weights = dict(opts.reward_weights)
         w = self.reward_weights
-        self._reward_w = np.repeat([w["pos"], w["vel"], 0.0, w["rate"], w["action"]], [3, 3, 6, 3, 4])
-        self.single_action_space = single.action_space
-        self.single_observation_space = single.observation_space
+        self._reward_w = np.array([w[key] for key in REWARD_TERMS])
+        self.single_action_space = hover_action_space(opts.action_type)
+        low, high = observation_bounds(opts.max_position_error, self.single_action_space.low,
+                                       self.single_action_space.high)
+        self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
         self.action_space = batch_space(self.single_action_space, n)
         self.observation_space = batch_space(self.single_observation_space, n)
         self.render_mode = None
-        self.setpoint = np.tile(single.setpoint, (n, 1))
-        self.model = single.model
-        self._data = mujoco.MjData(self.model)
-        self._rollout = rollout.Rollout(nthread=0)  # rollouts on the calling thread: one core
+        self._setpoint = np.tile(opts.setpoint, (n, 1))
+        self.model = mujoco.MjModel.from_xml_string(vehicle_mjcf(opts.preset, opts.physics_dt, opts.integrator,
+                                                                 opts.render_width, opts.render_height))
+        self._nthread = physics_threads(n)
+        self._datas = [mujoco.MjData(self.model) for _ in range(max(self._nthread, 1))]
+        self._data = self._datas[0]
+        self._rollout = rollout.Rollout(nthread=self._nthread)
+        self._chunk = -(-n // self._nthread) if self._nthread else None  # one chunk of rows per thread
         self._models = [self.model] * n  # one per row: a row with a randomized vehicle gets its own copy
         self._body = self.model.body("vehicle").id
         self._nominal_mass = float(self.model.body_mass[self._body])
@@ -423,18 +313,17 @@ class HoverBatchEnv(VectorEnv):
         self.mass_scale, self.inertia_scale, self.drag_scale = np.ones(n), np.ones(n), np.ones(n)
         self._drag_scaled = False
         self._qfrc_col = self.model.nu  # qfrc_applied follows ctrl in the control vector
-        self.wind = BatchWind(single.wind, n)
-        self.aero = single.aero
-        self.sensor = BatchSensorModel(single.sensor.spec, self.dt, n)
-        single.close()
+        self.wind = BatchWind(opts.wind, n)
+        self.aero = AeroModel(opts.preset)
+        self.sensor = BatchSensorModel(opts.sensors, self.dt, n, self.physics_dt)
 
         p = self.preset
-        self._hull_t = hull_points(p).T
+        self._hull = np.ascontiguousarray(hull_points(p))
         self._alloc_t = allocation_matrix(p).T
-        self._rotor_pos_t = np.ascontiguousarray(p.rotor_positions.T)
-        self._hover = single.hover_action().astype(np.float32)
-        self._rate_loop = BatchRateLoop(RateLoop(p, self.physics_dt), n) if action_type == "ctbr" else None
-        sub_times = np.array([[0.5 * self.physics_dt], [self.physics_dt]])
+        self._rotor_pos = np.ascontiguousarray(p.rotor_positions)
+        self._hover = hover_action(p, self.action_type)
+        self._rate_loop = RateLoop(p, self.physics_dt, n) if action_type == "ctbr" else None
+        sub_times = np.array([0.5 * self.physics_dt, self.physics_dt])
         self._sub_decay_up, self._sub_decay_down = np.exp(-sub_times / p.tau_up), np.exp(-sub_times / p.tau_down)
         self._max_thrust = 4.0 * p.max_thrust_per_rotor
         self._act_low = self.single_action_space.low.astype(float)
@@ -442,11 +331,13 @@ class HoverBatchEnv(VectorEnv):
         self._obs_low = self.single_observation_space.low.astype(float)
         self._obs_high = self.single_observation_space.high.astype(float)
         k = self.n_substeps
-        step_times = np.append((np.arange(k) + 0.5) * self.physics_dt, self.dt)[:, None]
-        self._decay_up = np.exp(-step_times / p.tau_up)  # (K + 1, 1), as HoverEnv
+        step_times = np.append((np.arange(k) + 0.5) * self.physics_dt, self.dt)  # mid-substep times, end of step
+        self._decay_up = np.exp(-step_times / p.tau_up)  # (K + 1,) motor lag decay factors (step_kernels)
         self._decay_down = np.exp(-step_times / p.tau_down)
         self._omega_min, self._omega_span = p.omega_min, p.omega_max - p.omega_min
-        self._inv_substeps = 1.0 / k
+        self._k_thrust = float(p.k_thrust)
+        if self._qfrc_col != 4:  # motor_controls writes [4 rotor thrusts, qfrc_applied 6]
+            raise RuntimeError(f"the vehicle model must have 4 actuators, got {self._qfrc_col}")
         self._ctrl = np.zeros((n, k, mujoco.mj_stateSize(self.model, _CONTROL_SPEC)))
         self._mj_state = np.zeros((n, mujoco.mj_stateSize(self.model, _STATE_SPEC)))
         self._out = np.zeros((n, k, self._mj_state.shape[1]))
@@ -456,12 +347,35 @@ class HoverBatchEnv(VectorEnv):
         self.external_torque = np.zeros((n, 3))
         self._row_rngs: list[np.random.Generator] | None = None
         self._autoreset = np.zeros(n, dtype=bool)
+        self._n_autoreset = 0  # rows of _autoreset set
+        self._no_rows, self._all_rows = np.zeros(n, dtype=bool), np.ones(n, dtype=bool)
+        self._failure_code = np.zeros(n, dtype=np.int8)
         self.time = np.zeros(n)
 
     # ---- public helpers -------------------------------------------------------------------
     def hover_action(self) -> NDArray[np.float32]:
         """(N, 4) actions holding the weight at rest."""
         return np.tile(self._hover, (self.num_envs, 1))
+
+    @property
+    def setpoint(self) -> NDArray[np.float64]:
+        """Hover set points, world NED [m] (N, 3); assign (3,) or (N, 3) any time (validated, from the next step)."""
+        return self._setpoint
+
+    @setpoint.setter
+    def setpoint(self, value: ArrayLike) -> None:
+        sp = check_setpoint(value, self.num_envs)
+        self._setpoint = np.broadcast_to(sp, (self.num_envs, 3)).copy()
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle/deepcopy: MuJoCo's model and data are copied; the rollout (threads, not picklable) is rebuilt."""
+        state = self.__dict__.copy()
+        state["_rollout"] = None
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._rollout = rollout.Rollout(nthread=self._nthread)
 
     def set_external_wrench(self, force_ned: ArrayLike = (0.0, 0.0, 0.0),
                             torque_frd: ArrayLike = (0.0, 0.0, 0.0)) -> None:
@@ -478,19 +392,20 @@ class HoverBatchEnv(VectorEnv):
         self.external_force, self.external_torque = f, t
 
     # ---- state ------------------------------------------------------------------------------
-    def _readout(self, s: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray, NDArray]:
-        """NED/FRD (position, velocity, R, Omega) from FULLPHYSICS states (k, 14) = [time, qpos 7, qvel 6]."""
-        return s[:, 1:4] * _SIGN, s[:, 8:11] * _SIGN, quat_mj_to_rot_ned_batch(s[:, 4:8]), s[:, 11:14] * _SIGN
-
     def _reset_rows(self, rows: NDArray[np.intp]) -> list[np.random.Generator]:
         """HoverEnv.reset for ``rows`` (each row draws from its own generator, in HoverEnv's order), then the
         randomizer's draws; returns the rows' sensor generators."""
         k = rows.size
         du = np.empty((k, 4, 3))
-        ints, wind_seeds, sensor_rngs, draw_rngs = [], [], [], []
+        ints: list[int] = []
+        wind_seeds: list[np.random.SeedSequence] = []
+        sensor_rngs: list[np.random.Generator] = []
+        draw_rngs: list[np.random.Generator] = []
+        row_rngs = self._row_rngs
+        assert row_rngs is not None  # reset() made them
         spread = np.array([INIT_SPREAD[key] for key in ("position", "velocity", "attitude", "angular_velocity")])
         for j, row in enumerate(rows.tolist()):  # reset path only: per-row generators
-            rng = self._row_rngs[row]
+            rng = row_rngs[row]
             for i in range(4):
                 du[j, i] = rng.uniform(-1.0, 1.0, 3) * spread[i] * self.init_noise
             seed_int = int(rng.integers(2**63))
@@ -507,7 +422,8 @@ class HoverBatchEnv(VectorEnv):
         s[:, 8:11] = du[:, 1] * _SIGN
         s[:, 11:14] = du[:, 3] * _SIGN
         self._mj_state[rows] = s
-        b, v, r, w = self._readout(s)
+        b, v, r, w = np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3, 3)), np.empty((k, 3))
+        states_to_ned(s, b, v, r, w)
         self._pos[rows], self._vel[rows], self._rot[rows], self._omega[rows] = b, v, r, w
         self.rotor_speeds[rows] = self.preset.hover_omega
         self._applied[rows] = self.preset.k_thrust * self.preset.hover_omega**2
@@ -516,11 +432,12 @@ class HoverBatchEnv(VectorEnv):
         self._steps[rows] = 0
         self.time[rows] = 0.0
         self._failure[rows] = ""
+        self._failure_code[rows] = 0
         self.sensor.reset_rows(rows, sensor_rngs)
         winds = None if self.randomizer is None else self._apply_draws(rows, self.randomizer(rows, draw_rngs))
         self.wind.reset_rows(rows, ints, wind_seeds, winds)
         if self._rate_loop is not None:
-            self._rate_loop.reset_rows(rows)
+            self._rate_loop.reset(rows)
         if self.num_envs == 1:  # N = 1: the row's own sensor stream, as HoverEnv
             self.sensor.set_noise_rng(sensor_rngs[0])
         return sensor_rngs
@@ -579,14 +496,8 @@ class HoverBatchEnv(VectorEnv):
     def reset(self, *, seed: int | Sequence[int | None] | None = None,
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32], dict[str, Any]]:
         n = self.num_envs
-        if seed is None:
-            seeds: list[int | None] = [None] * n
-        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            seeds = [int(seed) + i for i in range(n)]
-        else:
-            seeds = list(seed)
-            if len(seeds) != n:
-                raise ValueError(f"seed must be an int, None or a list of {n} ints/None, got {len(seeds)} entries")
+        seeds = _check_seeds(seed, n)
+        sp, noise = check_reset_options(options, n)  # checked before anything changes
         if self._row_rngs is None or seed is not None:
             old = self._row_rngs
             self._row_rngs = [seeding.np_random(s)[0] if (s is not None or old is None) else old[i]
@@ -596,18 +507,10 @@ class HoverBatchEnv(VectorEnv):
             entropy = None if len(ints) < n else [*ints, n, 0x5E45]  # reproducible iff every row has a seed
             self.sensor.set_noise_rng(np.random.default_rng(entropy))
             self._noise_seeded = True
-        if options:
-            unknown = set(options) - {"setpoint", "init_noise"}
-            if unknown:
-                raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid: ['init_noise', 'setpoint']")
-            if "setpoint" in options:
-                sp = np.asarray(options["setpoint"], dtype=float)
-                if sp.shape not in ((3,), (n, 3)) or not np.all(np.isfinite(sp)):
-                    raise ValueError(f"setpoint must be 3 finite NED coordinates or ({n}, 3), "
-                                     f"got {options['setpoint']!r}")
-                self.setpoint = np.broadcast_to(sp, (n, 3)).copy()
-            if "init_noise" in options:
-                self.init_noise = check_init_noise(options["init_noise"])
+        if sp is not None:
+            self.setpoint = sp
+        if noise is not None:
+            self.init_noise = noise
         self._pos, self._vel = np.zeros((n, 3)), np.zeros((n, 3))
         self._rot, self._omega = np.zeros((n, 3, 3)), np.zeros((n, 3))
         self.rotor_speeds, self._applied = np.zeros((n, 4)), np.zeros((n, 4))
@@ -616,85 +519,64 @@ class HoverBatchEnv(VectorEnv):
         self._failure = np.full(n, "", dtype="<U14")
         self._force, self._torque, self._wind_com = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
         self._autoreset = np.zeros(n, dtype=bool)
+        self._n_autoreset = 0  # rows of _autoreset set
         self._reset_rows(np.arange(n))
         self._update_disturbance(np.ones(n, dtype=bool))
         info = self._info(np.zeros(n, dtype=bool))
         obs, _, info["reward_terms"] = self._observation_and_reward(info["measurement"], self._last_action)
         return obs, info
 
-    def _check_actions(self, actions: ArrayLike, stepping: NDArray[np.bool_]) -> NDArray[np.float64]:
-        n = self.num_envs
-        a = np.asarray(actions, dtype=float)
-        if a.shape != (n, 4):
-            raise ValueError(f"actions must have shape ({n}, 4), got {np.shape(actions)}")
-        bad = ~np.isfinite(a)
-        bad &= stepping[:, None]
-        if bad.any():
-            row, i = (int(x) for x in np.argwhere(bad)[0])
-            raise ValueError(f"actions[{row}, {i}] is {a[row, i]}; every action entry must be finite "
-                             f"(bounds {self._act_low.tolist()} .. {self._act_high.tolist()})")
-        return a
-
     def step(self, actions: ArrayLike) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_],
                                                  NDArray[np.bool_], dict[str, Any]]:
         if self._row_rngs is None:
-            raise RuntimeError("call reset() before step()")
+            raise RuntimeError("HoverBatchEnv.step() called before reset(): call reset() first")
+        a = check_actions(actions, (self.num_envs, 4), self._act_low, self._act_high, "actions", ~self._autoreset)
+        return self._step(a)
+
+    def _step(self, a: NDArray[np.float64]) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_],
+                                                    NDArray[np.bool_], dict[str, Any]]:
+        """One control step of every row with checked actions ``a`` (N, 4) float64 (:func:`check_actions`)."""
+        n = self.num_envs
         resetting = self._autoreset
         stepping = ~resetting
-        a = self._check_actions(actions, stepping)
-        clipped = np.minimum(np.maximum(a, self._act_low), self._act_high)
-        any_reset = bool(resetting.any())
-        if any_reset:
-            clipped[resetting] = self._hover
-        action_clipped = (clipped != a).any(axis=1) & stepping
-
-        state = self._mj_state
+        any_reset = self._n_autoreset > 0
+        clipped, action_clipped = np.empty((n, 4)), np.empty(n, dtype=bool)
+        clip_actions(a, self._act_low, self._act_high, stepping, self._hover, clipped, action_clipped)
         if self._rate_loop is None:
-            final, diverged = self._run_motors(clipped)
+            ref = clipped * self._omega_span + self._omega_min
+            motor_controls(ref, self.rotor_speeds, self._k_thrust, self._decay_up, self._decay_down,
+                           self._force + self.external_force, self._torque + self.external_torque, self._ctrl,
+                           self._applied)
+            final, diverged = self._rollout_rows(self._mj_state, self._ctrl, self._out), self._no_rows
+            t_end = _MJ_T0 + self.n_substeps * self.physics_dt
         else:
             final, diverged = self._run_ctbr(clipped)
-        diverged &= stepping
-        ok = stepping & ~diverged
-        self.time = self.time + np.where(stepping, self.dt, 0.0)
-        self._steps = self._steps + stepping
-
-        v_before = self._vel
-        b, v, r, w = self._readout(final)
-        if ok.all():
-            self._mj_state = final.copy()
-            self._pos, self._vel, self._rot, self._omega = b, v, r, w
-            self._accel = (v - v_before) / self.dt
-        else:
-            self._mj_state = np.where(ok[:, None], final, state)
-            self._pos = np.where(ok[:, None], b, self._pos)
-            self._vel = np.where(ok[:, None], v, self._vel)
-            self._rot = np.where(ok[:, None, None], r, self._rot)
-            self._omega = np.where(ok[:, None], w, self._omega)
-            self._accel = np.where(ok[:, None], (self._vel - v_before) / self.dt, self._accel)
-        self._failure = np.where(diverged, "diverged", "").astype("<U14")
+            t_end = _MJ_T0 + self.physics_dt
+        codes = self._failure_code
+        read_states(final, t_end, self.physics_dt, self.dt, stepping,
+                    diverged, self._mj_state, self._pos, self._vel, self._rot, self._omega, self._accel, self._hull,
+                    self._setpoint, self.max_position_error, codes)
+        terminated, truncated = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+        n_ended = advance_clock(stepping, self.dt, self.max_steps, codes, self.time, self._steps, terminated, truncated)
+        self._failure = FAILURES[codes]
         self._last_action_prev = self._last_action
         if any_reset:
             self._reset_rows(np.flatnonzero(resetting))
-        self._update_disturbance(~diverged)
-        pos, rot = self._pos, self._rot
-        ground = pos[:, 2] + (rot[:, 2, :] @ self._hull_t).max(axis=1) >= 0.0
-        out = np.abs(pos - self.setpoint).max(axis=1) > self.max_position_error
-        self._failure[ok & ground] = "ground_contact"
-        self._failure[ok & ~ground & out] = "out_of_bounds"
+        self._update_disturbance(codes != DIVERGED if n_ended else self._all_rows)
         info = self._info(action_clipped)
         obs, reward, terms = self._observation_and_reward(info["measurement"], clipped, self._last_action_prev)
         self._last_action = clipped
-        terminated = self._failure != ""
-        truncated = ~terminated & (self._steps >= self.max_steps)
         if any_reset:
             reward[resetting] = 0.0
             for v in terms.values():
                 v[resetting] = 0.0
         info["reward_terms"] = terms
         ended = terminated | truncated
-        if not self._same_step:
-            self._autoreset = ended
-        elif ended.any():
+        if not self._autoreset_on:
+            pass
+        elif not self._same_step:
+            self._autoreset, self._n_autoreset = ended, n_ended
+        elif n_ended:
             obs, info = self._restart(ended, obs, info)
         return obs, reward, terminated, truncated, info
 
@@ -750,69 +632,42 @@ class HoverBatchEnv(VectorEnv):
         return out
 
     def _rollout_rows(self, state: NDArray[np.float64], ctrl: NDArray[np.float64], out: NDArray[np.float64]
-                      ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+                      ) -> NDArray[np.float64]:
         """One rollout from ``state`` (N, 14) with controls ``ctrl`` (N, nstep, 10) into ``out`` (N, nstep, 14)
-        (all C-contiguous float64: the checks are skipped); returns (final states, diverged rows)."""
-        nstep = ctrl.shape[1]
+        (all C-contiguous float64: the checks are skipped); returns the final states (N, 14), MuJoCo time
+        ``_MJ_T0 + nstep physics_dt`` unless MuJoCo reset a diverging row."""
         state[:, 0] = _MJ_T0
-        self._rollout.rollout(self._models, [self._data], state, ctrl, control_spec=_CONTROL_SPEC,
-                              skip_checks=True, nstep=nstep, state=out)
-        final = out[:, -1]
-        t_end = _MJ_T0 + nstep * self.physics_dt
-        diverged = (np.abs(final[:, 0] - t_end) > 0.5 * self.physics_dt) | ~np.isfinite(final).all(axis=1)
-        return final, diverged
-
-    def _held_wrench(self, ctrl: NDArray[np.float64]) -> None:
-        """The disturbance force (world) and torque (body), held: the free joint's qfrc_applied (envs/mjcf.py)."""
-        c = self._qfrc_col
-        ctrl[:, :, c:c + 3] = ((self._force + self.external_force) * _SIGN)[:, None, :]
-        ctrl[:, :, c + 3:c + 6] = ((self._torque + self.external_torque) * _SIGN)[:, None, :]
-
-    def _run_motors(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        """HoverEnv._run_motors for every row: exact lag, mid-substep thrusts, one rollout of the control step."""
-        ref = (u * self._omega_span + self._omega_min)[:, None, :]
-        w0 = self.rotor_speeds[:, None, :]
-        speeds = ref + (w0 - ref) * np.where(ref > w0, self._decay_up, self._decay_down)  # (N, K + 1, 4)
-        thrusts = speeds[:, :-1] ** 2 * self.preset.k_thrust
-        self._ctrl[:, :, 0:4] = thrusts
-        self._held_wrench(self._ctrl)
-        final, diverged = self._rollout_rows(self._mj_state, self._ctrl, self._out)
-        self.rotor_speeds = speeds[:, -1].copy()
-        self._applied = thrusts.sum(axis=1) * self._inv_substeps
-        return final, diverged
+        self._rollout.rollout(self._models, self._datas, state, ctrl, control_spec=_CONTROL_SPEC,
+                              skip_checks=True, nstep=ctrl.shape[1], state=out, chunk_size=self._chunk)
+        return out[:, -1]
 
     def _run_ctbr(self, a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        """HoverEnv._run_ctbr for every row: the rate loop on the true rates at each substep, one rollout each."""
-        k_t = self.preset.k_thrust
+        """The rate loop (:mod:`.ctbr`) on the true rates at each physics substep, then the rotor lag and a
+        one-substep rollout; returns the final states and the rows that diverged before the last substep."""
         collective = a[:, 0] * self._max_thrust
         rate_sp = a[:, 1:] * MAX_RATES
-        self._held_wrench(self._ctrl1)
+        force, torque = self._force + self.external_force, self._torque + self.external_torque
         state = self._mj_state.copy()
         total = np.zeros((self.num_envs, 4))
         diverged = np.zeros(self.num_envs, dtype=bool)
-        speeds = self.rotor_speeds
-        for _ in range(self.n_substeps):  # substeps (the rate loop closes the loop at the physics rate)
-            t_cmd = self._rate_loop.rotor_thrusts(collective, rate_sp, state[:, 11:14] * _SIGN)
-            ref = np.sqrt(t_cmd / k_t)[:, None, :]
-            w0 = speeds[:, None, :]
-            mid_end = ref + (w0 - ref) * np.where(ref > w0, self._sub_decay_up, self._sub_decay_down)  # (N, 2, 4)
-            thrust = k_t * mid_end[:, 0] ** 2
-            self._ctrl1[:, 0, 0:4] = thrust
-            final, bad = self._rollout_rows(state, self._ctrl1, self._out1)
-            diverged |= bad
-            state = final.copy()
-            speeds = mid_end[:, 1]
-            total += thrust
-        self.rotor_speeds = speeds.copy()
+        t_end = _MJ_T0 + self.physics_dt
+        final = state
+        loop = self._rate_loop
+        assert loop is not None  # action_type "ctbr"
+        gains = (loop.kp, loop.ki, loop.kd, loop.j, loop.b_inv, loop.t_min, loop.t_max, loop.i_lim, loop.dt)
+        for k in range(self.n_substeps):  # substeps (the rate loop closes the loop at the physics rate)
+            ctbr_substep(collective, rate_sp, state, final, k == 0, t_end, self.physics_dt, gains,
+                         (loop.integral, loop.prev_rate, loop.has_prev), self.rotor_speeds, self._k_thrust,
+                         self._sub_decay_up, self._sub_decay_down, force, torque, self._ctrl1, self._applied, total,
+                         diverged)
+            final = self._rollout_rows(state, self._ctrl1, self._out1)
         self._applied = total / self.n_substeps
-        return state, diverged
+        return final, diverged
 
     def _wind_points(self) -> NDArray[np.float64]:
         """The wind sample points (N, 5, 3) NED: CoM and rotor hubs."""
-        b, r = self._pos, self._rot
         points = np.empty((self.num_envs, 5, 3))
-        points[:, 0] = b
-        points[:, 1:] = b[:, None, :] + np.matmul(self._rotor_pos_t.T, r.transpose(0, 2, 1))
+        wind_points(self._pos, self._rot, self._rotor_pos, points)
         return points
 
     def _aero_wrench(self, wind: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -828,7 +683,7 @@ class HoverBatchEnv(VectorEnv):
         points = self._wind_points()
         wind = self.wind.step(self.time, self.dt, points, self._vel)
         force, torque = self._aero_wrench(wind)
-        if rows.all():
+        if rows is self._all_rows or rows.all():
             self._force, self._torque, self._wind_com = force, torque, wind[:, 0].copy()
         else:
             self._force = np.where(rows[:, None], force, self._force)
@@ -855,26 +710,20 @@ class HoverBatchEnv(VectorEnv):
 
     def _observation_and_reward(self, meas: Mapping[str, NDArray[np.float64]], action: NDArray[np.float64],
                                 prev_action: NDArray[np.float64] | None = None
-                                ) -> tuple[NDArray[np.float32], NDArray[np.float64]]:
-        """Observations (N, 19), rewards (N,) and the reward's terms (dict of (N,)) (HoverEnv's layout and formula,
-        row by row; the terms are its module docstring's table)."""
-        r = meas[M.ATTITUDE]
-        obs = hover_observation(meas, self.setpoint, action, self._obs_low, self._obs_high)
-        x = np.concatenate([meas[M.POSITION] - self.setpoint, meas[M.VELOCITY], r[:, :, 0], r[:, :, 1],
-                            meas[M.ANGULAR_VELOCITY], action], axis=1)
-        cos = np.clip(0.5 * (r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2] - 1.0), -1.0, 1.0)
-        phi = np.arccos(cos)
-        x[:, 15:] -= self._last_action if prev_action is None else prev_action
-        sq = x * x * self._reward_w
-        w = self.reward_weights
-        failed = self._failure != ""
-        terms = {"pos": sq[:, 0:3].sum(axis=1), "vel": sq[:, 3:6].sum(axis=1), "att": w["att"] * phi * phi,
-                 "rate": sq[:, 12:15].sum(axis=1), "action": sq[:, 15:19].sum(axis=1),
-                 "failure": np.where(failed, w["failure"], 0.0)}
-        reward = np.exp(-(terms["pos"] + terms["vel"] + terms["rate"] + terms["action"] + terms["att"]))
-        if failed.any():
-            reward[failed] = -w["failure"]
-        return obs, reward, terms
+                                ) -> tuple[NDArray[np.float32], NDArray[np.float64], dict[str, NDArray[np.float64]]]:
+        """Observations (N, 19) (:func:`hover_observation`), rewards (N,) and the reward's terms (dict of (N,)) (the
+        law :func:`fawtgym.envs.step_kernels.hover_reward`; the terms are HoverEnv's module docstring's table)."""
+        n = self.num_envs
+        pos, vel, att, rate = meas[M.POSITION], meas[M.VELOCITY], meas[M.ATTITUDE], meas[M.ANGULAR_VELOCITY]
+        obs = np.empty((n, OBS_SIZE), dtype=np.float32)
+        if observation_rows(pos, vel, att, rate, self._setpoint, action, self._obs_low, self._obs_high, obs) >= 0:
+            hover_observation(meas, self._setpoint, action, self._obs_low, self._obs_high)  # raises, naming the entry
+        reward, terms = np.empty(n), np.empty((6, n))
+        prev = self._last_action if prev_action is None else prev_action
+        hover_reward(pos, vel, att, rate, self._setpoint, action, prev, self._reward_w,
+                     self._failure_code != 0, reward, terms)
+        return obs, reward, {"pos": terms[0], "vel": terms[1], "att": terms[2], "rate": terms[3], "action": terms[4],
+                             "failure": terms[5]}  # REWARD_TERMS
 
     def close_extras(self, **kwargs: Any) -> None:
         if getattr(self, "_rollout", None) is not None:

@@ -17,6 +17,8 @@ the row's generator as the noise generator too; the draws then equal the single 
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -49,6 +51,30 @@ class BatchSensorModel:
         self._pose = {M.POSITION: np.zeros((self.n, 3)), M.VELOCITY: np.zeros((self.n, 3)),
                       M.ATTITUDE: np.broadcast_to(np.eye(3), (self.n, 3, 3)).copy()}
         self.rng = np.random.default_rng(0)
+
+    @property
+    def gyro_bias(self) -> NDArray[np.float64]:
+        """Turn-on gyro biases (N, 3) [rad/s]; assign (3,) or (N, 3) finite values (checked)."""
+        return self._gyro_bias
+
+    @gyro_bias.setter
+    def gyro_bias(self, value: Any) -> None:
+        self._gyro_bias = self._bias("gyro_bias", value)
+
+    @property
+    def accel_bias(self) -> NDArray[np.float64]:
+        """Turn-on accelerometer biases (N, 3) [m/s^2]; assign (3,) or (N, 3) finite values (checked)."""
+        return self._accel_bias
+
+    @accel_bias.setter
+    def accel_bias(self, value: Any) -> None:
+        self._accel_bias = self._bias("accel_bias", value)
+
+    def _bias(self, name: str, value: Any) -> NDArray[np.float64]:
+        b = np.asarray(value, dtype=float)
+        if b.shape not in ((3,), (self.n, 3)) or not np.all(np.isfinite(b)):
+            raise ValueError(f"{name} must be 3 finite numbers or ({self.n}, 3), got {value!r}")
+        return np.broadcast_to(b, (self.n, 3)).copy()
 
     def set_noise_rng(self, rng: np.random.Generator) -> None:
         """The generator of the per-step noise of every row."""

@@ -32,6 +32,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import numbers
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -73,14 +74,15 @@ class VehiclePreset:
 
     def __post_init__(self) -> None:
         for field in ("mass", "arm_length", "k_thrust", "k_moment", "omega_max", "tau_up", "tau_down",
-                      "rotor_radius"):
+                      "rotor_radius", "omega_min", "rotor_drag", "rolling_moment"):
             value = getattr(self, field)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"vehicle field {field!r} must be a finite positive number, got {value!r}")
-        for field in ("omega_min", "rotor_drag", "rolling_moment"):
-            value = getattr(self, field)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"vehicle field {field!r} must be a finite number >= 0, got {value!r}")
+            positive = field not in ("omega_min", "rotor_drag", "rolling_moment")
+            # any real number (numpy scalars too, stored as float); bool, str, None and complex are refused
+            real = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+            if not (real and math.isfinite(value) and (value > 0 if positive else value >= 0)):
+                need = "a finite positive number" if positive else "a finite number >= 0"
+                raise ValueError(f"vehicle field {field!r} must be {need}, got {value!r}")
+            object.__setattr__(self, field, float(value))
         if self.omega_min >= self.omega_max:
             raise ValueError(f"vehicle field 'omega_min' ({self.omega_min}) must be below "
                              f"'omega_max' ({self.omega_max})")

@@ -196,3 +196,25 @@ def test_gymnasium_vector_wrappers_work():
             episodes += int(info["_episode"].sum())
             assert np.all(info["episode"]["l"][info["_episode"]] == 20)
     assert episodes == N
+
+
+def test_threaded_physics_gives_the_rows_of_the_calling_thread(monkeypatch):
+    """Physics on one thread per core (one MjData each) from THREADED_ROWS rows on: the rows are independent, so
+    the threaded rollout reproduces the single-thread one bitwise."""
+    from fawtgym.envs import hover_batch_env
+
+    n = 2 * hover_batch_env.THREADED_ROWS
+    assert hover_batch_env.physics_threads(1) == 0
+    assert hover_batch_env.physics_threads(n) in (0, 2)  # 0 on a one-core machine
+    monkeypatch.setattr(hover_batch_env, "physics_threads", lambda n: 2)
+    threaded = HoverBatchEnv(n, wind="fawt-50", sensors="mocap_imu")
+    monkeypatch.setattr(hover_batch_env, "physics_threads", lambda n: 0)
+    single = HoverBatchEnv(n, wind="fawt-50", sensors="mocap_imu")
+    rng = np.random.default_rng(0)
+    for env in (threaded, single):
+        env.reset(seed=5)
+    for _ in range(5):
+        a = (threaded.hover_action() + rng.uniform(-0.1, 0.1, (n, 4))).astype(np.float32)
+        out_t, out_s = threaded.step(a), single.step(a)
+        np.testing.assert_array_equal(out_t[0], out_s[0])
+        np.testing.assert_array_equal(out_t[4]["truth"]["position"], out_s[4]["truth"]["position"])

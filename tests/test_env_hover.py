@@ -153,7 +153,7 @@ def test_bad_actions_and_clipping():
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"action\[2\]"):
         env.step(np.array([0.5, 0.5, np.nan, 0.5]))
-    with pytest.raises(ValueError, match="4 entries"):
+    with pytest.raises(ValueError, match=r"shape \(4,\)"):
         env.step(np.zeros(3))
     *_, info = env.step(np.array([0.5, 1.7, 0.5, -0.2]))
     assert info["action_clipped"]

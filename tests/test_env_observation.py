@@ -51,6 +51,6 @@ def test_bad_input_is_one_clear_error():
                                              "action must be finite"):
             hover_observation(meas, sp, act, low, high)
     meas, sp, act = batch(1)
-    with pytest.raises(ValueError, match=r"takes a batch of N rows: position \(N, 3\) and attitude \(N, 3, 3\), got "
-                                         r"\(3,\) and \(3, 3\)"):
+    with pytest.raises(ValueError, match=r"takes a batch of N rows: position, velocity, angular_velocity \(N, 3\) and "
+                                         r"attitude \(N, 3, 3\), got \(3,\), \(3,\), \(3,\) and \(3, 3\)"):
         hover_observation({k: v[0] for k, v in meas.items()}, sp[0], act[0], low, high)

@@ -9,6 +9,12 @@ The absolute target (>= 10,000 env steps/s) was set on a machine where a bare 4-
 about 350k ``mj_step``/s; this machine's speed varies with its load, so the same rounds also time that
 bare body (the observer benchmark's inline model, contacts disabled, Euler) and the env step is expressed in
 its units: the target holds on the reference machine iff one env step costs <= 35 bare ``mj_step``.
+
+``--batch N`` (default 1024; 0 skips) also times the batched env's physics, the ``mujoco.rollout`` call of
+:class:`~fawtgym.envs.hover_batch_env.HoverBatchEnv` for N vehicles, on the calling thread and on the env's
+threads (one per core, one ``MjData`` each), interleaved in the same rounds: their ratio is what the
+threads buy (about the number of free cores), and the batched env alone (calm, hover action) in
+vehicle-steps per second.
 """
 
 from __future__ import annotations
@@ -20,7 +26,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from fawtgym.cli_parser import ArgumentParser, positive_float, positive_int
+from fawtgym.cli_parser import ArgumentParser, bounded_int, positive_float, positive_int
 from fawtgym.envs.hover_env import HoverEnv
 
 
@@ -91,6 +97,42 @@ def measure(control_rate: float = 100.0, physics_rate: float = 1000.0, steps: in
             "n_substeps": env.n_substeps, "integrator": int(env.model.opt.integrator)}
 
 
+def measure_batch(n: int = 1024, steps: int = 20, rounds: int = 5) -> dict[str, float]:
+    """Best-of-``rounds`` physics of ``n`` vehicles (rollout of one control step) on 0 and on the env's threads,
+    and the batched env alone; vehicle-steps per second."""
+    from mujoco import rollout
+
+    from fawtgym.envs.hover_batch_env import _CONTROL_SPEC, HoverBatchEnv, physics_threads
+
+    env = HoverBatchEnv(n, episode_seconds=1e6, init_noise=0.0)
+    env.reset(seed=0)
+    hover = env.hover_action()
+    env.step(hover)
+    state, ctrl, out = env._mj_state.copy(), env._ctrl.copy(), env._out.copy()
+    threads = physics_threads(n)
+    pools = {}
+    for k in sorted({0, threads}):
+        pools[k] = (rollout.Rollout(nthread=k), [mujoco.MjData(env.model) for _ in range(max(k, 1))],
+                    -(-n // k) if k else None)
+    best = {k: np.inf for k in [*pools, "env"]}
+    for _ in range(rounds):
+        for k, (pool, datas, chunk) in pools.items():
+            t0 = time.perf_counter()
+            for _ in range(steps):
+                pool.rollout([env.model] * n, datas, state, ctrl, control_spec=_CONTROL_SPEC, skip_checks=True,
+                             nstep=env.n_substeps, state=out, chunk_size=chunk)
+            best[k] = min(best[k], time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            env.step(hover)
+        best["env"] = min(best["env"], time.perf_counter() - t0)
+    for pool, _, _ in pools.values():
+        pool.close()
+    env.close()
+    return {"threads": float(threads), "physics_1": n * steps / best[0],
+            "physics_threads": n * steps / best[threads], "env": n * steps / best["env"]}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = ArgumentParser(prog="fawtgym bench env", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -102,6 +144,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="MuJoCo integrator (default Euler)")
     parser.add_argument("--action-type", default="motors", choices=["motors", "ctbr"],
                         help="ctbr: the inner rate loop runs at the physics rate (the targets are for motors)")
+    parser.add_argument("--batch", type=bounded_int(0, 1_000_000), default=1024,
+                        help="N of the batched physics / env timing (default 1024; 0 skips)")
     args = parser.parse_args(argv)
     r = measure(args.control_rate, args.physics_rate, args.steps, args.rounds, integrator=args.integrator,
                 action_type=args.action_type)
@@ -119,6 +163,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"  targets: overhead <= 2x raw physics ({'met' if over <= 2.0 else 'NOT met'}); >= 10,000 env steps/s: "
           f"{'met' if r['env_steps_per_s'] >= 1e4 else 'not met'} on this machine now, "
           f"{'met' if ref >= 1e4 else 'NOT met'} at the reference speed")
+    if args.batch:
+        b = measure_batch(args.batch, rounds=args.rounds)
+        print(f"batched, N = {args.batch} (calm, {r['n_substeps']} substeps per control step), vehicle-steps/s:")
+        print(f"  physics only, calling thread           {b['physics_1']:12,.0f}")
+        print(f"  physics only, {int(b['threads']) or 1} thread(s) (the env's)     {b['physics_threads']:12,.0f}"
+              f"   ({b['physics_threads'] / b['physics_1']:.2f}x)")
+        print(f"  env alone (hover action)               {b['env']:12,.0f}"
+              f"   ({b['env'] / b['physics_threads']:.2f} of its physics)")
     return 0 if np.isfinite(r["ratio"]) else 1
 
 

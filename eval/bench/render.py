@@ -45,7 +45,6 @@ def _make(width: int, height: int, default_quality: bool) -> object:
                       vehicle_mjcf(env.preset, env.physics_dt, "Euler", width, height))
         env.model = mujoco.MjModel.from_xml_string(text)
         env.data = mujoco.MjData(env.model)
-        env._bind_views()
     env.reset(seed=0)
     env.step(env.hover_action())
     env.render()

@@ -1,0 +1,139 @@
+"""Wind for N rows whose episodes start at different times: one model for all rows, or cohorts of rows.
+
+:class:`BatchWind` runs one :class:`~fawtgym.envs.wind.WindModel` for the rows of
+:class:`~fawtgym.envs.hover_batch_env.HoverBatchEnv`.  A model whose output does not depend on time (``calm``,
+steady ``fawt-*``, ``dryden-*``) is stepped once for all N rows; a row that resets gets a fresh draw of its
+gust-filter state from the stationary distribution.  Any other model (a fan schedule, ``gust-1cos``, a user
+class) is run in cohorts: rows that reset at the same step share one copy of the model, stepped with their
+episode time as each single env would; cost grows with the number of distinct reset times alive.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .wind import WindModel
+from .wind.base import CalmWind
+from .wind.fawt import FawtWind
+from .wind.outdoor import DrydenWind
+
+
+def _time_invariant(wind: WindModel) -> bool:
+    """Whether ``wind``'s output depends on the time argument (models known to ignore it)."""
+    if type(wind) is CalmWind or type(wind) is DrydenWind:
+        return True
+    return type(wind) is FawtWind and wind.schedule.steady
+
+
+class BatchWind:
+    """Runs one :class:`WindModel` for N rows whose episodes start at different times (module docstring).
+
+    ``shared``: one model steps every row (time-invariant models); else cohorts: one model copy per set of
+    rows that started together (or per row, for rows given their own model by a randomizer).
+    """
+
+    def __init__(self, template: WindModel, n: int) -> None:
+        self.template = copy.deepcopy(template)  # pristine copy: cohorts are copied from it
+        self.n = n
+        self.shared = _time_invariant(template)
+        self.model: WindModel | None = None
+        self.cohorts: list[list[Any]] = []  # [model, rows (k,), alive (k,) bool]
+        self._started: list[list[Any]] = []  # the cohorts of the last reset_rows (cohort mode)
+        self._scratch: WindModel | None = None  # shared mode: restarts rows while the others go on
+        self._last: tuple[NDArray[np.intp], Sequence[int], Sequence[np.random.SeedSequence]] = (
+            np.zeros(0, dtype=np.intp), [], [])  # (rows, seed ints, seeds) of the last reset_rows
+
+    @staticmethod
+    def _seed(ints: Sequence[int], seeds: Sequence[np.random.SeedSequence]) -> np.random.SeedSequence:
+        # one row: exactly the single env's wind seed; several: all rows' seed integers pooled
+        return seeds[0] if len(seeds) == 1 else np.random.SeedSequence([int(i) for i in ints])
+
+    def reset_rows(self, rows: NDArray[np.intp], ints: Sequence[int], seeds: Sequence[np.random.SeedSequence],
+                   models: Sequence[WindModel] | None = None) -> None:
+        """New episodes (time 0) for ``rows``; ``ints``/``seeds`` are the rows' wind seeds; ``models``: one own
+        model per row (each then runs as a cohort of one row; a shared model becomes a cohort of its rows)."""
+        self._last = (rows, ints, seeds)
+        if models is not None:
+            if self.shared:
+                if self.model is not None:  # the rows still flying keep the shared model, as a cohort
+                    self.cohorts = [[self.model, np.arange(self.n), np.ones(self.n, dtype=bool)]]
+                self.shared, self.model = False, None
+            for c in self.cohorts:
+                c[2] &= ~np.isin(c[1], rows)
+            self.cohorts = [c for c in self.cohorts if c[2].any()]
+            self._started = []
+            for row, model, seed in zip(rows.tolist(), models, seeds, strict=True):
+                model.reset(1, seed=seed)
+                self._started.append([model, np.array([row]), np.ones(1, dtype=bool)])
+            self.cohorts.extend(self._started)
+            return
+        if self.shared:
+            if self.model is None or rows.size == self.n:
+                self.model = copy.deepcopy(self.template)
+                self.model.reset(self.n, seed=self._seed(ints, seeds))
+                return
+            process = getattr(self.model, "process", None)
+            if process is not None:  # fresh stationary gust-filter state for the reset rows
+                p = process.p_stat
+                w, v = np.linalg.eigh(p)
+                root = v * np.sqrt(np.clip(w, 0.0, None))
+                x = process.x.copy()
+                for k, row in enumerate(rows.tolist()):  # reset path only
+                    x[row] = root @ np.random.default_rng(seeds[k]).standard_normal(process.n_states)
+                process.x = x
+            return
+        for c in self.cohorts:
+            c[2] &= ~np.isin(c[1], rows)
+        self.cohorts = [c for c in self.cohorts if c[2].any()]
+        model = copy.deepcopy(self.template)
+        model.reset(rows.size, seed=self._seed(ints, seeds))
+        self._started = [[model, rows.copy(), np.ones(rows.size, dtype=bool)]]
+        self.cohorts.append(self._started[0])
+
+    def first_step(self, dt: float, points: NDArray[np.float64], velocity: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The first wind sample (k, K, 3) of the rows of the last :meth:`reset_rows` (at their ``points``
+        (k, K, 3)), without stepping the other rows (same-step autoreset, module docstring)."""
+        rows, ints, seeds = self._last
+        if not self.shared:  # the cohorts just started step alone, at episode time 0, as in step()
+            out = np.empty(points.shape)
+            pos = {row: j for j, row in enumerate(rows.tolist())}
+            for model, crows, _ in self._started:
+                idx = np.array([pos[r] for r in crows.tolist()])
+                out[idx] = model.step(0.0, dt, points[idx], velocity[idx])
+            return out
+        assert self.model is not None  # shared mode: reset_rows made it
+        if rows.size == self.n:  # a full restart: the fresh shared model steps every row
+            return self.model.step(0.0, dt, points, velocity)
+        # the shared model goes on for the other rows: a k-row copy takes the restarted rows' fresh filter state
+        # (reset_rows drew it) one step forward, with noise from the rows' pooled wind seed, and hands it back
+        if self._scratch is None:
+            self._scratch = copy.deepcopy(self.template)
+        scratch = self._scratch
+        scratch.reset(rows.size, seed=self._seed(ints, seeds))
+        process = getattr(self.model, "process", None)  # a gust filter's state (Dryden, FAWT turbulence)
+        if process is not None:
+            getattr(scratch, "process").x = process.x[rows].copy()  # noqa: B009 (not every WindModel has one)
+        out = scratch.step(0.0, dt, points, velocity)
+        if process is not None:
+            x = process.x.copy()
+            x[rows] = getattr(scratch, "process").x  # noqa: B009
+            process.x = x
+        return out
+
+    def step(self, times: NDArray[np.float64], dt: float, points: NDArray[np.float64],
+             velocity: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Wind (N, K, 3) at ``points`` (N, K, 3); ``times`` (N,) are the rows' episode times."""
+        if self.shared:
+            assert self.model is not None  # reset_rows made it
+            return self.model.step(float(times[0]), dt, points, velocity)
+        out = np.empty(points.shape)
+        for model, rows, alive in self.cohorts:  # one call per cohort (rows that reset together)
+            live = rows[alive]
+            got = model.step(float(times[live[0]]), dt, points[rows], velocity[rows])
+            out[live] = got[alive]
+        return out
