@@ -10,8 +10,7 @@ from scipy.integrate import solve_ivp
 from fawtgym.core.measurement import EARTH_FIELD_NED
 from fawtgym.core.so3 import exp_so3, hat, log_so3
 from fawtgym.observers import make_observer
-from fawtgym.observers.gyroless_attitude import (
-    GibbsSTSMO,
+from fawtgym.observers.gibbs import (
     gamma,
     gamma_inv,
     gibbs_accel,
@@ -22,6 +21,7 @@ from fawtgym.observers.gyroless_attitude import (
     rigid_body_rhs,
     rot_to_gibbs,
 )
+from fawtgym.observers.stsmo import GibbsSTSMO
 
 J = np.diag([0.05, 0.05, 0.02])
 
