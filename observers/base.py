@@ -20,7 +20,6 @@ subclass implements :meth:`Observer._reset`, which builds the fresh state of the
 
 from __future__ import annotations
 
-import abc
 import dataclasses
 from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
@@ -28,8 +27,9 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.measurement import TRAILING_SHAPES, batch_measurement
+from fawtgym.core.measurement import ATTITUDE, TRAILING_SHAPES, batch_measurement
 from fawtgym.core.rows import check_row_mask
+from fawtgym.observers._checks import ROTATION_TOL, first_large_row, first_non_rotation, first_nonfinite_row
 
 
 @dataclasses.dataclass(frozen=True)
@@ -48,18 +48,33 @@ class ObserverEstimate:
     states: Mapping[str, NDArray[np.float64]] = dataclasses.field(default_factory=dict)
 
 
-class Observer(abc.ABC):
+class Observer:
     """Base class: holds (m, J, g), validates inputs, defines reset/update.
 
     A subclass implements :meth:`_reset` (the fresh state of the rows of a measurement, written with
-    :func:`write_rows`) and :meth:`update`; :meth:`reset` is the public entry point for both a full and a
-    per-row reset and does the checks they share.
+    :func:`write_rows`) and :meth:`_update` (the law: the estimate and the new state, from checked inputs);
+    :meth:`reset` and :meth:`update` are the public entry points and do every check, once, for every observer
+    (the same message and exception type at every N).  A subclass states :attr:`required_keys` and
+    :attr:`max_dt`.
     """
 
     #: registry name, set by :func:`register_observer`
     name: ClassVar[str] = ""
     #: which disturbance channels it estimates: subset of {"force", "torque"}
     channels: ClassVar[frozenset[str]] = frozenset({"force", "torque"})
+    #: measurement keys the law reads: :meth:`update` (and :meth:`reset`) check them (present, N rows of the
+    #: shape of :mod:`fawtgym.core.measurement`, real, finite; ``"attitude"`` a rotation).  A subclass states
+    #: them (an instance whose keys depend on its options sets ``self.required_keys`` in ``__init__``).
+    required_keys: tuple[str, ...] = ()
+    #: the largest update step dt [s] the observer's discretisation is documented for; each observer states its
+    #: own, derived from its design rate / the stability of its discretisation (an instance may set a bound
+    #: that depends on its gains).  The base value, 0.1 s, is a fallback for an observer that states none.
+    max_dt: float = 0.1
+    #: an estimated force component above this many vehicle weights (m g) counts as divergence
+    MAX_FORCE_WEIGHTS: ClassVar[float] = 1e3
+    #: an estimated torque component above this angular acceleration [rad/s^2] times the largest principal
+    #: inertia counts as divergence
+    MAX_ANGULAR_ACCELERATION: ClassVar[float] = 1e5
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665) -> None:
         if not (np.isfinite(mass) and mass > 0):
@@ -72,6 +87,7 @@ class Observer(abc.ABC):
         self.inertia = j
         self.inertia_inv = np.linalg.inv(j)
         self.gravity = float(gravity)
+        self._j_max = float(np.linalg.eigvalsh((j + j.T) / 2).max())
         #: rows N of the state, set by the last full reset (None before it)
         self._n_rows: int | None = None
 
@@ -97,10 +113,13 @@ class Observer(abc.ABC):
         (or a guess) does not hold N rows; the state is then unchanged.  ``options`` are observer-specific
         reset options (e.g. ``thrust`` of the QB observer).
         """
-        if rows is None:
-            self._n_rows = self._reset(measurement, force, torque, None, **options)
-            return
         who = self.name or type(self).__name__
+        if rows is None:
+            meas = measurement
+            if self.required_keys:
+                meas = check_measurement(measurement, self.required_keys, self._rows_of(measurement), who)
+            self._n_rows = self._reset(meas, force, torque, None, **options)
+            return
         if self._n_rows is None:
             raise ValueError(f"{who}: reset(measurement, rows=mask) selects rows of the batch set by a full "
                              "reset; call reset(measurement) once first")
@@ -119,7 +138,18 @@ class Observer(abc.ABC):
             self.reset(measurement, force, torque, **options)
             return
         sub = {k: (v[mask] if k in TRAILING_SHAPES else v) for k, v in meas.items()}
+        if self.required_keys:
+            sub = check_measurement(sub, self.required_keys, int(mask.sum()), who)
         self._reset(sub, force_rows, torque_rows, mask, **options)
+
+    def _rows_of(self, measurement: Mapping[str, ArrayLike]) -> int:
+        """The batch size of a full reset's measurement: the rows of its first required key (1 if unbatched or
+        absent: :func:`check_measurement` then names the problem)."""
+        key = self.required_keys[0]
+        if not isinstance(measurement, Mapping) or key not in measurement:
+            return 1
+        shape = np.shape(measurement[key])
+        return int(shape[0]) if len(shape) > len(TRAILING_SHAPES[key]) else 1
 
     def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
                rows: NDArray[np.bool_] | None, **options: Any) -> int:
@@ -134,15 +164,78 @@ class Observer(abc.ABC):
         """
         raise NotImplementedError(f"{type(self).__name__} must implement _reset (or override reset)")
 
-    @abc.abstractmethod
+    # ---- update: one validation layer in front of every law ----------------------------------
     def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
                dt: float) -> ObserverEstimate:
-        """Advance the observer by ``dt`` seconds and return the estimate."""
+        """Advance the observer by ``dt`` seconds with the measurement and the known thrust/torque; the estimate.
+
+        ``measurement``: mapping with the keys :attr:`required_keys` (shapes of :mod:`fawtgym.core.measurement`,
+        N rows, N the batch of the last full reset; unbatched at N = 1); ``thrust``: a number or (N,) [N];
+        ``torque``: (3,) or (N, 3) [N m]; ``dt``: a real number of seconds in (0, :attr:`max_dt`].
+
+        The checks, in this order, each a one-line error naming the value, the same type and text at every N
+        (sizes are named as ``N = <n>``): update before reset -> RuntimeError; ``dt`` not a real number (bool,
+        str, None, complex) -> TypeError, not finite, <= 0 or > ``max_dt`` -> ValueError; measurement not a
+        mapping or a value not real -> TypeError; a key missing, a wrong shape or row count, a non-finite
+        entry, an attitude that is not a rotation (orthonormal within :data:`ROTATION_TOL`, det +1) ->
+        ValueError; thrust/torque the same.  Then the law (:meth:`_update`); an estimate that is not finite
+        or absurdly large (a force component above :attr:`MAX_FORCE_WEIGHTS` vehicle weights, a torque
+        component above :attr:`MAX_ANGULAR_ACCELERATION` times the largest principal inertia) ->
+        FloatingPointError naming the observer and the channel, and the state is left as it was before the
+        update (the law's new state is stored, by :meth:`_commit`, only after the estimate passed).
+        """
+        who = self.name or type(self).__name__
+        n = self._n_rows
+        if n is None:
+            raise RuntimeError(f"{who}: update() before reset(); call reset(measurement) first")
+        step = check_dt(dt, self.max_dt, who)
+        meas = check_measurement(measurement, self.required_keys, n, who)
+        f = check_thrust(thrust, n, who)
+        tau = check_torque(torque, n, who)
+        est, state = self._update(meas, f, tau, step)
+        self._check_estimate(est, who)
+        self._commit(state)
+        return est
+
+    def _update(self, meas: dict[str, NDArray[np.float64]], thrust: NDArray[np.float64],
+                torque: NDArray[np.float64], dt: float) -> tuple[ObserverEstimate, Any]:
+        """The law: the estimate after one step and the new state, which it must not store (nor write into
+        the current state's arrays): :meth:`update` stores it with :meth:`_commit` once the estimate passed.
+
+        ``meas``: the measurement with every key of :attr:`required_keys` checked, as float64 arrays with
+        N rows (other keys as given); ``thrust`` (N,), ``torque`` (N, 3) float64, finite; ``dt`` a float
+        in (0, :attr:`max_dt`].  The estimate's arrays must not be views of state the next update writes into.
+        """
+        raise NotImplementedError(f"{type(self).__name__} must implement _update (or override update)")
+
+    def _commit(self, state: Any) -> None:
+        """Store the new state :meth:`_update` returned (default: as ``self._state``)."""
+        self._state = state
+
+    def _check_estimate(self, est: ObserverEstimate, who: str) -> None:
+        """FloatingPointError naming the observer and the channel if an estimate is not finite or absurdly large."""
+        weight = self.mass * self.gravity
+        bounds = (("force", est.force, self.MAX_FORCE_WEIGHTS * weight),
+                  ("torque", est.torque, self.MAX_ANGULAR_ACCELERATION * self._j_max))
+        for channel, value, bound in bounds:
+            row = first_large_row(value, bound)
+            if row >= 0:
+                raise FloatingPointError(
+                    f"{who}: the {channel} estimate diverged (row {row}: {np.asarray(value[row]).tolist()}; "
+                    f"allowed: finite, |component| <= {bound:.4g}); the state is left as before this update "
+                    "(check dt, the gains and the measurement)")
+        for channel, value in est.states.items():
+            row = first_nonfinite_row(value if value.ndim == 2 else value.reshape(value.shape[0], -1))
+            if row >= 0:
+                raise FloatingPointError(
+                    f"{who}: the {channel} estimate diverged (row {row} has a non-finite entry); the state is left as "
+                    "before this update (check dt, the gains and the measurement)")
 
     # ---- shared input checks ----------------------------------------------------------
     @staticmethod
     def _inputs(measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
                 dt: float) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.float64], NDArray[np.float64]]:
+        """Legacy input checks of observers that still override :meth:`update` (no batch size, no dt bound)."""
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
         meas = batch_measurement(measurement)
@@ -155,6 +248,124 @@ class Observer(abc.ABC):
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"{label} contains non-finite values: {arr}")
         return meas, f, tau
+
+
+_REAL_KINDS = "iuf"    # numpy dtype kinds accepted as real numbers (bool "b" and complex "c" are refused)
+
+
+def check_dt(dt: object, max_dt: float, who: str) -> float:
+    """``dt`` as a float in (0, ``max_dt``]: TypeError unless a real number (bool, str, None, complex refused),
+    ValueError naming it if not finite, <= 0 or above ``max_dt``."""
+    if type(dt) is not float:
+        real = isinstance(dt, (int, float, np.integer, np.floating)) and not isinstance(dt, (bool, np.bool_))
+        if not real and isinstance(dt, np.ndarray) and dt.ndim == 0 and dt.dtype.kind in _REAL_KINDS:
+            real = True
+        if not real:
+            raise TypeError(f"{who}: dt must be a real number of seconds, got {dt!r} ({type(dt).__name__})")
+        dt = float(dt)  # type: ignore[arg-type]
+    if not (0.0 < dt <= max_dt):         # NaN fails too
+        raise ValueError(f"{who}: dt must be a finite number of seconds in (0, {max_dt:g}] (max_dt, the bound of "
+                         f"its discretisation), got {dt!r}")
+    return dt
+
+
+def _real_array(value: object, label: str, who: str) -> NDArray[np.float64]:
+    """``value`` as a float64 array; TypeError naming ``label`` unless it holds real numbers (not bool, complex)."""
+    try:
+        a = value if type(value) is np.ndarray else np.asarray(value)
+    except (ValueError, TypeError):          # ragged nested sequences
+        a = np.asarray(value, dtype=object)
+    if a.dtype.kind not in _REAL_KINDS:
+        raise TypeError(f"{who}: {label} must hold real numbers, got {type(value).__name__} of dtype {a.dtype}")
+    return a if a.dtype == np.float64 else a.astype(np.float64)
+
+
+def check_measurement(measurement: Mapping[str, ArrayLike], keys: tuple[str, ...], n: int,
+                      who: str) -> dict[str, NDArray[np.float64]]:
+    """A copy of ``measurement`` whose ``keys`` are checked float64 arrays with ``n`` rows (:meth:`Observer.update`).
+
+    Fast path (a few hundred ns per key at N = 1): a float64 ndarray of the expected shape goes straight to the
+    compiled finiteness / rotation pass; anything else is converted (or refused) by :func:`_measured_array`.
+    """
+    if type(measurement) is not dict and not isinstance(measurement, Mapping):
+        raise TypeError(f"{who}: measurement must be a mapping of arrays (info['measurement']), "
+                        f"got {type(measurement).__name__}")
+    out = dict(measurement)
+    for key in keys:
+        try:
+            a = measurement[key]
+        except KeyError:
+            missing = [k for k in keys if k not in measurement]
+            raise ValueError(f"{who}: measurement needs the keys {list(keys)}; missing {missing}") from None
+        trailing = TRAILING_SHAPES[key]
+        if type(a) is not np.ndarray or a.dtype is not _F64 or a.shape != (n, *trailing):
+            a = _measured_array(a, key, trailing, n, who)
+        if key == ATTITUDE:
+            info = np.empty(2)
+            row = first_non_rotation(a, ROTATION_TOL, info)
+            if row >= 0:
+                if not np.isfinite(a[row]).all():
+                    raise ValueError(f"{who}: measurement['attitude'] has a non-finite entry in row {row}: "
+                                     f"{a[row].tolist()}")
+                raise ValueError(f"{who}: measurement['attitude'] row {row} is not a rotation matrix (allowed: "
+                                 f"max |R^T R - I| <= {ROTATION_TOL:g} and det R = +1; got max |R^T R - I| = "
+                                 f"{info[0]:.3g}, det R = {info[1]:.6g})")
+        else:
+            row = first_nonfinite_row(a if a.ndim == 2 else a.reshape(n, -1))
+            if row >= 0:
+                raise ValueError(f"{who}: measurement[{key!r}] has a non-finite entry in row {row}: "
+                                 f"{a[row].tolist()}")
+        out[key] = a
+    return out
+
+
+_F64 = np.dtype(np.float64)
+
+
+def _measured_array(value: object, key: str, trailing: tuple[int, ...], n: int, who: str) -> NDArray[np.float64]:
+    """``measurement[key]`` as a float64 array (n, *trailing) (unbatched ``trailing`` accepted at n = 1);
+    TypeError unless it holds real numbers, ValueError naming the shape otherwise."""
+    label = f"measurement[{key!r}]"
+    a = np.ascontiguousarray(_real_array(value, label, who))
+    if a.shape != (n, *trailing):
+        if n == 1 and a.shape == trailing:
+            return a[None]
+        shape = ", ".join(("N", *map(str, trailing)))
+        raise ValueError(f"{who}: {label} must have shape ({shape}) with N = {n} (the batch size set by "
+                         f"reset; unbatched {trailing} if N = 1), got {a.shape}")
+    return a
+
+
+def check_thrust(thrust: ArrayLike, n: int, who: str) -> NDArray[np.float64]:
+    """Collective thrust [N]: a number (every row) or (n,), finite and real -> (n,) float64."""
+    a = thrust
+    if type(a) is not np.ndarray or a.dtype is not _F64 or a.shape != (n,):
+        a = _real_array(thrust, "thrust", who)
+    if a.shape != (n,):
+        if a.ndim != 0:
+            raise ValueError(f"{who}: thrust must be a number or have shape (N,) with N = {n} (the batch size set by "
+                             f"reset), got shape {a.shape}")
+        a = np.full(n, float(a))
+    row = first_nonfinite_row(a.reshape(n, 1))
+    if row >= 0:
+        raise ValueError(f"{who}: thrust has a non-finite entry in row {row}: {a[row]!r}")
+    return a
+
+
+def check_torque(torque: ArrayLike, n: int, who: str) -> NDArray[np.float64]:
+    """Body torque [N m]: (3,) (every row) or (n, 3), finite and real -> (n, 3) float64."""
+    a = torque
+    if type(a) is not np.ndarray or a.dtype is not _F64 or a.shape != (n, 3):
+        a = _real_array(torque, "torque", who)
+    if a.shape != (n, 3):
+        if a.shape != (3,):
+            raise ValueError(f"{who}: torque must have shape (3,) or (N, 3) with N = {n} (the batch size set by "
+                             f"reset), got shape {a.shape}")
+        a = np.ascontiguousarray(np.broadcast_to(a, (n, 3)))
+    row = first_nonfinite_row(a)
+    if row >= 0:
+        raise ValueError(f"{who}: torque has a non-finite entry in row {row}: {a[row].tolist()}")
+    return a
 
 
 def _guess_rows(guess: ArrayLike | None, n: int, rows: NDArray[np.bool_], label: str,

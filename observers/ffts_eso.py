@@ -59,13 +59,9 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3 import integrate_rotation, project_so3, vee
 from fawtgym.observers._obs_common import (
-    all_finite,
     batch_vec,
-    check_finite,
     cross,
-    floats,
     require,
-    step_inputs,
 )
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 from fawtgym.observers.hc_ffts import DEFAULT_EPS, check_p, euler_stable_eps, hurwitz_matrix
@@ -121,7 +117,15 @@ def validate_gains(p: float, kt1: float, kt2: float, kt3: float, kappa_t: float,
 
 @register_observer("ffts_eso")
 class FFTSESO(Observer):
-    """FFTS-ESO on TSE(3) (Wang et al. (2024) Props. 1-2); estimates phi_D (world NED) and tau_D (body FRD)."""
+    """FFTS-ESO on TSE(3) (Wang et al. (2024) Props. 1-2); estimates phi_D (world NED) and tau_D (body FRD).
+
+    ``max_dt`` = 1 / max(k_t1 k_t3 + kappa_t, k_a1 k_a3 + kappa_a (tr K - min K)): far from e = 0 the output
+    injections are linear (phi1(e) ~ k3 e, eq. 9) with these rates, and explicit Euler needs rate dt < 2
+    (near e = 0 the floor of :func:`~fawtgym.observers.hc_ffts.euler_stable_eps` keeps the step stable);
+    53 ms at the paper's gains.
+    """
+
+    required_keys = _KEYS
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, p: float = 1.2,
                  kt1: float = 3.0, kt2: float = 2.0, kt3: float = 6.0, kappa_t: float = 0.8,
@@ -137,8 +141,6 @@ class FFTSESO(Observer):
         self.morse_k = np.asarray(morse_k, dtype=float)
         self.eps = float(eps)
         self._state: dict[str, NDArray[np.float64]] | None = None
-        self._single_flat: list[float] | None = None     # N = 1 fast path: the state as 24 floats
-        self._dirty = False                                # self._state older than self._single_flat
         # constants of eq. (9) and of the fractional power (1-p)/p, (p-1)/p
         self._a = (1.0 - p) / (3.0 * p - 2.0)
         self._c1t = 2.0 * kt3 * (2.0 * p - 1.0) / (3.0 * p - 2.0)
@@ -147,14 +149,14 @@ class FFTSESO(Observer):
         self._c = (1.0 - p) / p
         self._k = (p - 1.0) / p
         self._ge3 = self.gravity * _E3
-        self._j_list = self.inertia.tolist()
-        self._jinv_list = self.inertia_inv.tolist()
-        self._kv = tuple(self.morse_k.tolist())
         # stiffest-mode gains of the two halves (euler_stable_eps): e_v' ~ -kappa_t g' e_v, and
         # e_Omega' ~ -kappa_a g' (tr(K) I - K) e_Omega at E = I (eq. 66)
         self._stiff_t = self.kappa_t
         self._stiff_a = self.kappa_a * float(self.morse_k.sum() - self.morse_k.min())
         self._eps_cache: tuple[float, float, float] = (math.nan, self.eps, self.eps)
+        # far from e = 0 the injections are linear (phi1 ~ k3 e), with rates up to k1 k3 + kappa (the kappa e_v
+        # term) on each half; explicit Euler needs rate dt < 2, max_dt = 1 / rate keeps a margin of 2
+        self.max_dt = 1.0 / max(self.kt1 * self.kt3 + self._stiff_t, self.ka1 * self.ka3 + self._stiff_a)
 
     def eps_at(self, dt: float) -> tuple[float, float]:
         """(eps_t, eps_a): the floors of the translational and rotational fractional terms at step ``dt``
@@ -169,8 +171,7 @@ class FFTSESO(Observer):
                rows: NDArray[np.bool_] | None) -> int:
         """b_hat, v_hat, R_hat, Omega_hat := measured values; phi_hat, tau_hat := given guesses (default 0).
 
-        State: the dict ``_state`` of (N, 3) / (N, 3, 3) arrays, behind the N = 1 float state ``_single_flat``
-        when ``_dirty`` (synced before a masked write)."""
+        State: the dict ``_state`` of (N, 3) / (N, 3, 3) arrays."""
         m = require(measurement, _KEYS, "ffts_eso")
         n = m["position"].shape[0]
         fresh = {
@@ -178,184 +179,21 @@ class FFTSESO(Observer):
             "R": project_so3(m["attitude"]), "w": m["angular_velocity"].copy(),
             "tau": batch_vec(torque, n, "torque", "ffts_eso"),
         }
-        self._sync_single()
         self._state = write_rows(self._state, fresh, rows)
-        self._single_flat, self._dirty = None, False
         return n
 
-    def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
-               dt: float) -> ObserverEstimate:
-        if self._state is None:
-            raise RuntimeError("ffts_eso: call reset(measurement) before update()")
-        if self._state["b"].shape[0] == 1:
-            return self._update_single(measurement, thrust, torque, dt)
+    def _update(self, m: dict[str, NDArray[np.float64]], f: NDArray[np.float64], tau: NDArray[np.float64],
+                dt: float) -> tuple[ObserverEstimate, dict[str, NDArray[np.float64]]]:
         s = self._state
-        m, f, tau = step_inputs(self, measurement, thrust, torque, dt, _KEYS, s["b"].shape[0], "ffts_eso")
         new = self._advance(s, self._rhs(s, m, f, tau, *self.eps_at(dt)), dt)
-        if not all_finite(new["v"], new["w"], new["phi"], new["tau"], new["b"], new["R"]):
-            check_finite("ffts_eso", **new)
-        self._state = new
-        return self.estimate()
-
-    def _update_single(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
-                       dt: float) -> ObserverEstimate:
-        """N = 1 fast path: the same equations as :meth:`_rhs` + :meth:`_advance` (Euler) in Python floats.
-
-        numpy's per-call overhead dominates a single 3-vector update, so everything is unrolled into scalar
-        float arithmetic (same operation order as the list form it replaced); this path is checked against
-        the batched one in the tests (batch-equals-separate-runs).
-        """
-        if not (math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
-        try:
-            pm0, pm1, pm2, vm0, vm1, vm2, om0, om1, om2 = (
-                floats(measurement["position"]) + floats(measurement["velocity"])
-                + floats(measurement["angular_velocity"]))
-            rm = floats(measurement["attitude"])
-        except KeyError as exc:
-            raise ValueError(f"ffts_eso needs measurement keys {list(_KEYS)}; missing {exc} "
-                             f"(got {sorted(measurement)})") from None
-        except ValueError:      # wrong number of entries in the unpacking above
-            rm = []
-        if len(rm) != 9:
-            sizes = [np.size(measurement[k]) for k in _KEYS]
-            raise ValueError("ffts_eso: measurement batch size does not match the reset batch size 1 "
-                             f"(got sizes {dict(zip(_KEYS, sizes, strict=True))}, expected 3, 3, 9, 3)")
-        fl = floats(thrust)
-        tq = floats(torque)
-        if len(fl) != 1 or len(tq) != 3:
-            raise ValueError(f"ffts_eso: thrust must have shape (1,) and torque (3,) or (1, 3) for N = 1, "
-                             f"got {np.shape(thrust)} and {np.shape(torque)}")
-        if not math.isfinite(pm0 + pm1 + pm2 + vm0 + vm1 + vm2 + om0 + om1 + om2 + sum(rm)):
-            raise ValueError("ffts_eso: measurement contains non-finite values")
-        tq0, tq1, tq2 = tq
-        if not math.isfinite(fl[0] + tq0 + tq1 + tq2):
-            raise ValueError(f"ffts_eso: thrust/torque contain non-finite values: {fl}, {tq}")
-        flat = self._single_flat    # the floats of the previous N = 1 step (None after reset)
-        if flat is None:
-            st = self._state
-            flat = np.concatenate([st[k].ravel() for k in ("b", "v", "phi", "w", "tau", "R")]).tolist()
-        (b0, b1, b2, v0, v1, v2, ph0, ph1, ph2, w0, w1, w2, th0, th1, th2,
-         h00, h01, h02, h10, h11, h12, h20, h21, h22) = flat
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rm
-        eps, eps_a = self.eps_at(dt)
-        mass, c, k2c, a, tiny = self.mass, self._c, 2.0 * self._k, self._a, _TINY
-        # translational, eqs. (45), (49), (50)
-        eb0, eb1, eb2 = pm0 - b0, pm1 - b1, pm2 - b2
-        ev0, ev1, ev2 = vm0 - v0, vm1 - v1, vm2 - v2
-        r2 = eb0 * eb0 + eb1 * eb1 + eb2 * eb2
-        rb = eps if eps > r2 else r2
-        pw = rb**c
-        coef = k2c * (eb0 * ev0 + eb1 * ev1 + eb2 * ev2) / rb if r2 > eps else 0.0
-        kt = self.kappa_t
-        ps0 = ev0 + kt * (eb0 + pw * eb0)
-        ps1 = ev1 + kt * (eb1 + pw * eb1)
-        ps2 = ev2 + kt * (eb2 + pw * eb2)
-        pa = ps0 * ps0 + ps1 * ps1 + ps2 * ps2
-        pa = (tiny if tiny > pa else pa) ** a
-        g1 = self.kt1 * (self.kt3 + pa)
-        g2 = mass * self.kt2 * (self.kt3 * self.kt3 + self._c1t * pa + self._c2 * pa * pa)
-        fm = fl[0] / mass
-        vd0 = 0.0 - fm * r02 + g1 * ps0 + kt * (pw * (ev0 - coef * eb0) + ev0) + ph0 / mass
-        vd1 = 0.0 - fm * r12 + g1 * ps1 + kt * (pw * (ev1 - coef * eb1) + ev1) + ph1 / mass
-        vd2 = self.gravity - fm * r22 + g1 * ps2 + kt * (pw * (ev2 - coef * eb2) + ev2) + ph2 / mass
-        # rotational, eqs. (46), (47), (66), (68), (69); E = R_hat^T R^m
-        e00 = h00 * r00 + h10 * r10 + h20 * r20
-        e01 = h00 * r01 + h10 * r11 + h20 * r21
-        e02 = h00 * r02 + h10 * r12 + h20 * r22
-        e10 = h01 * r00 + h11 * r10 + h21 * r20
-        e11 = h01 * r01 + h11 * r11 + h21 * r21
-        e12 = h01 * r02 + h11 * r12 + h21 * r22
-        e20 = h02 * r00 + h12 * r10 + h22 * r20
-        e21 = h02 * r01 + h12 * r11 + h22 * r21
-        e22 = h02 * r02 + h12 * r12 + h22 * r22
-        k0, k1, k2 = self._kv
-        er0, er1, er2 = k2 * e21 - k1 * e12, k0 * e02 - k2 * e20, k1 * e10 - k0 * e01
-        eo0 = om0 - (e00 * w0 + e10 * w1 + e20 * w2)
-        eo1 = om1 - (e01 * w0 + e11 * w1 + e21 * w2)
-        eo2 = om2 - (e02 * w0 + e12 * w1 + e22 * w2)
-        tr = k0 * e00 + k1 * e11 + k2 * e22
-        ke0, ke1, ke2 = k0 * eo0, k1 * eo1, k2 * eo2
-        ew0 = tr * eo0 - (e00 * ke0 + e10 * ke1 + e20 * ke2)
-        ew1 = tr * eo1 - (e01 * ke0 + e11 * ke1 + e21 * ke2)
-        ew2 = tr * eo2 - (e02 * ke0 + e12 * ke1 + e22 * ke2)
-        r2a = er0 * er0 + er1 * er1 + er2 * er2
-        ra = eps_a if eps_a > r2a else r2a
-        pwa = ra**c
-        coefa = k2c * (er0 * ew0 + er1 * ew1 + er2 * ew2) / ra if r2a > eps_a else 0.0
-        ka = self.kappa_a
-        pa0 = eo0 + ka * (er0 + pwa * er0)
-        pa1 = eo1 + ka * (er1 + pwa * er1)
-        pa2 = eo2 + ka * (er2 + pwa * er2)
-        qa = pa0 * pa0 + pa1 * pa1 + pa2 * pa2
-        qa = (tiny if tiny > qa else qa) ** a
-        h1 = self.ka1 * (self.ka3 + qa)
-        h2 = self.ka2 * (self.ka3 * self.ka3 + self._c1a * qa + self._c2 * qa * qa)
-        (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._j_list
-        (i00, i01, i02), (i10, i11, i12), (i20, i21, i22) = self._jinv_list
-        jo0 = j00 * om0 + j01 * om1 + j02 * om2
-        jo1 = j10 * om0 + j11 * om1 + j12 * om2
-        jo2 = j20 * om0 + j21 * om1 + j22 * om2
-        t0 = jo1 * om2 - jo2 * om1 + th0 + tq0
-        t1 = jo2 * om0 - jo0 * om2 + th1 + tq1
-        t2 = jo0 * om1 - jo1 * om0 + th2 + tq2
-        bd0 = i00 * t0 + i01 * t1 + i02 * t2 + h1 * pa0 + ka * (pwa * (ew0 - coefa * er0) + ew0)
-        bd1 = i10 * t0 + i11 * t1 + i12 * t2 + h1 * pa1 + ka * (pwa * (ew1 - coefa * er1) + ew1)
-        bd2 = i20 * t0 + i21 * t1 + i22 * t2 + h1 * pa2 + ka * (pwa * (ew2 - coefa * er2) + ew2)
-        ee0 = e00 * eo0 + e01 * eo1 + e02 * eo2
-        ee1 = e10 * eo0 + e11 * eo1 + e12 * eo2
-        ee2 = e20 * eo0 + e21 * eo1 + e22 * eo2
-        wd0 = e00 * bd0 + e01 * bd1 + e02 * bd2 + ee1 * w2 - ee2 * w1
-        wd1 = e10 * bd0 + e11 * bd1 + e12 * bd2 + ee2 * w0 - ee0 * w2
-        wd2 = e20 * bd0 + e21 * bd1 + e22 * bd2 + ee0 * w1 - ee1 * w0
-        # advance (same scheme as _advance)
-        hh = 0.5 * dt * dt
-        hd = 0.5 * dt
-        x0, x1, x2 = dt * (w0 + hd * wd0), dt * (w1 + hd * wd1), dt * (w2 + hd * wd2)
-        q2 = x0 * x0 + x1 * x1 + x2 * x2
-        if q2 < 1e-8:   # the same Taylor branch as lie.exp_so3
-            ca, cb = 1.0 - q2 / 6.0 + q2 * q2 / 120.0, 0.5 - q2 / 24.0 + q2 * q2 / 720.0
-        else:
-            tt = math.sqrt(q2)
-            ca, cb = math.sin(tt) / tt, (1.0 - math.cos(tt)) / (tt * tt)
-        # exp(x^) = (1 - cb t2) I + ca x^ + cb x x^T  (x^ x^ = x x^T - t2 I), same coefficients as lie.exp_so3
-        d0 = 1.0 - cb * q2
-        x00, x11, x22 = d0 + cb * x0 * x0, d0 + cb * x1 * x1, d0 + cb * x2 * x2
-        x01, x02, x12 = -ca * x2 + cb * x0 * x1, ca * x1 + cb * x0 * x2, -ca * x0 + cb * x1 * x2
-        x10, x20, x21 = ca * x2 + cb * x1 * x0, -ca * x1 + cb * x2 * x0, ca * x0 + cb * x2 * x1
-        flat = [b0 + dt * v0 + hh * vd0, b1 + dt * v1 + hh * vd1, b2 + dt * v2 + hh * vd2,
-                v0 + dt * vd0, v1 + dt * vd1, v2 + dt * vd2,
-                ph0 + dt * (g2 * ps0), ph1 + dt * (g2 * ps1), ph2 + dt * (g2 * ps2),
-                w0 + dt * wd0, w1 + dt * wd1, w2 + dt * wd2,
-                th0 + dt * (h2 * (j00 * pa0 + j01 * pa1 + j02 * pa2)),
-                th1 + dt * (h2 * (j10 * pa0 + j11 * pa1 + j12 * pa2)),
-                th2 + dt * (h2 * (j20 * pa0 + j21 * pa1 + j22 * pa2)),
-                h00 * x00 + h01 * x10 + h02 * x20, h00 * x01 + h01 * x11 + h02 * x21, h00 * x02 + h01 * x12 + h02 * x22,
-                h10 * x00 + h11 * x10 + h12 * x20, h10 * x01 + h11 * x11 + h12 * x21, h10 * x02 + h11 * x12 + h12 * x22,
-                h20 * x00 + h21 * x10 + h22 * x20, h20 * x01 + h21 * x11 + h22 * x21, h20 * x02 + h21 * x12 + h22 * x22]
-        if not math.isfinite(sum(flat)):
-            check_finite("ffts_eso", b=np.array(flat[0:3]), v=np.array(flat[3:6]), phi=np.array(flat[6:9]),
-                         w=np.array(flat[9:12]), tau=np.array(flat[12:15]), R=np.array(flat[15:]))
-        self._single_flat = flat    # the numpy state is written from it only when needed (_sync_single)
-        self._dirty = True
-        out = np.fromiter(flat, float, 24)  # fresh returned arrays, not views of the state
-        return ObserverEstimate(force=out[None, 6:9], torque=out[None, 12:15], states={
-            "position": out[None, 0:3], "velocity": out[None, 3:6], "attitude": out[15:].reshape(1, 3, 3),
-            "angular_velocity": out[None, 9:12]})
-
-    def _sync_single(self) -> None:
-        """Write the float state of the last N = 1 fast step into the numpy state dict."""
-        if self._dirty:
-            buf = np.array(self._single_flat)
-            self._state = {"b": buf[None, 0:3], "v": buf[None, 3:6], "phi": buf[None, 6:9], "w": buf[None, 9:12],
-                           "tau": buf[None, 12:15], "R": buf[15:].reshape(1, 3, 3)}
-            self._dirty = False
+        return self._estimate_of(new), new
 
     def estimate(self) -> ObserverEstimate:
         if self._state is None:
             raise RuntimeError("ffts_eso: call reset(measurement) first")
-        self._sync_single()
-        s = self._state
+        return self._estimate_of(self._state)
+
+    def _estimate_of(self, s: dict[str, NDArray[np.float64]]) -> ObserverEstimate:
         return ObserverEstimate(force=s["phi"].copy(), torque=s["tau"].copy(), states={
             "position": s["b"].copy(), "velocity": s["v"].copy(), "attitude": s["R"].copy(),
             "angular_velocity": s["w"].copy()})

@@ -47,7 +47,6 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.core import measurement as M
 from fawtgym.core.rows import write_rows
 
-from ._obs_common import floats
 from .base import Observer, ObserverEstimate, register_observer
 
 #: orders the module supports (eqs. 18-23 for n = 1..4)
@@ -297,13 +296,12 @@ class GESO(Observer):
         self.filters = {c: GesoFilter(orders[c], bws[c]) for c in chans}
         self._x: dict[str, NDArray[np.float64]] = {}
         self._prev: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
-        # N = 1 fast path: block step matrices per dt, and the last N = 1 state as floats
-        self._single_mats: dict[float, NDArray[np.float64]] = {}
-        self._single: tuple | None = None
-        self._jl, self._jil = self.inertia.tolist(), self.inertia_inv.tolist()
-        self._mg = self.mass * self.gravity
-        offs = np.cumsum([0] + [f.order + 1 for f in self.filters.values()]).tolist()
-        self._info = [(c, f.order + 1, offs[k]) for k, (c, f) in enumerate(self.filters.items())]
+        keys: tuple[str, ...] = ((M.VELOCITY, M.ATTITUDE) if "force" in chans else ()) + (
+            (rate_key,) if "torque" in chans else ())
+        self.required_keys = keys
+        #: the exact discretisation is stable at any dt, but the sampled observer tracks a disturbance only below
+        #: the Nyquist rate: its bandwidth w_b must satisfy w_b dt < pi; max_dt = 1 / max w_b keeps w_b dt <= 1
+        self.max_dt = 1.0 / max(float(f.gains[0]) / (f.order + 1) for f in self.filters.values())
 
     # ---- channel signals: (y, state-dependent part of u*) from a batched measurement ------------
     def _signals(self, chan: str, meas: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.float64], ...]:
@@ -332,8 +330,7 @@ class GESO(Observer):
         """Start at x0_hat = y, d_hat = the given guess (default 0), higher derivatives 0.
 
         State per channel: ``_x[chan]`` (N, 3, n+1) and the previous signals ``_prev[chan]`` = (y, aux), (N, 3)
-        each, behind the N = 1 float state ``_single`` when it is set (synced before a masked write).  The
-        per-dt step matrices (``_single_mats``, :meth:`GesoFilter.discretize`) are constants, not state."""
+        each.  The per-dt step matrices (:meth:`GesoFilter.discretize`) are constants, not state."""
         meas = M.batch_measurement(measurement)
         x_new: dict[str, NDArray[np.float64]] = {}
         prev_new: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
@@ -350,191 +347,28 @@ class GESO(Observer):
                 x[..., 1] = np.broadcast_to(g, y.shape)
             x_new[chan] = x
             prev_new[chan] = (y, aux)
-        self._sync_single()
         self._x = write_rows(self._x, x_new, rows)
         self._prev = write_rows(self._prev, prev_new, rows)
-        self._single = None
         return next(iter(x_new.values())).shape[0]
 
-    def _single_matrix(self, dt: float) -> NDArray[np.float64]:
-        """Block-diagonal step matrix of all channels for N = 1: rows [x, u*, y_k (, y_k+1 - y_k)] per channel."""
-        key = float(dt)
-        blk = self._single_mats.get(key)
-        if blk is None:
-            mats = {c: f.discretize(key, self.hold) for c, f in self.filters.items()}
-            width = 3 if self.hold == "foh" else 2
-            rows = sum(f.order + 1 + width for f in self.filters.values())
-            cols = sum(f.order + 1 for f in self.filters.values())
-            blk = np.zeros((rows, cols))
-            ro = co = 0
-            for c, f in self.filters.items():
-                m = f.order + 1
-                blk[ro:ro + m, co:co + m] = mats[c][0].T
-                blk[ro + m:ro + m + 2, co:co + m] = mats[c][1].T
-                if self.hold == "foh":
-                    blk[ro + m + 2, co:co + m] = mats[c][2][:, 1]
-                ro += m + width
-                co += m
-            self._single_mats[key] = blk
-        return blk
-
-    def _update_single(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
-                       dt: float) -> ObserverEstimate | None:
-        """N = 1 fast path: the signals (y, u*) in Python floats and one product with :meth:`_single_matrix`.
-
-        The same discrete filter as :meth:`GesoFilter.step` per channel (equal to ~1e-15 relative, the
-        order of the sums).  Returns None, touching nothing, unless the step is a well-formed, finite
-        N = 1 step; :meth:`update`'s general path then runs and raises its usual errors.
-        """
-        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-            return None
-        try:
-            fl = floats(thrust)
-            tq = floats(torque)
-            sig: dict[str, tuple[list[float], list[float]]] = {}
-            if "force" in self.filters:
-                vm = floats(measurement[M.VELOCITY])
-                rm = floats(measurement[M.ATTITUDE])
-                if len(vm) != 3 or len(rm) != 9 or not math.isfinite(sum(vm) + sum(rm)):
-                    return None
-                mass = self.mass
-                sig["force"] = ([mass * vm[0], mass * vm[1], mass * vm[2]], [rm[2], rm[5], rm[8]])
-            if "torque" in self.filters:
-                w0, w1, w2 = floats(measurement[self.rate_key])
-                if not math.isfinite(w0 + w1 + w2):
-                    return None
-                (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._jl
-                s0, s1, s2 = (w0 * j00 + w1 * j01 + w2 * j02, w0 * j10 + w1 * j11 + w2 * j12,
-                              w0 * j20 + w1 * j21 + w2 * j22)
-                sig["torque"] = ([s0, s1, s2], [s1 * w2 - s2 * w1, s2 * w0 - s0 * w2, s0 * w1 - s1 * w0])
-        except (KeyError, ValueError, TypeError):
-            return None
-        if len(fl) != 1 or len(tq) != 3 or not math.isfinite(fl[0] + sum(tq)):
-            return None
-        blk = self._single_mats.get(dt)
-        if blk is None:
-            blk = self._single_matrix(dt)
-        cache = self._single
-        if cache is None:       # after reset / a general-path step: read the numpy state
-            rows: list[list[float]] = [[], [], []]
-            prev = {}
-            for c in self.filters:
-                xc = self._x[c][0].tolist()
-                for i in range(3):
-                    rows[i] += xc[i]
-                prev[c] = (self._prev[c][0][0].tolist(), self._prev[c][1][0].tolist())
-        else:
-            rows, prev = cache
-        foh = self.hold == "foh"
-        f = fl[0]
-        r0, r1, r2 = rows
-        z0: list[float] = []
-        z1: list[float] = []
-        z2: list[float] = []
-        for c, m, co in self._info:
-            y_old, aux_old = prev[c]
-            y_new, aux_new = sig[c]
-            if foh:
-                a0, a1, a2 = (0.5 * (aux_old[0] + aux_new[0]), 0.5 * (aux_old[1] + aux_new[1]),
-                              0.5 * (aux_old[2] + aux_new[2]))
-            else:
-                a0, a1, a2 = aux_old
-            if c == "force":
-                u0, u1, u2 = 0.0 - f * a0, 0.0 - f * a1, self._mg - f * a2
-            else:
-                u0, u1, u2 = tq[0] + a0, tq[1] + a1, tq[2] + a2
-            z0 += r0[co:co + m]
-            z1 += r1[co:co + m]
-            z2 += r2[co:co + m]
-            if foh:
-                z0 += (u0, y_old[0], y_new[0] - y_old[0])
-                z1 += (u1, y_old[1], y_new[1] - y_old[1])
-                z2 += (u2, y_old[2], y_new[2] - y_old[2])
-            else:
-                z0 += (u0, y_old[0])
-                z1 += (u1, y_old[1])
-                z2 += (u2, y_old[2])
-        res = np.fromiter(z0 + z1 + z2, float, 3 * len(z0)).reshape(3, -1) @ blk
-        rows = res.tolist()
-        r0, r1, r2 = rows
-        if not math.isfinite(sum(r0) + sum(r1) + sum(r2)):
-            raise ValueError(f"GESO state became non-finite (check dt={dt} and the inputs)")
-        # the new state is kept as floats (self._single); self._x / self._prev are rebuilt from them only when
-        # the general path runs (_sync_single)
-        self._single = (rows, sig)
-        head = [0.0] * 6
-        extra: list[float] = []
-        for c, m, co in self._info:
-            x0, x1, x2 = r0[co], r1[co], r2[co]
-            if c == "force":
-                head[0:3] = r0[co + 1], r1[co + 1], r2[co + 1]
-                mass = self.mass
-                extra += (x0 / mass, x1 / mass, x2 / mass)
-            else:
-                head[3:6] = r0[co + 1], r1[co + 1], r2[co + 1]
-                (i00, i01, i02), (i10, i11, i12), (i20, i21, i22) = self._jil
-                extra += (x0 * i00 + x1 * i01 + x2 * i02, x0 * i10 + x1 * i11 + x2 * i12,
-                          x0 * i20 + x1 * i21 + x2 * i22)
-            for j in range(co + 2, co + m):
-                extra += (r0[j], r1[j], r2[j])
-        out = np.fromiter(head + extra, float, 6 + len(extra))
-        states: dict[str, NDArray[np.float64]] = {}
-        o = 6
-        for c, m, _ in self._info:
-            states[_RATE_NAME[c]] = out[None, o:o + 3]
-            states[_DER_NAME[c]] = out[o + 3:o + 3 * (m - 1)].reshape(1, m - 2, 3)
-            o += 3 * (m - 1)
-        return ObserverEstimate(force=out[None, 0:3], torque=out[None, 3:6], states=states)
-
-    def _sync_single(self) -> None:
-        """Write the float state of the N = 1 fast path back into the numpy state (self._x, self._prev)."""
-        if self._single is None:
-            return
-        rows, sig = self._single
-        res = np.array(rows)
-        for c, m, co in self._info:
-            self._x[c] = res[None, :, co:co + m].copy()
-            self._prev[c] = (np.array([sig[c][0]]), np.array([sig[c][1]]))
-        self._single = None
-
-    def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
-               dt: float) -> ObserverEstimate:
-        if not self._x:
-            raise ValueError("GESO.update called before reset(measurement)")
-        if next(iter(self._x.values())).shape[0] == 1:
-            est = self._update_single(measurement, thrust, torque, dt)
-            if est is not None:
-                return est
-        self._sync_single()
-        meas, f, tau = self._inputs(measurement, thrust, torque, dt)
-        n_batch = next(iter(self._x.values())).shape[0]
-        try:
-            f = np.broadcast_to(f, (n_batch,))
-            tau = np.broadcast_to(tau, (n_batch, 3))
-        except ValueError:
-            raise ValueError(f"thrust {f.shape} / torque {tau.shape} do not match the batch size {n_batch} "
-                             "set at reset") from None
+    def _update(self, meas: dict[str, NDArray[np.float64]], f: NDArray[np.float64], tau: NDArray[np.float64],
+                dt: float) -> tuple[ObserverEstimate, tuple[dict[str, NDArray[np.float64]], dict[str, Any]]]:
+        n_batch = f.shape[0]
         out = {"force": np.zeros((n_batch, 3)), "torque": np.zeros((n_batch, 3))}
         states: dict[str, NDArray[np.float64]] = {}
-        signals = {chan: self._signals(chan, meas) for chan in self.filters}  # validate all before any change
-        for y_new, _ in signals.values():
-            if y_new.shape[0] != n_batch:
-                raise ValueError(f"measurement batch size {y_new.shape[0]} != {n_batch} set at reset")
-        new_x = {}
+        new_x: dict[str, NDArray[np.float64]] = {}
+        new_prev: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
         for chan, filt in self.filters.items():
-            y_new, aux_new = signals[chan]
+            y_new, aux_new = self._signals(chan, meas)
             y_old, aux_old = self._prev[chan]
             if self.hold == "zoh":
                 u = self._u_star(chan, aux_old, f, tau)
-                new_x[chan] = filt.step(self._x[chan], u, y_old, dt, "zoh")
+                x = filt.step(self._x[chan], u, y_old, dt, "zoh")
             else:
                 u = self._u_star(chan, 0.5 * (aux_old + aux_new), f, tau)
-                new_x[chan] = filt.step(self._x[chan], u, y_old, dt, "foh", y_next=y_new)
-            if not np.all(np.isfinite(new_x[chan])):
-                raise ValueError(f"GESO {chan} state became non-finite (check dt={dt} and the inputs)")
-        for chan, x in new_x.items():
-            self._x[chan] = x
-            self._prev[chan] = signals[chan]
+                x = filt.step(self._x[chan], u, y_old, dt, "foh", y_next=y_new)
+            new_x[chan] = x
+            new_prev[chan] = (y_new, aux_new)
             out[chan] = x[..., 1].copy()
             if chan == "force":
                 states["velocity"] = x[..., 0] / self.mass
@@ -542,4 +376,7 @@ class GESO(Observer):
             else:
                 states["angular_velocity"] = x[..., 0] @ self.inertia_inv.T
                 states["torque_derivatives"] = np.moveaxis(x[..., 2:], -1, 1).copy()
-        return ObserverEstimate(force=out["force"], torque=out["torque"], states=states)
+        return ObserverEstimate(force=out["force"], torque=out["torque"], states=states), (new_x, new_prev)
+
+    def _commit(self, state: tuple[dict[str, NDArray[np.float64]], dict[str, Any]]) -> None:
+        self._x, self._prev = state

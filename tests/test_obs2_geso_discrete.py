@@ -187,7 +187,7 @@ def test_batch_equals_separate_runs(hold):
 def test_update_errors_are_clear():
     obs = make_observer("geso", MASS, J)
     meas = {"velocity": np.zeros(3), "attitude": np.eye(3), "angular_velocity": np.zeros(3)}
-    with pytest.raises(ValueError, match="before reset"):
+    with pytest.raises(RuntimeError, match="before reset"):
         obs.update(meas, 10.0, np.zeros(3), 0.01)
     obs.reset(meas)
     with pytest.raises(ValueError, match="dt"):
