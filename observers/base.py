@@ -29,7 +29,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.measurement import ATTITUDE, TRAILING_SHAPES, batch_measurement
 from fawtgym.core.rows import check_row_mask
-from fawtgym.observers._checks import ROTATION_TOL, first_large_row, first_non_rotation, first_nonfinite_row
+from fawtgym.core.so3_kernels import first_non_rotation
+from fawtgym.observers._checks import ROTATION_TOL, first_large_row, first_nonfinite_row
 
 
 @dataclasses.dataclass(frozen=True)
@@ -301,15 +302,16 @@ def check_measurement(measurement: Mapping[str, ArrayLike], keys: tuple[str, ...
         if type(a) is not np.ndarray or a.dtype is not _F64 or a.shape != (n, *trailing):
             a = _measured_array(a, key, trailing, n, who)
         if key == ATTITUDE:
-            info = np.empty(2)
-            row = first_non_rotation(a, ROTATION_TOL, info)
+            row = first_non_rotation(a, ROTATION_TOL)
             if row >= 0:
-                if not np.isfinite(a[row]).all():
+                bad = a[row]
+                if not np.isfinite(bad).all():
                     raise ValueError(f"{who}: measurement['attitude'] has a non-finite entry in row {row}: "
-                                     f"{a[row].tolist()}")
+                                     f"{bad.tolist()}")
+                defect = float(np.abs(bad.T @ bad - np.eye(3)).max())
                 raise ValueError(f"{who}: measurement['attitude'] row {row} is not a rotation matrix (allowed: "
                                  f"max |R^T R - I| <= {ROTATION_TOL:g} and det R = +1; got max |R^T R - I| = "
-                                 f"{info[0]:.3g}, det R = {info[1]:.6g})")
+                                 f"{defect:.3g}, det R = {float(np.linalg.det(bad)):.6g})")
         else:
             row = first_nonfinite_row(a if a.ndim == 2 else a.reshape(n, -1))
             if row >= 0:
