@@ -32,6 +32,7 @@ import dataclasses
 import functools
 import math
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -39,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
 from fawtgym.core.rows import write_rows
+from fawtgym.core.so3_kernels import exp_so3_row, mat_mul_row
 
 from . import vector_attitude as va
 from .base import Observer, ObserverEstimate, register_observer
@@ -86,31 +88,6 @@ class HcEsoGains:
 # --------------------------------------------------------------------------------------------------
 # row functions
 # --------------------------------------------------------------------------------------------------
-@njit(cache=True)
-def exp_so3_row(x0, x1, x2, E):  # type: ignore[no-untyped-def]
-    """Rodrigues' formula exp(x^) = I + a x^ + b x^ x^ into E (3, 3), with a = sin t / t, b = (1 - cos t) / t^2
-    (their Taylor series where t^2 < 1e-8, as :func:`fawtgym.core.so3.exp_so3`) and x^ x^ = x x^T - t^2 I."""
-    t2 = x0 * x0 + x1 * x1 + x2 * x2
-    if t2 < 1e-8:
-        a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
-        b = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
-    else:
-        t = math.sqrt(t2)
-        a = math.sin(t) / t
-        b = (1.0 - math.cos(t)) / t2
-    E[0, 0], E[0, 1], E[0, 2] = 1.0 + b * (x0 * x0 - t2), -a * x2 + b * x0 * x1, a * x1 + b * x0 * x2
-    E[1, 0], E[1, 1], E[1, 2] = a * x2 + b * x0 * x1, 1.0 + b * (x1 * x1 - t2), -a * x0 + b * x1 * x2
-    E[2, 0], E[2, 1], E[2, 2] = -a * x1 + b * x0 * x2, a * x0 + b * x1 * x2, 1.0 + b * (x2 * x2 - t2)
-
-
-@njit(cache=True)
-def _matmul_into(A, B, out):  # type: ignore[no-untyped-def]
-    """out = A B (3 x 3; ``out`` must not be ``A`` or ``B``)."""
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
-
-
 @njit(cache=True)
 def hc_eso_rates_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, p, q, psi, s):  # type: ignore[no-untyped-def]
     """P and Q of eq. 30 for one row into ``p``, ``q`` (3,), with Psi (eq. 29) and s_L (eq. 22) into ``psi``, ``s``.
@@ -168,12 +145,15 @@ def hc_eso_rates_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, p, q, psi, s):
 def hc_eso_step_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, h, scratch):  # type: ignore[no-untyped-def]
     """One Lie-Euler step of eq. 30 of size h of one row, in place: R_hat <- R_hat exp(h Omega_hat^x),
     Omega_hat <- Omega_hat + h P, sigma_hat <- sigma_hat + h Q (P, Q at the start of the step).
-    ``scratch``: (6, 3, 3) work space."""
+    ``scratch``: (6, 3, 3) work space (rows 0-3)."""
     p, q, psi, s = scratch[0, 0], scratch[0, 1], scratch[0, 2], scratch[1, 0]
     hc_eso_rates_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, p, q, psi, s)
-    exp_so3_row(h * w[0], h * w[1], h * w[2], scratch[2])
+    h_w = scratch[1, 1]
+    for k in range(3):
+        h_w[k] = h * w[k]
+    exp_so3_row(h_w, scratch[2])
     scratch[3] = r_hat
-    _matmul_into(scratch[3], scratch[2], r_hat)
+    mat_mul_row(scratch[3], scratch[2], r_hat)
     for k in range(3):
         w[k] += h * p[k]
         sigma_hat[k] += h * q[k]
@@ -219,39 +199,24 @@ def _update_rows(r_hat, w, sigma_hat, l, o, tau, use_attitude, sf, mag, att, rat
     the held L, Omega^m (``l``, ``o``, not modified): ``steps`` Lie-Euler substeps of size h, the held L propagated
     by exp(h (Omega^m)^x) between them; then the new measurement's L into ``l_new``.
 
-    Returns (status, row): (0, -1) done; (1, i) non-finite specific force / attitude of row i, (2, i)
-    magnetometer, (3, i) rate, (4, i) torque (nothing computed); (5, i) the new state of row i is not finite;
-    (6 + k, i) the IMU vectors of row i are unusable (:func:`vector_attitude.imu_body_vectors_row` code k)."""
+    Returns (status, row): (0, -1) done, or (k, i): the IMU vectors of row i are unusable
+    (:func:`vector_attitude.imu_body_vectors_row` code k).  The inputs are checked finite by
+    :meth:`Observer.update`; a non-finite new state is caught there from the estimate."""
     n = r_hat.shape[0]
-    for i in range(n):
-        if use_attitude:
-            a = att[i]
-            if not math.isfinite(a[0, 0] + a[0, 1] + a[0, 2] + a[1, 0] + a[1, 1] + a[1, 2] + a[2, 0] + a[2, 1]
-                                 + a[2, 2]):
-                return 1, i
-        else:
-            for code, v in ((1, sf), (2, mag)):
-                if not math.isfinite(v[i, 0] + v[i, 1] + v[i, 2]):
-                    return code, i
-        for code, v in ((3, rate), (4, tau)):
-            if not math.isfinite(v[i, 0] + v[i, 1] + v[i, 2]):
-                return code, i
     scratch = np.empty((6, 3, 3))
     for i in range(n):
         li = scratch[4]
         li[:, :] = l[i]
         if steps > 1:
-            exp_so3_row(h * o[i, 0], h * o[i, 1], h * o[i, 2], scratch[5])
+            exp_so3_row(h * o[i], scratch[5])
         for k in range(steps):  # time substeps
             hc_eso_step_row(r_hat[i], w[i], sigma_hat[i], li, o[i], tau[i], J, J_inv, c, h, scratch)
             if k + 1 < steps:  # the held vectors for the next substep (after the last one, new ones come)
                 scratch[3] = li
-                _matmul_into(scratch[3], scratch[5], li)
-        if not math.isfinite(w[i, 0] + w[i, 1] + w[i, 2] + sigma_hat[i, 0] + sigma_hat[i, 1] + sigma_hat[i, 2]):
-            return 5, i
+                mat_mul_row(scratch[3], scratch[5], li)
         code = gain_matrix_row(use_attitude, sf[i], mag[i], att[i], E, EW, scratch[3], l_new[i])
         if code:
-            return 6 + code, i
+            return code, i
     return 0, -1
 
 
@@ -299,7 +264,6 @@ def hc_eso_step(r_hat: ArrayLike, omega_hat: ArrayLike, sigma_hat: ArrayLike, l:
 VECTOR_SOURCES = ("imu", "attitude")
 #: an update integrates ceil(dt / max_step) substeps; more than this is refused
 MAX_SUBSTEPS = 100
-_INPUT_NAMES = {2: "measurement['magnetometer']", 4: "torque"}
 
 
 @register_observer("hc_eso")
@@ -348,29 +312,21 @@ class HcEsoSO3(Observer):
         self._c = self.gains.constants
         self._J = np.ascontiguousarray(self.inertia)
         self._J_inv = np.ascontiguousarray(self.inertia_inv)
-        self._keys = ((M.ATTITUDE,) if vectors == "attitude" else (M.SPECIFIC_FORCE, M.MAGNETOMETER)) + (rate_key,)
+        self.required_keys = (((M.ATTITUDE,) if vectors == "attitude" else (M.SPECIFIC_FORCE, M.MAGNETOMETER))
+                              + (rate_key,))
         #: state: R_hat (N, 3, 3), Omega_hat (N, 3), sigma_hat (N, 3); held: L (N, 3, 3), Omega^m (N, 3)
         self._r_hat = self._w_hat = self._sigma = self._l = self._o = np.empty(0)
 
-    def _measured(self, meas: Mapping[str, NDArray[np.float64]], n: int | None) -> tuple[NDArray[np.float64], ...]:
+    def _measured(self, meas: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.float64], ...]:
         """(specific force, magnetometer, attitude, rate): the measurement rows the kernels read, C-contiguous (the
-        unused ones as a (n, 3, 3) placeholder), checked present and of n rows."""
-        for key in self._keys:
-            if key not in meas:
-                raise ValueError(f"hc_eso (vectors={self.vectors!r}) needs measurement[{key!r}]; "
-                                 f"got keys {sorted(meas)}")
-        rows = meas[self.rate_key].shape[0] if n is None else n
+        unused ones as zero placeholders); :meth:`Observer.update` / :meth:`Observer.reset` checked them (present, N
+        rows, finite, the attitude a rotation)."""
+        rate = np.ascontiguousarray(meas[self.rate_key])
+        n = rate.shape[0]
         out = []
-        for key, trailing in ((M.SPECIFIC_FORCE, (3,)), (M.MAGNETOMETER, (3,)), (M.ATTITUDE, (3, 3)),
-                              (self.rate_key, (3,))):
-            if key not in self._keys:
-                out.append(np.zeros((rows,) + trailing))
-                continue
-            v = meas[key]
-            if v.shape != (rows,) + trailing:
-                raise ValueError(f"hc_eso: measurement[{key!r}] must have shape ({rows}, *{trailing}), got {v.shape}")
-            out.append(np.ascontiguousarray(v))
-        return tuple(out)
+        for key, trailing in ((M.SPECIFIC_FORCE, (3,)), (M.MAGNETOMETER, (3,)), (M.ATTITUDE, (3, 3))):
+            out.append(np.ascontiguousarray(meas[key]) if key in self.required_keys else np.zeros((n,) + trailing))
+        return out[0], out[1], out[2], rate
 
     def _gain_matrices(self, sf: NDArray[np.float64], mag: NDArray[np.float64], att: NDArray[np.float64],
                        rate: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -381,30 +337,19 @@ class HcEsoSO3(Observer):
         code, row = _update_rows(np.empty((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.empty((n, 3, 3)),
                                  np.zeros((n, 3)), np.zeros((n, 3)), self.vectors == "attitude", sf, mag, att, rate,
                                  self._J, self._J_inv, self._e, self._ew, self._c, 0.0, 0, l_new)
-        self._raise(code, row, 0.0)
+        self._raise(code, row)
         return l_new
 
-    def _raise(self, code: int, row: int, dt: float) -> None:
-        if code == 0:
-            return
-        if code == 1:
-            key = M.ATTITUDE if self.vectors == "attitude" else M.SPECIFIC_FORCE
-            raise ValueError(f"hc_eso: measurement[{key!r}] contains non-finite values")
-        if code == 3:
-            raise ValueError(f"hc_eso: measurement[{self.rate_key!r}] contains non-finite values")
-        if code in _INPUT_NAMES:
-            raise ValueError(f"hc_eso: {_INPUT_NAMES[code]} contains non-finite values")
-        if code == 5:
-            raise FloatingPointError(f"hc_eso: the torque estimate (channel 'torque') became non-finite in row {row} "
-                                     f"(dt={dt}, max_step={self.max_step}); reduce max_step or the gains")
-        raise ValueError(f"hc_eso: row {row}: {va.IMU_VECTOR_ERRORS[code - 7]}")
+    def _raise(self, code: int, row: int) -> None:
+        if code:
+            raise ValueError(f"hc_eso: row {row}: {va.IMU_VECTOR_ERRORS[code - 1]}")
 
     def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
                rows: NDArray[np.bool_] | None) -> int:
         """R_hat from the static Wahba solution of the vectors, Omega_hat = Omega^m, sigma_hat = J^-1 torque guess.
 
         State: R_hat (N, 3, 3), Omega_hat (N, 3), sigma_hat (N, 3) and the held L (N, 3, 3), Omega^m (N, 3)."""
-        sf, mag, att, rate = self._measured(M.batch_measurement(measurement), None)
+        sf, mag, att, rate = self._measured(M.batch_measurement(measurement))
         l = self._gain_matrices(sf, mag, att, rate)
         n = rate.shape[0]
         sigma = np.zeros((n, 3))
@@ -418,28 +363,22 @@ class HcEsoSO3(Observer):
             (self._r_hat, self._w_hat, self._sigma, self._l, self._o), fresh, rows)
         return n
 
-    def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
-               dt: float) -> ObserverEstimate:
-        if self._n_rows is None:
-            raise RuntimeError("hc_eso: update() before reset(measurement); call reset first")
-        meas, _, tau = self._inputs(measurement, thrust, torque, dt)
-        return self._update(meas, tau, float(dt))
-
-    def _update(self, meas: Mapping[str, NDArray[np.float64]], tau: NDArray[np.float64],
-                dt: float) -> ObserverEstimate:
+    def _update(self, meas: dict[str, NDArray[np.float64]], thrust: NDArray[np.float64],
+                torque: NDArray[np.float64], dt: float) -> tuple[ObserverEstimate, Any]:
+        """``ceil(dt / max_step)`` Lie-Euler substeps of eq. 30 with the held L and Omega^m, then the new measurement
+        becomes the held one (:func:`_update_rows`); the new state is stored by :meth:`_commit`."""
         n = self._r_hat.shape[0]
-        sf, mag, att, rate = self._measured(meas, n)
-        if tau.shape != (n, 3):
-            if tau.shape != (1, 3):
-                raise ValueError(f"hc_eso: torque must have shape (3,) or ({n}, 3), got {tau.shape}")
-            tau = np.broadcast_to(tau, (n, 3))
-        tau = np.ascontiguousarray(tau)
+        sf, mag, att, rate = self._measured(meas)
         steps = max(1, math.ceil(dt / self.max_step - 1e-9))
         r_hat, w_hat, sigma, l_new = self._r_hat.copy(), self._w_hat.copy(), self._sigma.copy(), np.empty((n, 3, 3))
-        code, row = _update_rows(r_hat, w_hat, sigma, self._l, self._o, tau, self.vectors == "attitude", sf, mag,
-                                 att, rate, self._J, self._J_inv, self._e, self._ew, self._c, dt / steps, steps, l_new)
-        self._raise(code, row, dt)
-        self._r_hat, self._w_hat, self._sigma, self._l, self._o = r_hat, w_hat, sigma, l_new, rate.copy()
-        return ObserverEstimate(force=np.zeros((n, 3)), torque=sigma @ self.inertia.T,
-                                states={"attitude": r_hat.copy(), "angular_velocity": w_hat.copy(),
-                                        "sigma": sigma.copy()})
+        code, row = _update_rows(r_hat, w_hat, sigma, self._l, self._o, np.ascontiguousarray(torque),
+                                 self.vectors == "attitude", sf, mag, att, rate, self._J, self._J_inv, self._e,
+                                 self._ew, self._c, dt / steps, steps, l_new)
+        self._raise(code, row)
+        est = ObserverEstimate(force=np.zeros((n, 3)), torque=sigma @ self.inertia.T,
+                               states={"attitude": r_hat.copy(), "angular_velocity": w_hat.copy(),
+                                       "sigma": sigma.copy()})
+        return est, (r_hat, w_hat, sigma, l_new, rate.copy())
+
+    def _commit(self, state: Any) -> None:
+        self._r_hat, self._w_hat, self._sigma, self._l, self._o = state

@@ -82,8 +82,7 @@ def _measured_attitude_rows(sf, mag, ref, weights, gravity, min_field, R, valid)
 @njit(cache=True)
 def _pdt_sta_rows(sf, mag, tau, dt, ref, weights, c, J, J_inv, p, anchor, x1, x2, t,
                   anchor_out, x1_out, x2_out, t_out, R_hat, omega_hat, R_q, valid):  # type: ignore[no-untyped-def]
-    """One update of every row.  Returns (status, row): (0, -1) done; (1, i) non-finite ``specific_force`` in row
-    i, (2, i) ``magnetometer``, (3, i) ``torque`` (nothing computed); (4, i) the new state of row i is not finite.
+    """One update of every row, into the ``*_out`` arrays and the outputs (the state arrays are not written).
 
     Per row: the QUEST attitude R_q (:func:`measured_attitude_row`); the Gibbs measurement relative to the anchor
     attitude R_a, y = g of (R_a^T R_q)^T (eq. 79), or, where the vectors give no attitude, the prediction itself
@@ -92,15 +91,10 @@ def _pdt_sta_rows(sf, mag, tau, dt, ref, weights, c, J, J_inv, p, anchor, x1, x2
     g_hat' := 1/2 Gamma(0) omega_hat (eq. 47) where ||g_hat|| > ``reanchor``; the outputs R_hat = R_a D(g_hat)^T
     (eq. 45) and omega_hat (eq. 80).  ``c`` = (gravity, min_field, reanchor), ``p`` the STSMO's constants."""
     gravity, min_field, reanchor = c[0], c[1], c[2]
-    n = x1.shape[0]
-    for i in range(n):  # the inputs first: nothing is computed from a non-finite one
-        for code, v in ((1, sf), (2, mag), (3, tau)):
-            if not math.isfinite(v[i, 0] + v[i, 1] + v[i, 2]):
-                return code, i
     body, q, g = np.empty((2, 3)), np.empty(4), np.empty(3)
     rel, D = np.empty((3, 3)), np.empty((3, 3))
     y, w = np.empty(3), np.empty(3)
-    for i in range(n):
+    for i in range(x1.shape[0]):
         A = anchor[i]
         valid[i] = measured_attitude_row(sf[i], mag[i], ref, weights, gravity, min_field, body, q, g, R_q[i])
         if valid[i]:
@@ -111,11 +105,10 @@ def _pdt_sta_rows(sf, mag, tau, dt, ref, weights, c, J, J_inv, p, anchor, x1, x2
             _matmul_row(A, D, R_q[i], False)
             y[0], y[1], y[2] = x1[i, 0], x1[i, 1], x1[i, 2]
         w[0], w[1], w[2] = omega_row(x1[i, 0], x1[i, 1], x1[i, 2], x2[i, 0], x2[i, 1], x2[i, 2])  # eq. 80
-        if not stsmo_row(x1[i], x2[i], t[i], y, tau[i], w, J, J_inv, p, dt, x1_out[i], x2_out[i]):
-            return 4, i
+        stsmo_row(x1[i], x2[i], t[i], y, tau[i], w, J, J_inv, p, dt, x1_out[i], x2_out[i])  # a non-finite state
         t_out[i] = t[i] + dt
         g0, g1, g2 = x1_out[i, 0], x1_out[i, 1], x1_out[i, 2]
-        if math.sqrt(g0 * g0 + g1 * g1 + g2 * g2) > reanchor:
+        if math.sqrt(g0 * g0 + g1 * g1 + g2 * g2) > reanchor:  # (a non-finite one is caught by Observer.update)
             w0, w1, w2 = omega_row(g0, g1, g2, x2_out[i, 0], x2_out[i, 1], x2_out[i, 2])
             gibbs_to_rot_row(g0, g1, g2, D)
             _matmul_row(A, D, anchor_out[i], False)
@@ -127,10 +120,6 @@ def _pdt_sta_rows(sf, mag, tau, dt, ref, weights, c, J, J_inv, p, anchor, x1, x2
         _matmul_row(anchor_out[i], D, R_hat[i], False)  # eq. 45
         omega_hat[i, 0], omega_hat[i, 1], omega_hat[i, 2] = omega_row(x1_out[i, 0], x1_out[i, 1], x1_out[i, 2],
                                                                       x2_out[i, 0], x2_out[i, 1], x2_out[i, 2])
-    return 0, -1
-
-
-_INPUT_NAMES = {1: "measurement['specific_force']", 2: "measurement['magnetometer']", 3: "torque"}
 
 
 @register_observer("pdt_sta")
@@ -156,6 +145,7 @@ class PdtStaAttitudeObserver(Observer):
     """
 
     channels = frozenset()
+    required_keys = (SPECIFIC_FORCE, MAGNETOMETER)
     #: the update integrates the STA phase by forward Euler (eq. 77 after t_c), whose discrete chattering band
     #: grows like kappa1 dt^(1/2) and kappa2 dt, and it holds the QUEST vectors over the step: 50 ms (20 Hz) is
     #: 30 steps before the default t_c = 1.5 s and 20x the paper's largest rate error band (Sec. 5, T_s = 1e-4 s)
@@ -187,31 +177,18 @@ class PdtStaAttitudeObserver(Observer):
         self._consts = np.array([self.gravity, self._min_field, self.reanchor])
         self.anchor: NDArray[np.float64] = np.eye(3)[None]
 
-    def _vectors(self, meas: Mapping[str, NDArray[np.float64]], n: int | None
-                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The accelerometer and magnetometer rows (n, 3), C-contiguous, checked present and of n rows (their
-        finiteness is checked by the kernels)."""
-        try:
-            sf, mag = meas[SPECIFIC_FORCE], meas[MAGNETOMETER]
-        except KeyError:
-            raise ValueError(f"pdt_sta needs measurement['specific_force'] and measurement['magnetometer'] "
-                             f"(accelerometer + magnetometer); got keys {sorted(meas)}") from None
-        rows = sf.shape[0] if n is None else n
-        for key, v in ((SPECIFIC_FORCE, sf), (MAGNETOMETER, mag)):
-            if v.shape != (rows, 3):
-                raise ValueError(f"pdt_sta: measurement[{key!r}] must have {rows} rows of 3, got shape {v.shape}")
-        return np.ascontiguousarray(sf), np.ascontiguousarray(mag)
+    def _vectors(self, meas: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The accelerometer and magnetometer rows (N, 3), C-contiguous (checked by :meth:`Observer.update` /
+        :meth:`Observer.reset`: present, N rows, finite)."""
+        return np.ascontiguousarray(meas[SPECIFIC_FORCE]), np.ascontiguousarray(meas[MAGNETOMETER])
 
     def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
                rows: NDArray[np.bool_] | None) -> int:
         """Anchor R_a := the QUEST attitude, g_hat = g_hat' = 0, clock t = 0 (force/torque guesses unused).
 
         State: ``anchor`` (N, 3, 3) and the core's x1, x2 (N, 3) and t (N,) (:meth:`GibbsSTSMO.reset`)."""
-        sf, mag = self._vectors(batch_measurement(measurement), None)
+        sf, mag = self._vectors(batch_measurement(measurement))
         n = sf.shape[0]
-        for key, v in ((SPECIFIC_FORCE, sf), (MAGNETOMETER, mag)):
-            if not np.isfinite(v).all():
-                raise ValueError(f"pdt_sta: measurement[{key!r}] contains non-finite values")
         R_q, valid = np.empty((n, 3, 3)), np.empty(n, dtype=np.bool_)
         _measured_attitude_rows(sf, mag, self._ref_unit, self.weights, self.gravity, self._min_field, R_q, valid)
         if not valid.all():
@@ -221,37 +198,24 @@ class PdtStaAttitudeObserver(Observer):
         self.anchor = np.ascontiguousarray(write_rows(self.anchor, R_q, rows))
         return n
 
-    def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
-               dt: float) -> ObserverEstimate:
-        if self._n_rows is None:
-            raise RuntimeError("pdt_sta: update() before reset(measurement); call reset first")
-        meas, _, tau = self._inputs(measurement, thrust, torque, dt)
-        return self._update(meas, tau, float(dt))
-
-    def _update(self, meas: Mapping[str, NDArray[np.float64]], tau: NDArray[np.float64],
-                dt: float) -> ObserverEstimate:
+    def _update(self, meas: dict[str, NDArray[np.float64]], thrust: NDArray[np.float64],
+                torque: NDArray[np.float64], dt: float) -> tuple[ObserverEstimate, Any]:
+        """One kernel call (:func:`_pdt_sta_rows`); the new state (anchor, x1, x2, t) is stored by :meth:`_commit`."""
         core = self.core
         n = core.n
-        sf, mag = self._vectors(meas, n)
-        if tau.shape != (n, 3):
-            if tau.shape != (1, 3):
-                raise ValueError(f"pdt_sta: torque must have shape (3,) or ({n}, 3), got {tau.shape}")
-            tau = np.broadcast_to(tau, (n, 3))
-        tau = np.ascontiguousarray(tau)
+        sf, mag = self._vectors(meas)
         anchor, x1, x2, t = np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
         R_hat, omega_hat, R_q, valid = np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3, 3)), np.empty(n, bool)
-        code, row = _pdt_sta_rows(sf, mag, tau, dt, self._ref_unit, self.weights, self._consts, core.J, core.J_inv,
-                                  core._p, self.anchor, core.x1, core.x2, core.t, anchor, x1, x2, t, R_hat, omega_hat,
-                                  R_q, valid)
-        if code:
-            if code < 4:
-                raise ValueError(f"pdt_sta: {_INPUT_NAMES[code]} contains non-finite values")
-            raise FloatingPointError(f"pdt_sta: the attitude estimate (channel 'attitude') became non-finite in row "
-                                     f"{row}; the observer diverged (check the gains, dt and the measurement)")
-        self.anchor, core.x1, core.x2, core.t = anchor, x1, x2, t
-        return ObserverEstimate(force=np.zeros((n, 3)), torque=np.zeros((n, 3)), states={
+        _pdt_sta_rows(sf, mag, np.ascontiguousarray(torque), dt, self._ref_unit, self.weights, self._consts, core.J,
+                      core.J_inv, core._p, self.anchor, core.x1, core.x2, core.t, anchor, x1, x2, t, R_hat, omega_hat,
+                      R_q, valid)
+        est = ObserverEstimate(force=np.zeros((n, 3)), torque=np.zeros((n, 3)), states={
             "attitude": R_hat, "angular_velocity": omega_hat, "attitude_quest": R_q, "gibbs": x1.copy(),
             "quest_valid": valid})
+        return est, (anchor, x1, x2, t)
+
+    def _commit(self, state: Any) -> None:
+        self.anchor, self.core.x1, self.core.x2, self.core.t = state
 
     def params(self) -> dict[str, Any]:
         c = self.core
