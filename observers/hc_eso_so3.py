@@ -315,7 +315,11 @@ class HcEsoSO3(Observer):
         self.required_keys = (((M.ATTITUDE,) if vectors == "attitude" else (M.SPECIFIC_FORCE, M.MAGNETOMETER))
                               + (rate_key,))
         #: state: R_hat (N, 3, 3), Omega_hat (N, 3), sigma_hat (N, 3); held: L (N, 3, 3), Omega^m (N, 3)
-        self._r_hat = self._w_hat = self._sigma = self._l = self._o = np.empty(0)
+        self._r_hat: NDArray[np.float64] = np.empty((0, 3, 3))
+        self._w_hat: NDArray[np.float64] = np.empty((0, 3))
+        self._sigma: NDArray[np.float64] = np.empty((0, 3))
+        self._l: NDArray[np.float64] = np.empty((0, 3, 3))
+        self._o: NDArray[np.float64] = np.empty((0, 3))
 
     def _measured(self, meas: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.float64], ...]:
         """(specific force, magnetometer, attitude, rate): the measurement rows the kernels read, C-contiguous (the
@@ -345,7 +349,7 @@ class HcEsoSO3(Observer):
             raise ValueError(f"hc_eso: row {row}: {va.IMU_VECTOR_ERRORS[code - 1]}")
 
     def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None) -> int:
+               rows: NDArray[np.bool_] | None, **options: Any) -> int:
         """R_hat from the static Wahba solution of the vectors, Omega_hat = Omega^m, sigma_hat = J^-1 torque guess.
 
         State: R_hat (N, 3, 3), Omega_hat (N, 3), sigma_hat (N, 3) and the held L (N, 3, 3), Omega^m (N, 3)."""

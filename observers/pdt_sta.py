@@ -183,7 +183,7 @@ class PdtStaAttitudeObserver(Observer):
         return np.ascontiguousarray(meas[SPECIFIC_FORCE]), np.ascontiguousarray(meas[MAGNETOMETER])
 
     def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None) -> int:
+               rows: NDArray[np.bool_] | None, **options: Any) -> int:
         """Anchor R_a := the QUEST attitude, g_hat = g_hat' = 0, clock t = 0 (force/torque guesses unused).
 
         State: ``anchor`` (N, 3, 3) and the core's x1, x2 (N, 3) and t (N,) (:meth:`GibbsSTSMO.reset`)."""

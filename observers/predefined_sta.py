@@ -99,11 +99,11 @@ def sigma(t: float, x1: ArrayLike, t_c: float, eta: float, kappa1: float,
 
 def modified_sta_rhs(t_c: float, eta: float, kappa1: float, kappa2: float, t_switch: float | None = None,
                      delta: Callable[[float], float] | None = None,
-                     early_form: str = "tc") -> Callable[[float, ArrayLike], NDArray]:
+                     early_form: str = "tc") -> Callable[[float, NDArray[np.float64]], NDArray]:
     """f(t, x) of eqs. 21-22 (scalar x = (x1, x2)) for :func:`scipy.integrate.solve_ivp`."""
     check_params(t_c, eta, kappa2, kappa1)
 
-    def rhs(t: float, x: ArrayLike) -> NDArray[np.float64]:
+    def rhs(t: float, x: NDArray[np.float64]) -> NDArray[np.float64]:
         x1, x2 = float(x[0]), float(x[1])
         d = 0.0 if delta is None else float(delta(t))
         return np.array([-float(sigma(t, x1, t_c, eta, kappa1, t_switch, early_form)) + x2,

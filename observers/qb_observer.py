@@ -248,22 +248,27 @@ class QBObserver(Observer):
         self._J = np.ascontiguousarray(self.inertia)
         self._J_inv = np.ascontiguousarray(self.inertia_inv)
         #: state: x (N, n_x), the previous output y (N, 9) and attitude R (N, 3, 3)
-        self._x = self._y = self._R = np.empty(0)
+        self._x: NDArray[np.float64] = np.empty((0, 0))
+        self._y: NDArray[np.float64] = np.empty((0, 9))
+        self._R: NDArray[np.float64] = np.empty((0, 3, 3))
 
     # -------------------------------------------------------------------------------
     def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
               torque: ArrayLike | None = None, thrust: ArrayLike | None = None, *,
-              rows: ArrayLike | None = None) -> None:
+              rows: ArrayLike | None = None, **options: Any) -> None:
         """Start from the measured momenta; d from ``force``/``torque`` if given, else force from the
         accelerometer (needs ``thrust``, default m g) and zero torque; derivatives zero.
 
         ``thrust``: the collective thrust [N] the accelerometer term of y uses, a number or one per row (N,);
         ``rows``: as :meth:`Observer.reset` (with a mask, a (N,) ``thrust`` still gives all N rows)."""
-        super().reset(measurement, force, torque, rows=rows, thrust=thrust)
+        super().reset(measurement, force, torque, rows=rows, thrust=thrust, **options)
 
     def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None, thrust: ArrayLike | None = None) -> int:
+               rows: NDArray[np.bool_] | None, **options: Any) -> int:
         """State: ``_x`` (N, n_x), the previous output ``_y`` (N, 9) and attitude ``_R`` (N, 3, 3)."""
+        thrust = options.pop("thrust", None)
+        if options:
+            raise TypeError(f"qb: unknown reset options {sorted(options)}; allowed: thrust")
         if rows is not None and thrust is not None and np.shape(thrust) == rows.shape:
             thrust = np.asarray(thrust, dtype=float)[rows]
         meas = M.batch_measurement(measurement)

@@ -263,7 +263,8 @@ def quest(body: ArrayLike, reference: ArrayLike, weights: ArrayLike | None = Non
     try:
         a = np.broadcast_to(np.ones(1) if weights is None else np.asarray(weights, dtype=float), b.shape[:2])
     except ValueError as exc:
-        raise ValueError(f"weights must have shape ({n_obs},) or (N, {n_obs}), got {np.shape(weights)}") from exc
+        got = np.shape(np.asarray(weights))
+        raise ValueError(f"weights must have shape ({n_obs},) or (N, {n_obs}), got {got}") from exc
     if not (np.isfinite(a) & (a > 0)).all():
         raise ValueError(f"weights must be finite and > 0, got {weights!r}")
     for name, v in (("body", b), ("reference", r)):
