@@ -194,10 +194,12 @@ def _step_rows(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, h):  # type: ignore[
 
 @njit(cache=True)
 def _update_rows(r_hat, w, sigma_hat, l, o, tau, use_attitude, sf, mag, att, rate, J, J_inv, E, EW, c, h, steps,
-                 l_new):  # type: ignore[no-untyped-def]
-    """One observer update of every row, in place on copies of the state (``r_hat``, ``w``, ``sigma_hat``), with
-    the held L, Omega^m (``l``, ``o``, not modified): ``steps`` Lie-Euler substeps of size h, the held L propagated
-    by exp(h (Omega^m)^x) between them; then the new measurement's L into ``l_new``.
+                 r_new, w_new, sigma_new, l_new, o_new, tau_hat):  # type: ignore[no-untyped-def]
+    """One observer update of every row from the state (``r_hat``, ``w``, ``sigma_hat``) and the held L, Omega^m
+    (``l``, ``o``), none of them written: ``steps`` Lie-Euler substeps of size h into ``r_new``, ``w_new``,
+    ``sigma_new``, the held L propagated by exp(h (Omega^m)^x) between them; then the new measurement's L and rate
+    into ``l_new``, ``o_new`` (the held sample of the next update) and the torque estimate J sigma_hat into
+    ``tau_hat``.
 
     Returns (status, row): (0, -1) done, or (k, i): the IMU vectors of row i are unusable
     (:func:`vector_attitude.imu_body_vectors_row` code k).  The inputs are checked finite by
@@ -205,18 +207,25 @@ def _update_rows(r_hat, w, sigma_hat, l, o, tau, use_attitude, sf, mag, att, rat
     n = r_hat.shape[0]
     scratch = np.empty((6, 3, 3))
     for i in range(n):
+        r_new[i] = r_hat[i]
+        w_new[i] = w[i]
+        sigma_new[i] = sigma_hat[i]
         li = scratch[4]
         li[:, :] = l[i]
         if steps > 1:
             exp_so3_row(h * o[i], scratch[5])
         for k in range(steps):  # time substeps
-            hc_eso_step_row(r_hat[i], w[i], sigma_hat[i], li, o[i], tau[i], J, J_inv, c, h, scratch)
+            hc_eso_step_row(r_new[i], w_new[i], sigma_new[i], li, o[i], tau[i], J, J_inv, c, h, scratch)
             if k + 1 < steps:  # the held vectors for the next substep (after the last one, new ones come)
                 scratch[3] = li
                 mat_mul_row(scratch[3], scratch[5], li)
         code = gain_matrix_row(use_attitude, sf[i], mag[i], att[i], E, EW, scratch[3], l_new[i])
         if code:
             return code, i
+        o_new[i] = rate[i]
+        s = sigma_new[i]
+        for k in range(3):
+            tau_hat[i, k] = J[k, 0] * s[0] + J[k, 1] * s[1] + J[k, 2] * s[2]
     return 0, -1
 
 
@@ -320,6 +329,7 @@ class HcEsoSO3(Observer):
         self._sigma: NDArray[np.float64] = np.empty((0, 3))
         self._l: NDArray[np.float64] = np.empty((0, 3, 3))
         self._o: NDArray[np.float64] = np.empty((0, 3))
+        self._blank = (np.zeros((0, 3)), np.zeros((0, 3, 3)))
 
     def _measured(self, meas: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.float64], ...]:
         """(specific force, magnetometer, attitude, rate): the measurement rows the kernels read, C-contiguous (the
@@ -327,20 +337,22 @@ class HcEsoSO3(Observer):
         rows, finite, the attitude a rotation)."""
         rate = np.ascontiguousarray(meas[self.rate_key])
         n = rate.shape[0]
-        out = []
-        for key, trailing in ((M.SPECIFIC_FORCE, (3,)), (M.MAGNETOMETER, (3,)), (M.ATTITUDE, (3, 3))):
-            out.append(np.ascontiguousarray(meas[key]) if key in self.required_keys else np.zeros((n,) + trailing))
-        return out[0], out[1], out[2], rate
+        if self._blank[0].shape[0] != n:  # placeholders of the keys this observer does not read (never written)
+            self._blank = (np.zeros((n, 3)), np.zeros((n, 3, 3)))
+        if self.vectors == "attitude":
+            return self._blank[0], self._blank[0], np.ascontiguousarray(meas[M.ATTITUDE]), rate
+        return (np.ascontiguousarray(meas[M.SPECIFIC_FORCE]), np.ascontiguousarray(meas[M.MAGNETOMETER]),
+                self._blank[1], rate)
 
     def _gain_matrices(self, sf: NDArray[np.float64], mag: NDArray[np.float64], att: NDArray[np.float64],
                        rate: NDArray[np.float64]) -> NDArray[np.float64]:
         """L (N, 3, 3) of the measurement, through the observer's update kernel with no substep; raises the update's
         errors."""
         n = rate.shape[0]
-        l_new = np.empty((n, 3, 3))
-        code, row = _update_rows(np.empty((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.empty((n, 3, 3)),
-                                 np.zeros((n, 3)), np.zeros((n, 3)), self.vectors == "attitude", sf, mag, att, rate,
-                                 self._J, self._J_inv, self._e, self._ew, self._c, 0.0, 0, l_new)
+        l_new, z3, z33 = np.empty((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3, 3))
+        code, row = _update_rows(z33, z3, z3, z33, z3, z3, self.vectors == "attitude", sf, mag, att, rate, self._J,
+                                 self._J_inv, self._e, self._ew, self._c, 0.0, 0, np.empty((n, 3, 3)),
+                                 np.empty((n, 3)), np.empty((n, 3)), l_new, np.empty((n, 3)), np.empty((n, 3)))
         self._raise(code, row)
         return l_new
 
@@ -374,15 +386,17 @@ class HcEsoSO3(Observer):
         n = self._r_hat.shape[0]
         sf, mag, att, rate = self._measured(meas)
         steps = max(1, math.ceil(dt / self.max_step - 1e-9))
-        r_hat, w_hat, sigma, l_new = self._r_hat.copy(), self._w_hat.copy(), self._sigma.copy(), np.empty((n, 3, 3))
-        code, row = _update_rows(r_hat, w_hat, sigma, self._l, self._o, np.ascontiguousarray(torque),
-                                 self.vectors == "attitude", sf, mag, att, rate, self._J, self._J_inv, self._e,
-                                 self._ew, self._c, dt / steps, steps, l_new)
+        r_hat, w_hat, sigma, l_new, o_new, tau_hat = (np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3)),
+                                                      np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3)))
+        code, row = _update_rows(self._r_hat, self._w_hat, self._sigma, self._l, self._o,
+                                 np.ascontiguousarray(torque), self.vectors == "attitude", sf, mag, att, rate, self._J,
+                                 self._J_inv, self._e, self._ew, self._c, dt / steps, steps, r_hat, w_hat, sigma, l_new,
+                                 o_new, tau_hat)
         self._raise(code, row)
-        est = ObserverEstimate(force=np.zeros((n, 3)), torque=sigma @ self.inertia.T,
-                               states={"attitude": r_hat.copy(), "angular_velocity": w_hat.copy(),
-                                       "sigma": sigma.copy()})
-        return est, (r_hat, w_hat, sigma, l_new, rate.copy())
+        # the estimate's arrays are the new state's: no update writes into a state array after it is stored
+        est = ObserverEstimate(force=np.zeros((n, 3)), torque=tau_hat,
+                               states={"attitude": r_hat, "angular_velocity": w_hat, "sigma": sigma})
+        return est, (r_hat, w_hat, sigma, l_new, o_new)
 
     def _commit(self, state: Any) -> None:
         self._r_hat, self._w_hat, self._sigma, self._l, self._o = state

@@ -26,11 +26,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FORCE, batch_measurement
 from fawtgym.core.rows import write_rows
+from fawtgym.core.so3_kernels import mat_mul_row, quat_to_rot_row
 
 from .base import Observer, ObserverEstimate, register_observer
 from .gibbs import gibbs_to_rot_row, omega_row, rot_to_gibbs_row
 from .predefined_sta import early_switch_time
-from .quest import quat_to_rot_row, quest_row
+from .quest import quest_row
 from .stsmo import GibbsSTSMO, stsmo_row
 
 #: a measured Gibbs vector relative to the anchor is clipped to this norm (a half turn has none)
@@ -62,14 +63,11 @@ def measured_attitude_row(sf, mag, ref, weights, gravity, min_field, body, q, g,
 
 
 @njit(cache=True)
-def _matmul_row(A, B, out, transpose_a):  # type: ignore[no-untyped-def]
-    """out = A B, or A^T B (3 x 3)."""
+def _mat_t_mul_row(A, B, out):  # type: ignore[no-untyped-def]
+    """out = A^T B (3 x 3; core.so3_kernels has A B only)."""
     for i in range(3):
         for j in range(3):
-            s = 0.0
-            for k in range(3):
-                s += (A[k, i] if transpose_a else A[i, k]) * B[k, j]
-            out[i, j] = s
+            out[i, j] = A[0, i] * B[0, j] + A[1, i] * B[1, j] + A[2, i] * B[2, j]
 
 
 @njit(cache=True)
@@ -98,11 +96,11 @@ def _pdt_sta_rows(sf, mag, tau, dt, ref, weights, c, J, J_inv, p, anchor, x1, x2
         A = anchor[i]
         valid[i] = measured_attitude_row(sf[i], mag[i], ref, weights, gravity, min_field, body, q, g, R_q[i])
         if valid[i]:
-            _matmul_row(A, R_q[i], rel, True)
+            _mat_t_mul_row(A, R_q[i], rel)
             y[0], y[1], y[2] = rot_to_gibbs_row(rel, 1e-6, _Y_MAX)  # eq. 79
         else:
             gibbs_to_rot_row(x1[i, 0], x1[i, 1], x1[i, 2], D)
-            _matmul_row(A, D, R_q[i], False)
+            mat_mul_row(A, D, R_q[i])
             y[0], y[1], y[2] = x1[i, 0], x1[i, 1], x1[i, 2]
         w[0], w[1], w[2] = omega_row(x1[i, 0], x1[i, 1], x1[i, 2], x2[i, 0], x2[i, 1], x2[i, 2])  # eq. 80
         stsmo_row(x1[i], x2[i], t[i], y, tau[i], w, J, J_inv, p, dt, x1_out[i], x2_out[i])  # a non-finite state
@@ -111,13 +109,13 @@ def _pdt_sta_rows(sf, mag, tau, dt, ref, weights, c, J, J_inv, p, anchor, x1, x2
         if math.sqrt(g0 * g0 + g1 * g1 + g2 * g2) > reanchor:  # (a non-finite one is caught by Observer.update)
             w0, w1, w2 = omega_row(g0, g1, g2, x2_out[i, 0], x2_out[i, 1], x2_out[i, 2])
             gibbs_to_rot_row(g0, g1, g2, D)
-            _matmul_row(A, D, anchor_out[i], False)
+            mat_mul_row(A, D, anchor_out[i])
             x1_out[i, 0] = x1_out[i, 1] = x1_out[i, 2] = 0.0
             x2_out[i, 0], x2_out[i, 1], x2_out[i, 2] = 0.5 * w0, 0.5 * w1, 0.5 * w2  # g' = 1/2 Gamma(0) omega
         else:
             anchor_out[i] = A
         gibbs_to_rot_row(x1_out[i, 0], x1_out[i, 1], x1_out[i, 2], D)
-        _matmul_row(anchor_out[i], D, R_hat[i], False)  # eq. 45
+        mat_mul_row(anchor_out[i], D, R_hat[i])  # eq. 45
         omega_hat[i, 0], omega_hat[i, 1], omega_hat[i, 2] = omega_row(x1_out[i, 0], x1_out[i, 1], x1_out[i, 2],
                                                                       x2_out[i, 0], x2_out[i, 1], x2_out[i, 2])
 
@@ -209,8 +207,9 @@ class PdtStaAttitudeObserver(Observer):
         _pdt_sta_rows(sf, mag, np.ascontiguousarray(torque), dt, self._ref_unit, self.weights, self._consts, core.J,
                       core.J_inv, core._p, self.anchor, core.x1, core.x2, core.t, anchor, x1, x2, t, R_hat, omega_hat,
                       R_q, valid)
+        # "gibbs" is the new state's x1: no update writes into a state array after it is stored
         est = ObserverEstimate(force=np.zeros((n, 3)), torque=np.zeros((n, 3)), states={
-            "attitude": R_hat, "angular_velocity": omega_hat, "attitude_quest": R_q, "gibbs": x1.copy(),
+            "attitude": R_hat, "angular_velocity": omega_hat, "attitude_quest": R_q, "gibbs": x1,
             "quest_valid": valid})
         return est, (anchor, x1, x2, t)
 

@@ -29,6 +29,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.so3_kernels import quat_to_rot_row
+
 _NEWTON_ITERS = 8
 #: where the attitude is a half turn the Gibbs vector does not exist: reported with this norm
 GIBBS_MAX = 1e8
@@ -205,15 +207,6 @@ def quest_row(b, r, a, q, g):  # type: ignore[no-untyped-def]
     w_floor = w if w > 1.0 / GIBBS_MAX else 1.0 / GIBBS_MAX
     g[0], g[1], g[2] = x / w_floor, y / w_floor, z / w_floor
     return lam
-
-
-@njit(cache=True)
-def quat_to_rot_row(q, R):  # type: ignore[no-untyped-def]
-    """R (3, 3) of the unit quaternion q = (w, x, y, z) (Hamilton, body -> world)."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    R[0, 0], R[0, 1], R[0, 2] = 1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)
-    R[1, 0], R[1, 1], R[1, 2] = 2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)
-    R[2, 0], R[2, 1], R[2, 2] = 2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)
 
 
 @njit(cache=True)
