@@ -10,6 +10,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.measurement import batch_measurement
@@ -93,9 +94,39 @@ def positive(who: str, **values: float) -> None:
             raise ValueError(f"{who}: gain {k} must be a finite positive number, got {v!r}")
 
 
-def sig(x: NDArray[np.float64], a: float) -> NDArray[np.float64]:
-    """Element-wise sig^a(x) = |x|^a sign(x) (0 at 0 for a > 0)."""
-    return np.sign(x) * np.abs(x) ** a
+@njit(cache=True)
+def sig_row(x: float, a: float) -> float:
+    """sig^a(x) = |x|^a sign(x) of one number (0 at 0 for a > 0)."""
+    if x > 0.0:
+        return x**a
+    if x < 0.0:
+        return -((-x) ** a)
+    return 0.0
+
+
+@njit(cache=True)
+def known_acceleration_row(att: NDArray[np.float64], thrust: float, mass: float, gravity: float,
+                           out: NDArray[np.float64]) -> None:
+    """out = g e3 - (f/m) R e3: the known part of v' in Wang et al. (2024) eq. (38) (world NED)."""
+    f_over_m = thrust / mass
+    out[0] = -f_over_m * att[0, 2]
+    out[1] = -f_over_m * att[1, 2]
+    out[2] = gravity - f_over_m * att[2, 2]
+
+
+@njit(cache=True)
+def known_angular_acceleration_row(omega: NDArray[np.float64], torque: NDArray[np.float64],
+                                   inertia: NDArray[np.float64], inertia_inv: NDArray[np.float64],
+                                   out: NDArray[np.float64]) -> None:
+    """out = J^-1 (J Omega x Omega + tau): the known part of Omega' in Wang et al. (2024) eq. (38) (body FRD)."""
+    jw0 = inertia[0, 0] * omega[0] + inertia[0, 1] * omega[1] + inertia[0, 2] * omega[2]
+    jw1 = inertia[1, 0] * omega[0] + inertia[1, 1] * omega[1] + inertia[1, 2] * omega[2]
+    jw2 = inertia[2, 0] * omega[0] + inertia[2, 1] * omega[1] + inertia[2, 2] * omega[2]
+    m0 = jw1 * omega[2] - jw2 * omega[1] + torque[0]
+    m1 = jw2 * omega[0] - jw0 * omega[2] + torque[1]
+    m2 = jw0 * omega[1] - jw1 * omega[0] + torque[2]
+    for j in range(3):
+        out[j] = inertia_inv[j, 0] * m0 + inertia_inv[j, 1] * m1 + inertia_inv[j, 2] * m2
 
 
 _I1 = [1, 2, 0]

@@ -54,40 +54,79 @@ import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.rows import write_rows
-from fawtgym.core.so3 import integrate_rotation, project_so3, vee
-from fawtgym.observers._obs_common import (
-    batch_vec,
-    cross,
-    require,
-)
+from fawtgym.core.so3 import project_so3
+from fawtgym.core.so3_kernels import cross_row, exp_so3_row, mat_mul_row, mat_t_vec_row, mat_vec_row
+from fawtgym.observers._obs_common import batch_vec, require
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
-from fawtgym.observers.hc_ffts import DEFAULT_EPS, check_p, euler_stable_eps, hurwitz_matrix
+from fawtgym.observers.hc_ffts import (
+    DEFAULT_EPS,
+    check_p,
+    euler_stable_eps,
+    frac_power_rate_row,
+    frac_power_row,
+    hurwitz_matrix,
+    phi1_row,
+    phi2_row,
+)
 
-_E3 = np.array([0.0, 0.0, 1.0])
-_TINY = 1e-300          # floor inside the fractional powers of phi1/phi2: x**neg * 0 stays 0, never inf*0
-_ONES = np.ones((3, 1))   # row sums as a BLAS product (cheaper than np.sum on small batches)
-_VA = np.array([2, 0, 1])
-_VB = np.array([1, 2, 0])
 _KEYS = ("position", "velocity", "attitude", "angular_velocity")
+#: the gains array the kernel reads, in this order
+GAIN_NAMES = ("mass", "gravity", "p", "kt1", "kt2", "kt3", "kappa_t", "ka1", "ka2", "ka3", "kappa_a", "K1", "K2", "K3")
+#: columns of the state (N, 24): b_hat, v_hat, phi_hat, Omega_hat, tau_hat, R_hat (row-major 9)
+B, V, PHI, W, TAU, R = 0, 3, 6, 9, 12, 15
+#: columns of the estimate buffer (N, 24): force, torque, position, velocity, angular_velocity, attitude (9)
+E_FORCE, E_TORQUE, E_POS, E_VEL, E_W, E_ATT = 0, 3, 6, 9, 12, 15
+
+
+@njit(cache=True)
+def s_k_row(e: NDArray[np.float64], k: NDArray[np.float64], out: NDArray[np.float64]) -> None:
+    """out = s_K(E) = sum_i K_i (E^T e_i) x e_i (eq. 41) = vee(K E - E^T K), K = diag(k)."""
+    out[0] = k[2] * e[2, 1] - k[1] * e[1, 2]
+    out[1] = k[0] * e[0, 2] - k[2] * e[2, 0]
+    out[2] = k[1] * e[1, 0] - k[0] * e[0, 1]
+
+
+@njit(cache=True)
+def s_k_rate_row(e: NDArray[np.float64], w: NDArray[np.float64], k: NDArray[np.float64],
+                 out: NDArray[np.float64]) -> None:
+    """out = d/dt s_K(E) along E' = E w^: sum_i K_i e_i x (w x E^T e_i) (eq. 66) = tr(K E) w - E^T K w."""
+    trace_ke = k[0] * e[0, 0] + k[1] * e[1, 1] + k[2] * e[2, 2]
+    for j in range(3):
+        out[j] = trace_ke * w[j] - (e[0, j] * k[0] * w[0] + e[1, j] * k[1] * w[1] + e[2, j] * k[2] * w[2])
+
+
+@njit(cache=True)
+def _s_k_rows(r: NDArray[np.float64], w: NDArray[np.float64], k: NDArray[np.float64], rate: bool,
+              out: NDArray[np.float64]) -> None:
+    for i in range(r.shape[0]):
+        if rate:
+            s_k_rate_row(r[i], w[i], k, out[i])
+        else:
+            s_k_row(r[i], k, out[i])
 
 
 def s_k(r: ArrayLike, k: ArrayLike) -> NDArray[np.float64]:
     """s_K(R) = sum_i K_i (R^T e_i) x e_i (eq. 41) = vee(K R - R^T K); R (..., 3, 3), K the 3 diagonal entries."""
     r = np.asarray(r, dtype=float)
-    km = np.diag(np.asarray(k, dtype=float))
-    return vee(km @ r - np.swapaxes(r, -1, -2) @ km)
+    rows = np.ascontiguousarray(r.reshape(-1, 3, 3))
+    out = np.empty((rows.shape[0], 3))
+    _s_k_rows(rows, out, np.asarray(k, dtype=float), False, out)
+    return out.reshape(r.shape[:-2] + (3,))
 
 
 def s_k_rate(r: ArrayLike, omega: ArrayLike, k: ArrayLike) -> NDArray[np.float64]:
     """d/dt s_K(E) for E' = E omega^: sum_i K_i e_i x (omega x E^T e_i) (eq. 66) = tr(K E) w - E^T K w."""
-    r = np.asarray(r, dtype=float)
-    w = np.asarray(omega, dtype=float)
-    kv = np.asarray(k, dtype=float)
-    tr = np.einsum("i,...ii->...", kv, r)
-    return tr[..., None] * w - np.einsum("...ji,...j->...i", r, kv * w)
+    r, w = np.asarray(r, dtype=float), np.asarray(omega, dtype=float)
+    shape = np.broadcast_shapes(r.shape[:-2], w.shape[:-1])
+    rows = np.ascontiguousarray(np.broadcast_to(r, shape + (3, 3)).reshape(-1, 3, 3))
+    ws = np.ascontiguousarray(np.broadcast_to(w, shape + (3,)).reshape(-1, 3))
+    out = np.empty_like(ws)
+    _s_k_rows(rows, ws, np.asarray(k, dtype=float), True, out)
+    return out.reshape(shape + (3,))
 
 
 def morse(r: ArrayLike, k: ArrayLike) -> NDArray[np.float64]:
@@ -140,15 +179,9 @@ class FFTSESO(Observer):
         self.ka1, self.ka2, self.ka3 = float(ka1), float(ka2), float(ka3)
         self.morse_k = np.asarray(morse_k, dtype=float)
         self.eps = float(eps)
-        self._state: dict[str, NDArray[np.float64]] | None = None
-        # constants of eq. (9) and of the fractional power (1-p)/p, (p-1)/p
-        self._a = (1.0 - p) / (3.0 * p - 2.0)
-        self._c1t = 2.0 * kt3 * (2.0 * p - 1.0) / (3.0 * p - 2.0)
-        self._c1a = 2.0 * ka3 * (2.0 * p - 1.0) / (3.0 * p - 2.0)
-        self._c2 = p / (3.0 * p - 2.0)
-        self._c = (1.0 - p) / p
-        self._k = (p - 1.0) / p
-        self._ge3 = self.gravity * _E3
+        self._state: NDArray[np.float64] | None = None
+        self._gains = np.array([self.mass, self.gravity, p, kt1, kt2, kt3, kappa_t, ka1, ka2, ka3, kappa_a,
+                                *self.morse_k], dtype=float)
         # stiffest-mode gains of the two halves (euler_stable_eps): e_v' ~ -kappa_t g' e_v, and
         # e_Omega' ~ -kappa_a g' (tr(K) I - K) e_Omega at E = I (eq. 66)
         self._stiff_t = self.kappa_t
@@ -171,91 +204,144 @@ class FFTSESO(Observer):
                rows: NDArray[np.bool_] | None) -> int:
         """b_hat, v_hat, R_hat, Omega_hat := measured values; phi_hat, tau_hat := given guesses (default 0).
 
-        State: the dict ``_state`` of (N, 3) / (N, 3, 3) arrays."""
+        State: ``_state`` (N, 24), columns b_hat, v_hat, phi_hat, Omega_hat, tau_hat, R_hat (row-major)."""
         m = require(measurement, _KEYS, "ffts_eso")
         n = m["position"].shape[0]
-        fresh = {
-            "b": m["position"].copy(), "v": m["velocity"].copy(), "phi": batch_vec(force, n, "force", "ffts_eso"),
-            "R": project_so3(m["attitude"]), "w": m["angular_velocity"].copy(),
-            "tau": batch_vec(torque, n, "torque", "ffts_eso"),
-        }
+        fresh = np.concatenate([m["position"], m["velocity"], batch_vec(force, n, "force", "ffts_eso"),
+                                m["angular_velocity"], batch_vec(torque, n, "torque", "ffts_eso"),
+                                project_so3(m["attitude"]).reshape(n, 9)], axis=1)
         self._state = write_rows(self._state, fresh, rows)
         return n
 
     def _update(self, m: dict[str, NDArray[np.float64]], f: NDArray[np.float64], tau: NDArray[np.float64],
-                dt: float) -> tuple[ObserverEstimate, dict[str, NDArray[np.float64]]]:
-        s = self._state
-        new = self._advance(s, self._rhs(s, m, f, tau, *self.eps_at(dt)), dt)
-        return self._estimate_of(new), new
+                dt: float) -> tuple[ObserverEstimate, NDArray[np.float64]]:
+        x = self._state
+        eps_t, eps_a = self.eps_at(dt)
+        x_new = np.empty_like(x)
+        est = np.empty_like(x)
+        ffts_eso_step(x, m["position"], m["velocity"], m["attitude"], m["angular_velocity"], f, tau, dt, eps_t,
+                      eps_a, self._gains, self.inertia, self.inertia_inv, x_new, est)
+        return _estimate(est), x_new
 
     def estimate(self) -> ObserverEstimate:
         if self._state is None:
             raise RuntimeError("ffts_eso: call reset(measurement) first")
-        return self._estimate_of(self._state)
+        est = np.empty_like(self._state)
+        ffts_eso_estimate(self._state, est)
+        return _estimate(est)
 
-    def _estimate_of(self, s: dict[str, NDArray[np.float64]]) -> ObserverEstimate:
-        return ObserverEstimate(force=s["phi"].copy(), torque=s["tau"].copy(), states={
-            "position": s["b"].copy(), "velocity": s["v"].copy(), "attitude": s["R"].copy(),
-            "angular_velocity": s["w"].copy()})
 
-    # ---- internals ---------------------------------------------------------------------------
-    @staticmethod
-    def _advance(s: dict[str, NDArray[np.float64]], d: dict[str, NDArray[np.float64]], dt: float
-                 ) -> dict[str, NDArray[np.float64]]:
-        """One step with the derivatives held: the kinematic chains b' = v_hat, R' = R Omega_hat^ are integrated
-        exactly for a held v_hat', Omega_hat' (b += dt v + dt^2/2 v', R <- R exp(dt w + dt^2/2 w')).
+def _estimate(est: NDArray[np.float64]) -> ObserverEstimate:
+    """The estimate from the kernel's buffer (N, 24) (views of a fresh buffer, not of the state)."""
+    n = est.shape[0]
+    return ObserverEstimate(force=est[:, E_FORCE:E_FORCE + 3], torque=est[:, E_TORQUE:E_TORQUE + 3], states={
+        "position": est[:, E_POS:E_POS + 3], "velocity": est[:, E_VEL:E_VEL + 3],
+        "attitude": est[:, E_ATT:E_ATT + 9].reshape(n, 3, 3), "angular_velocity": est[:, E_W:E_W + 3]})
 
-        Plain Euler on b would lag the sampled position by dt^2/2 b'' per step, which the fractional
-        injection (|e_b|^(-1/3) near 0) turns into a force bias of ~0.1 N at 1 kHz.
-        """
-        h2 = 0.5 * dt * dt
-        return {"b": s["b"] + dt * s["v"] + h2 * d["v"], "v": s["v"] + dt * d["v"], "phi": s["phi"] + dt * d["phi"],
-                "R": integrate_rotation(s["R"], s["w"] + (0.5 * dt) * d["w"], dt), "w": s["w"] + dt * d["w"],
-                "tau": s["tau"] + dt * d["tau"]}
 
-    def _rhs(self, s: dict[str, NDArray[np.float64]], m: dict[str, NDArray[np.float64]],
-             f: NDArray[np.float64], tau: NDArray[np.float64], eps: float | None = None,
-             eps_a: float | None = None) -> dict[str, NDArray[np.float64]]:
-        """Time derivatives of (b, v, phi, tau, w) and the body rate of R_hat (key "R").
+@njit(cache=True)
+def _estimate_row(x: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+    """The estimate of one state row: phi_hat, tau_hat, b_hat, v_hat, Omega_hat, R_hat."""
+    for j in range(3):
+        est[E_FORCE + j] = x[PHI + j]
+        est[E_TORQUE + j] = x[TAU + j]
+        est[E_POS + j] = x[B + j]
+        est[E_VEL + j] = x[V + j]
+        est[E_W + j] = x[W + j]
+    for j in range(9):
+        est[E_ATT + j] = x[R + j]
 
-        Fused forms of phi1/phi2 (eq. 9) and of the regularised fractional power g(e) = max(e^T e, eps)^c e,
-        c = (1-p)/p, and its exact derivative (eqs. 49/68); equal to the hc_ffts functions (tested).
-        ``eps`` / ``eps_a``: the translational / rotational floors (default ``self.eps``; :meth:`update` passes
-        :meth:`eps_at` of its dt).
-        """
-        mass, c = self.mass, self._c
-        eps = self.eps if eps is None else eps
-        eps_a = self.eps if eps_a is None else eps_a
-        # translational, eqs. (45), (49), (50)
-        e_b = m["position"] - s["b"]
-        e_v = m["velocity"] - s["v"]
-        r2 = (e_b * e_b) @ _ONES
-        rb = np.maximum(r2, eps)
-        pw = rb**c
-        inside = r2 > eps
-        psi_t = e_v + self.kappa_t * (e_b + pw * e_b)
-        rate_b = pw * (e_v - (2.0 * self._k * (e_b * e_v) @ _ONES * inside / rb) * e_b)
-        pa = np.maximum((psi_t * psi_t) @ _ONES, _TINY) ** self._a
-        rm = m["attitude"]
-        v_dot = (self._ge3 - (f / mass)[:, None] * rm[:, :, 2] + (self.kt1 * (self.kt3 + pa)) * psi_t
-                 + self.kappa_t * (rate_b + e_v) + s["phi"] / mass)
-        phi_dot = (mass * self.kt2) * (self.kt3 * self.kt3 + self._c1t * pa + self._c2 * pa * pa) * psi_t
-        # rotational, eqs. (46), (47), (66), (68), (69)
-        om = m["angular_velocity"]
-        e_mat = np.swapaxes(s["R"], -1, -2) @ rm
-        kv = self.morse_k
-        e_r = e_mat[:, _VA, _VB] * kv[_VA] - e_mat[:, _VB, _VA] * kv[_VB]      # s_K(E_R) = vee(K E - E^T K)
-        e_om = om - (s["w"][:, None, :] @ e_mat)[:, 0]                           # Omega^m - E^T Omega_hat
-        tr = e_mat[:, 0, 0] * kv[0] + e_mat[:, 1, 1] * kv[1] + e_mat[:, 2, 2] * kv[2]
-        e_w = tr[:, None] * e_om - ((kv * e_om)[:, None, :] @ e_mat)[:, 0]      # eq. (66)
-        r2a = (e_r * e_r) @ _ONES
-        ra = np.maximum(r2a, eps_a)
-        pwa = ra**c
-        psi_a = e_om + self.kappa_a * (e_r + pwa * e_r)
-        rate_r = pwa * (e_w - (2.0 * self._k * (e_r * e_w) @ _ONES * (r2a > eps_a) / ra) * e_r)
-        qa = np.maximum((psi_a * psi_a) @ _ONES, _TINY) ** self._a
-        body = ((cross(om @ self.inertia.T, om) + s["tau"] + tau) @ self.inertia_inv.T
-                + (self.ka1 * (self.ka3 + qa)) * psi_a + self.kappa_a * (rate_r + e_w))
-        w_dot = (e_mat @ body[:, :, None])[:, :, 0] + cross((e_mat @ e_om[:, :, None])[:, :, 0], s["w"])
-        tau_dot = (self.ka2 * (self.ka3 * self.ka3 + self._c1a * qa + self._c2 * qa * qa) * psi_a) @ self.inertia.T
-        return {"b": s["v"], "v": v_dot, "phi": phi_dot, "R": s["w"], "w": w_dot, "tau": tau_dot}
+
+@njit(cache=True)
+def ffts_eso_estimate(x: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+    """:func:`_estimate_row` of every row of the state ``x`` (N, 24) into ``est`` (N, 24)."""
+    for i in range(x.shape[0]):
+        _estimate_row(x[i], est[i])
+
+
+@njit(cache=True)
+def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray[np.float64],
+                  att: NDArray[np.float64], omega: NDArray[np.float64], thrust: NDArray[np.float64],
+                  torque: NDArray[np.float64], dt: float, eps_t: float, eps_a: float, gains: NDArray[np.float64],
+                  inertia: NDArray[np.float64], inertia_inv: NDArray[np.float64], x_new: NDArray[np.float64],
+                  est: NDArray[np.float64]) -> None:
+    """One FFTS-ESO step of every row: state ``x`` (N, 24) -> ``x_new``, estimate into ``est`` (N, 24).
+
+    Measurement b^m (N, 3), v^m (N, 3), R^m (N, 3, 3), Omega^m (N, 3), applied thrust (N,) and torque (N, 3)
+    held over ``dt``; ``eps_t`` / ``eps_a`` the floors of the two fractional terms at this dt; ``gains`` as
+    :data:`GAIN_NAMES`.  Equations as in the module docstring (Wang et al. (2024) eqs. 45-50, 66-69).
+    """
+    mass, g, p = gains[0], gains[1], gains[2]
+    kt1, kt2, kt3, kappa_t = gains[3], gains[4], gains[5], gains[6]
+    ka1, ka2, ka3, kappa_a = gains[7], gains[8], gains[9], gains[10]
+    morse_k = gains[11:14]
+    half_dt2 = 0.5 * dt * dt
+    vec = np.empty((18, 3))                                                 # the row's 3-vector intermediates
+    e_b, e_v, psi_t, g_b, rate_b, inj1, inj2 = vec[0], vec[1], vec[2], vec[3], vec[4], vec[5], vec[6]
+    e_r, e_om, e_w, psi_a, g_r, rate_r = vec[7], vec[8], vec[9], vec[10], vec[11], vec[12]
+    jw, gyro, body, t1, t2 = vec[13], vec[14], vec[15], vec[16], vec[17]
+    mats = np.empty((4, 3, 3))
+    e_mat, r_hat, step_rot, r_new = mats[0], mats[1], mats[2], mats[3]
+    for i in range(x.shape[0]):
+        xi, xo = x[i], x_new[i]
+        # ---- translational ESO, eqs. (45), (48)-(50)
+        for j in range(3):
+            e_b[j] = pos[i, j] - xi[B + j]                                  # e_b = b^m - b_hat
+            e_v[j] = vel[i, j] - xi[V + j]                                  # e_v = v^m - v_hat
+        frac_power_row(e_b, p, eps_t, g_b)                                  # |e_b|^(2(1-p)/p) e_b, regularised
+        frac_power_rate_row(e_b, e_v, p, eps_t, rate_b)                     # its rate (the H-term of eq. 49)
+        for j in range(3):
+            psi_t[j] = e_v[j] + kappa_t * (e_b[j] + g_b[j])                 # psi_t, eq. (50)
+        phi1_row(psi_t, kt3, p, inj1)                                       # eq. (9)
+        phi2_row(psi_t, kt3, p, inj2)
+        f_over_m = thrust[i] / mass
+        for j in range(3):
+            # v_hat' = g e3 - (f/m) R^m e3 + k_t1 phi1(psi_t) + kappa_t (g'(e_b) + e_v) + phi_hat / m, eq. (49)
+            v_dot = ((g if j == 2 else 0.0) - f_over_m * att[i, j, 2] + kt1 * inj1[j]
+                     + kappa_t * (rate_b[j] + e_v[j]) + xi[PHI + j] / mass)
+            xo[B + j] = xi[B + j] + dt * xi[V + j] + half_dt2 * v_dot   # b' = v_hat, exact for the held v_hat'
+            xo[V + j] = xi[V + j] + dt * v_dot
+            xo[PHI + j] = xi[PHI + j] + dt * (mass * kt2 * inj2[j])     # phi_hat' = m k_t2 phi2(psi_t)
+        # ---- rotational ESO, eqs. (46)-(47), (66)-(69); E = R_hat^T R^m
+        for j in range(3):
+            for k in range(3):
+                r_hat[j, k] = xi[R + 3 * j + k]
+        for j in range(3):
+            for k in range(3):
+                e_mat[j, k] = r_hat[0, j] * att[i, 0, k] + r_hat[1, j] * att[i, 1, k] + r_hat[2, j] * att[i, 2, k]
+        mat_t_vec_row(e_mat, xi[W:W + 3], t1)                               # E^T Omega_hat
+        for j in range(3):
+            e_om[j] = omega[i, j] - t1[j]                                   # e_Omega, eq. (47)
+        s_k_row(e_mat, morse_k, e_r)                                        # e_R = s_K(E), eq. (41)
+        s_k_rate_row(e_mat, e_om, morse_k, e_w)                             # e_w = d/dt e_R, eq. (66)
+        frac_power_row(e_r, p, eps_a, g_r)
+        frac_power_rate_row(e_r, e_w, p, eps_a, rate_r)
+        for j in range(3):
+            psi_a[j] = e_om[j] + kappa_a * (e_r[j] + g_r[j])                # psi_a, eq. (69)
+        phi1_row(psi_a, ka3, p, inj1)
+        phi2_row(psi_a, ka3, p, inj2)
+        mat_vec_row(inertia, omega[i], jw)
+        cross_row(jw, omega[i], gyro)                                       # J Om^m x Om^m
+        for j in range(3):
+            t1[j] = gyro[j] + xi[TAU + j] + torque[i, j]
+        mat_vec_row(inertia_inv, t1, t2)                                    # J^-1 (J Om x Om + tau_hat + tau)
+        for j in range(3):
+            body[j] = t2[j] + ka1 * inj1[j] + kappa_a * (rate_r[j] + e_w[j])
+        mat_vec_row(e_mat, body, t1)                                        # E [ ... ], eq. (68)
+        mat_vec_row(e_mat, e_om, t2)                                        # E e_Omega
+        cross_row(t2, xi[W:W + 3], jw)                                      # E e_Om^ E^T Om_hat = (E e_Om) x Om_hat
+        for j in range(3):
+            t2[j] = ka2 * inj2[j]
+        mat_vec_row(inertia, t2, gyro)                                      # tau_hat' = J k_a2 phi2(psi_a)
+        for j in range(3):
+            w_dot = t1[j] + jw[j]
+            # R_hat' = R_hat Omega_hat^: exact for the held Omega_hat' (exponential map over the step)
+            t2[j] = dt * (xi[W + j] + 0.5 * dt * w_dot)
+            xo[W + j] = xi[W + j] + dt * w_dot
+            xo[TAU + j] = xi[TAU + j] + dt * gyro[j]
+        exp_so3_row(t2, step_rot)
+        mat_mul_row(r_hat, step_rot, r_new)
+        for j in range(3):
+            for k in range(3):
+                xo[R + 3 * j + k] = r_new[j, k]
+        _estimate_row(xo, est[i])

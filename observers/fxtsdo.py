@@ -23,19 +23,22 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.rows import write_rows
 from fawtgym.observers._obs_common import (
     batch_vec,
-    cross,
+    known_acceleration_row,
+    known_angular_acceleration_row,
     positive,
     require,
-    sig,
+    sig_row,
 )
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 
-_E3 = np.array([0.0, 0.0, 1.0])
+#: columns of the state (N, 12): previous v^m, previous Omega^m, d_t_hat [m/s^2], d_a_hat [rad/s^2]
+V_PREV, W_PREV, D_T, D_A = 0, 3, 6, 9
 _KEYS = ("velocity", "attitude", "angular_velocity")
 #: the largest disturbance-acceleration error [m/s^2 or rad/s^2] the Euler step must keep stable (10 g)
 LARGE_ERROR = 10.0 * 9.80665
@@ -60,43 +63,84 @@ class FxTSDO(Observer):
         if not (0.0 < a1 < 1.0 < a2):
             raise ValueError(f"fxtsdo: fixed-time exponents need 0 < a1 < 1 < a2, got a1={a1!r}, a2={a2!r}")
         self.k1, self.k2, self.a1, self.a2 = float(k1), float(k2), float(a1), float(a2)
-        self._state: dict[str, NDArray[np.float64]] | None = None
+        self._state: NDArray[np.float64] | None = None
+        self._gains = np.array([self.mass, self.gravity, self.k1, self.k2, self.a1, self.a2])
         # explicit Euler of d' = law(r - d) is stable while law's slope times dt < 2; the a2 > 1 term's slope
         # k2 a2 |e|^(a2-1) grows without bound, so dt is bounded to keep errors up to LARGE_ERROR stable
         self.max_dt = 2.0 / (self.k2 * self.a2 * LARGE_ERROR ** (self.a2 - 1.0))
 
     def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
                rows: NDArray[np.bool_] | None) -> int:
-        """Previous velocities := measured; d_hat := the given guesses (as accelerations).  State: the dict ``_state``
-        of (N, 3) arrays."""
+        """Previous velocities := measured; d_hat := the given guesses (as accelerations).  State: ``_state``
+        (N, 12), columns v_prev, w_prev, d_t_hat, d_a_hat."""
         m = require(measurement, _KEYS, "fxtsdo")
         n = m["velocity"].shape[0]
-        fresh = {"v_prev": m["velocity"].copy(), "w_prev": m["angular_velocity"].copy(),
-                 "dt_": batch_vec(force, n, "force", "fxtsdo") / self.mass,
-                 "da": batch_vec(torque, n, "torque", "fxtsdo") @ self.inertia_inv.T}
+        fresh = np.concatenate([m["velocity"], m["angular_velocity"],
+                                batch_vec(force, n, "force", "fxtsdo") / self.mass,
+                                batch_vec(torque, n, "torque", "fxtsdo") @ self.inertia_inv.T], axis=1)
         self._state = write_rows(self._state, fresh, rows)
         return n
 
-    def _law(self, e: NDArray[np.float64]) -> NDArray[np.float64]:
-        return self.k1 * sig(e, self.a1) + self.k2 * sig(e, self.a2)
-
     def _update(self, m: dict[str, NDArray[np.float64]], f: NDArray[np.float64], tau: NDArray[np.float64],
-                dt: float) -> tuple[ObserverEstimate, dict[str, NDArray[np.float64]]]:
-        s = self._state
-        v, w = m["velocity"], m["angular_velocity"]
-        acc = (v - s["v_prev"]) / dt
-        wdot = (w - s["w_prev"]) / dt
-        e_t = acc - (self.gravity * _E3 - (f / self.mass)[:, None] * m["attitude"][:, :, 2]) - s["dt_"]
-        j = self.inertia
-        e_a = wdot - (cross(w @ j.T, w) + tau) @ self.inertia_inv.T - s["da"]
-        new = {"v_prev": v.copy(), "w_prev": w.copy(), "dt_": s["dt_"] + dt * self._law(e_t),
-               "da": s["da"] + dt * self._law(e_a)}
-        return self._estimate_of(new), new
+                dt: float) -> tuple[ObserverEstimate, NDArray[np.float64]]:
+        x = self._state
+        x_new = np.empty_like(x)
+        est = np.empty((x.shape[0], 6))
+        fxtsdo_step(x, m["velocity"], m["attitude"], m["angular_velocity"], f, tau, dt, self._gains, self.inertia,
+                    self.inertia_inv, x_new, est)
+        return ObserverEstimate(force=est[:, 0:3], torque=est[:, 3:6], states={}), x_new
 
     def estimate(self) -> ObserverEstimate:
         if self._state is None:
             raise RuntimeError("fxtsdo: call reset(measurement) first")
-        return self._estimate_of(self._state)
+        est = np.empty((self._state.shape[0], 6))
+        fxtsdo_estimate(self._state, self._gains, self.inertia, est)
+        return ObserverEstimate(force=est[:, 0:3], torque=est[:, 3:6], states={})
 
-    def _estimate_of(self, s: dict[str, NDArray[np.float64]]) -> ObserverEstimate:
-        return ObserverEstimate(force=self.mass * s["dt_"], torque=s["da"] @ self.inertia.T, states={})
+
+@njit(cache=True)
+def _estimate_row(x: NDArray[np.float64], mass: float, inertia: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+    """phi_hat = m d_t_hat, tau_hat = J d_a_hat."""
+    for j in range(3):
+        est[j] = mass * x[D_T + j]
+        est[3 + j] = inertia[j, 0] * x[D_A] + inertia[j, 1] * x[D_A + 1] + inertia[j, 2] * x[D_A + 2]
+
+
+@njit(cache=True)
+def fxtsdo_estimate(x: NDArray[np.float64], gains: NDArray[np.float64], inertia: NDArray[np.float64],
+                    est: NDArray[np.float64]) -> None:
+    """:func:`_estimate_row` of every row of the state ``x`` (N, 12) into ``est`` (N, 6)."""
+    for i in range(x.shape[0]):
+        _estimate_row(x[i], gains[0], inertia, est[i])
+
+
+@njit(cache=True)
+def fixed_time_law(e: float, k1: float, k2: float, a1: float, a2: float) -> float:
+    """k1 sig^a1(e) + k2 sig^a2(e), 0 < a1 < 1 < a2 (Polyakov 2012 fixed-time form)."""
+    return k1 * sig_row(e, a1) + k2 * sig_row(e, a2)
+
+
+@njit(cache=True)
+def fxtsdo_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.float64],
+                omega: NDArray[np.float64], thrust: NDArray[np.float64], torque: NDArray[np.float64], dt: float,
+                gains: NDArray[np.float64], inertia: NDArray[np.float64], inertia_inv: NDArray[np.float64],
+                x_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+    """One FxTSDO step of every row: state ``x`` (N, 12) -> ``x_new``, estimate into ``est`` (N, 6).
+
+    eps = (velocity difference) / dt - known acceleration - d_hat; d_hat += dt (k1 sig^a1(eps) + k2 sig^a2(eps)),
+    on the translational and the rotational channel (module docstring).  ``gains``: (m, g, k1, k2, a1, a2).
+    """
+    mass, g, k1, k2, a1, a2 = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5]
+    acc_known, ang_known = np.empty(3), np.empty(3)
+    for i in range(x.shape[0]):
+        xi, xo = x[i], x_new[i]
+        known_acceleration_row(att[i], thrust[i], mass, g, acc_known)
+        known_angular_acceleration_row(omega[i], torque[i], inertia, inertia_inv, ang_known)
+        for j in range(3):
+            eps_t = (vel[i, j] - xi[V_PREV + j]) / dt - acc_known[j] - xi[D_T + j]
+            eps_a = (omega[i, j] - xi[W_PREV + j]) / dt - ang_known[j] - xi[D_A + j]
+            xo[V_PREV + j] = vel[i, j]
+            xo[W_PREV + j] = omega[i, j]
+            xo[D_T + j] = xi[D_T + j] + dt * fixed_time_law(eps_t, k1, k2, a1, a2)
+            xo[D_A + j] = xi[D_A + j] + dt * fixed_time_law(eps_a, k1, k2, a1, a2)
+        _estimate_row(xo, mass, inertia, est[i])

@@ -4,6 +4,9 @@ Source: (Wang, Hamrah, Sanyal, Glauser 2024), Sec. 3.
 
 * :func:`phi1`, :func:`phi2` -- the output-injection maps of eq. (9); both are continuous at 0 and
   evaluated without NaN/inf there (the fractional power of ``e^T e`` is only taken where it is > 0).
+  Each law of eqs. (9)/(49)/(50) is written once, on one row, as a compiled helper (:func:`phi1_row`,
+  :func:`phi2_row`, :func:`frac_power_row`, :func:`frac_power_rate_row`) that the ESO kernels call per row;
+  the batch functions here loop them over the rows.
 * :func:`phi1_jacobian` -- eq. (12), so that eq. (13) ``phi2 = phi1' phi1`` can be checked.
 * :func:`frac_power` / :func:`frac_power_rate` -- the term ``(e^T e)^((1-p)/p) e`` of eqs. (50)/(69)
   and its time derivative ``(e^T e)^((1-p)/p) H(e, (p-1)/p) e'`` (Def. 1, eq. 8) used by the ESOs.
@@ -26,6 +29,7 @@ import dataclasses
 
 import numpy as np
 import scipy.linalg
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 #: floor on e^T e in the *derivative* terms (frac_power_rate, phi1_jacobian); see module docstring
@@ -43,27 +47,100 @@ def _sq(e: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.sum(e * e, axis=-1, keepdims=True)
 
 
-def _safe_pow(r2: NDArray[np.float64], a: float) -> NDArray[np.float64]:
-    """r2**a where r2 > 0 and 0 where r2 == 0 (only used multiplied by e, whose limit is 0)."""
-    pos = r2 > 0.0
-    return np.where(pos, np.where(pos, r2, 1.0) ** a, 0.0)
+# ---- the laws of eqs. (9), (49)/(68) on one row (compiled; the ESO kernels call them per row) ----------------
+@njit(cache=True)
+def _dot_row(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    acc = 0.0
+    for j in range(a.shape[0]):
+        acc += a[j] * b[j]
+    return acc
+
+
+@njit(cache=True)
+def _pow_or_zero(r2: float, a: float) -> float:
+    """r2**a for r2 > 0, 0 at r2 = 0 (a < 0 here; the power only ever multiplies e, whose limit is 0)."""
+    return r2**a if r2 > 0.0 else 0.0
+
+
+@njit(cache=True)
+def phi1_row(e: NDArray[np.float64], k3: float, p: float, out: NDArray[np.float64]) -> None:
+    """out = phi_1(e) = k3 e + (e^T e)^a e, a = (1-p)/(3p-2), eq. (9); 0 at e = 0."""
+    gain = k3 + _pow_or_zero(_dot_row(e, e), (1.0 - p) / (3.0 * p - 2.0))
+    for j in range(e.shape[0]):
+        out[j] = gain * e[j]
+
+
+@njit(cache=True)
+def phi2_row(e: NDArray[np.float64], k3: float, p: float, out: NDArray[np.float64]) -> None:
+    """out = phi_2(e) = (k3^2 + 2 k3 (2p-1)/(3p-2) |e|^(2a) + p/(3p-2) |e|^(4a)) e, eq. (9)."""
+    q = _pow_or_zero(_dot_row(e, e), (1.0 - p) / (3.0 * p - 2.0))          # |e|^(2a)
+    gain = k3 * k3 + 2.0 * k3 * (2.0 * p - 1.0) / (3.0 * p - 2.0) * q + p / (3.0 * p - 2.0) * q * q
+    for j in range(e.shape[0]):
+        out[j] = gain * e[j]
+
+
+@njit(cache=True)
+def frac_power_row(e: NDArray[np.float64], p: float, eps: float, out: NDArray[np.float64]) -> None:
+    """out = g(e) = max(e^T e, eps)^((1-p)/p) e (eqs. 50/69, regularised; eps <= 0: the exact power, 0 at 0)."""
+    r2 = _dot_row(e, e)
+    c = (1.0 - p) / p
+    pw = _pow_or_zero(r2, c) if eps <= 0.0 else max(r2, eps) ** c
+    for j in range(e.shape[0]):
+        out[j] = pw * e[j]
+
+
+@njit(cache=True)
+def frac_power_rate_row(e: NDArray[np.float64], edot: NDArray[np.float64], p: float, eps: float,
+                        out: NDArray[np.float64]) -> None:
+    """out = d/dt g(e) along e' = edot (eps > 0): r^c (e' - 2k (e.e') e / r) outside the ball (eq. 49/68 with
+    H(e, k) of Def. 1, eq. 8), eps^c e' inside; r = max(e^T e, eps), c = (1-p)/p, k = (p-1)/p."""
+    r2 = _dot_row(e, e)
+    r = max(r2, eps)
+    coef = 2.0 * (p - 1.0) / p * _dot_row(e, edot) / r if r2 > eps else 0.0
+    pw = r ** ((1.0 - p) / p)
+    for j in range(e.shape[0]):
+        out[j] = pw * (edot[j] - coef * e[j])
+
+
+@njit(cache=True)
+def _phi_rows(e: NDArray[np.float64], k3: float, p: float, which: int, out: NDArray[np.float64]) -> None:
+    for i in range(e.shape[0]):
+        if which == 1:
+            phi1_row(e[i], k3, p, out[i])
+        else:
+            phi2_row(e[i], k3, p, out[i])
+
+
+@njit(cache=True)
+def _frac_power_rows(e: NDArray[np.float64], edot: NDArray[np.float64], p: float, eps: float, rate: bool,
+                     out: NDArray[np.float64]) -> None:
+    for i in range(e.shape[0]):
+        if rate:
+            frac_power_rate_row(e[i], edot[i], p, eps, out[i])
+        else:
+            frac_power_row(e[i], p, eps, out[i])
+
+
+def _rows_2d(e: ArrayLike) -> tuple[NDArray[np.float64], tuple[int, ...]]:
+    a = np.asarray(e, dtype=float)
+    return np.ascontiguousarray(a.reshape(-1, a.shape[-1])), a.shape
 
 
 def phi1(e: ArrayLike, k3: float, p: float) -> NDArray[np.float64]:
-    """phi_1(e) = k3 e + (e^T e)^((1-p)/(3p-2)) e, eq. (9).  Continuous; phi_1(0) = 0."""
-    e = np.asarray(e, dtype=float)
-    a = (1.0 - p) / (3.0 * p - 2.0)
-    return k3 * e + _safe_pow(_sq(e), a) * e
+    """phi_1(e) = k3 e + (e^T e)^((1-p)/(3p-2)) e, eq. (9), over leading axes (:func:`phi1_row`).  phi_1(0) = 0."""
+    rows, shape = _rows_2d(e)
+    out = np.empty_like(rows)
+    _phi_rows(rows, float(k3), float(p), 1, out)
+    return out.reshape(shape)
 
 
 def phi2(e: ArrayLike, k3: float, p: float) -> NDArray[np.float64]:
-    """phi_2(e) of eq. (9): k3^2 e + 2 k3 (2p-1)/(3p-2) |e|^(2a) e + p/(3p-2) |e|^(4a) e, a=(1-p)/(3p-2)."""
-    e = np.asarray(e, dtype=float)
-    a = (1.0 - p) / (3.0 * p - 2.0)
-    r2 = _sq(e)
-    c1 = 2.0 * k3 * (2.0 * p - 1.0) / (3.0 * p - 2.0)
-    c2 = p / (3.0 * p - 2.0)
-    return k3 * k3 * e + c1 * _safe_pow(r2, a) * e + c2 * _safe_pow(r2, 2.0 * a) * e
+    """phi_2(e) of eq. (9): k3^2 e + 2 k3 (2p-1)/(3p-2) |e|^(2a) e + p/(3p-2) |e|^(4a) e, a=(1-p)/(3p-2)
+    (:func:`phi2_row`)."""
+    rows, shape = _rows_2d(e)
+    out = np.empty_like(rows)
+    _phi_rows(rows, float(k3), float(p), 2, out)
+    return out.reshape(shape)
 
 
 def phi1_jacobian(e: ArrayLike, k3: float, p: float, eps: float = DEFAULT_EPS) -> NDArray[np.float64]:
@@ -96,20 +173,21 @@ def h_matrix(x: ArrayLike, k: float, eps: float = 0.0) -> NDArray[np.float64]:
 
 
 def frac_power(e: ArrayLike, p: float, eps: float = 0.0) -> NDArray[np.float64]:
-    """g(e) = max(e^T e, eps)^((1-p)/p) e, the fractional term of eqs. (50)/(69).
+    """g(e) = max(e^T e, eps)^((1-p)/p) e, the fractional term of eqs. (50)/(69) (:func:`frac_power_row`).
 
     With eps = 0 this is exactly (e^T e)^((1-p)/p) e (continuous, 0 at e = 0).  With eps > 0 it is exact for
     |e| > sqrt(eps) and linear inside that ball -- the regularisation used by the ESOs, whose derivative
     :func:`frac_power_rate` is bounded.  Its slope inside the ball is eps^((1-p)/p); an ESO integrated by
     explicit Euler at step dt must take eps from :func:`euler_stable_eps` (a fixed 1e-12 diverges for p > 1.4).
     """
-    e = np.asarray(e, dtype=float)
-    r2 = _sq(e)
-    return (_safe_pow(r2, (1.0 - p) / p) if eps <= 0 else np.maximum(r2, eps) ** ((1.0 - p) / p)) * e
+    rows, shape = _rows_2d(e)
+    out = np.empty_like(rows)
+    _frac_power_rows(rows, rows, float(p), float(eps), False, out)
+    return out.reshape(shape)
 
 
 def frac_power_rate(e: ArrayLike, edot: ArrayLike, p: float, eps: float = DEFAULT_EPS) -> NDArray[np.float64]:
-    """Exact time derivative of :func:`frac_power` (with the same eps > 0) along e' = edot.
+    """Exact time derivative of :func:`frac_power` (same eps > 0) along e' = edot (:func:`frac_power_rate_row`).
 
     For |e| > sqrt(eps): (e^T e)^((1-p)/p) H(e, (p-1)/p) e' as in eqs. (49)/(68) (Definition 1), computed as
     r^c (e' - 2k (e.e') e / r) with r = e^T e, c = (1-p)/p, k = (p-1)/p.  Inside the ball: eps^c e'.
@@ -117,13 +195,12 @@ def frac_power_rate(e: ArrayLike, edot: ArrayLike, p: float, eps: float = DEFAUL
     """
     if not (np.isfinite(eps) and eps > 0):
         raise ValueError(f"eps must be > 0 (the exact derivative is unbounded at e = 0), got {eps!r}")
-    e = np.asarray(e, dtype=float)
-    edot = np.asarray(edot, dtype=float)
-    r2 = _sq(e)
-    r = np.maximum(r2, eps)
-    k = (p - 1.0) / p
-    dot = np.sum(e * edot, axis=-1, keepdims=True)
-    return r ** ((1.0 - p) / p) * (edot - np.where(r2 > eps, 2.0 * k * dot / r, 0.0) * e)
+    e_arr, edot_arr = np.broadcast_arrays(np.asarray(e, dtype=float), np.asarray(edot, dtype=float))
+    rows, shape = _rows_2d(e_arr)
+    rates, _ = _rows_2d(edot_arr)
+    out = np.empty_like(rows)
+    _frac_power_rows(rows, rates, float(p), float(eps), True, out)
+    return out.reshape(shape)
 
 
 #: |Euler factor - 1| allowed for the stiffest mode of the regularised fractional term (< 2 is stable; see

@@ -30,19 +30,18 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.frames import rot_to_euler
 from fawtgym.core.rows import write_rows
-from fawtgym.observers._obs_common import (
-    batch_vec,
-    positive,
-    require,
-)
+from fawtgym.core.so3_kernels import rot_to_euler_row
+from fawtgym.observers._obs_common import batch_vec, positive, require
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 
-_E3 = np.array([0.0, 0.0, 1.0])
 _KEYS = ("position", "velocity", "attitude", "angular_velocity")
+#: columns of the state (N, 18): z1, z2, z3 of the position channel, then of the Euler-angle channel
+P1, P2, P3, A1, A2, A3 = 0, 3, 6, 9, 12, 15
 
 
 def bandwidth_gains(omega0: float) -> tuple[float, float, float]:
@@ -57,7 +56,6 @@ class LESO(Observer):
     ``max_dt`` = 1 / (3 max(omega_t, omega_a)): the Euler step (with the exact z1 chain) of the error dynamics is
     stable iff omega0 dt < 2/3; half of that keeps a margin (1/30 s at the default 10 rad/s).
     """
-
     required_keys = _KEYS
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, omega_t: float = 10.0,
@@ -67,8 +65,8 @@ class LESO(Observer):
         self.beta_t = bandwidth_gains(float(omega_t))
         self.beta_a = bandwidth_gains(float(omega_a))
         self.jd = np.diag(self.inertia).copy()
-        self._jd = tuple(self.jd.tolist())
-        self._state: dict[str, NDArray[np.float64]] | None = None
+        self._gains = np.array([self.mass, self.gravity, *self.beta_t, *self.beta_a, *self.jd])
+        self._state: NDArray[np.float64] | None = None
         # Euler with the exact z1 chain is stable iff omega0 dt < 2/3 (spectral radius of the error map, tested)
         self.max_dt = 1.0 / (3.0 * max(float(omega_t), float(omega_a)))
 
@@ -76,45 +74,96 @@ class LESO(Observer):
                rows: NDArray[np.bool_] | None) -> int:
         """z1 := measured b / eta, z2 := measured v / Omega (as Euler rates), z3 := given disturbance guess.
 
-        State: the dict ``_state`` of (N, 3) arrays."""
+        State: ``_state`` (N, 18), columns z1, z2, z3 of position then of the Euler angles."""
         m = require(measurement, _KEYS, "leso")
         n = m["position"].shape[0]
-        fresh = {"p1": m["position"].copy(), "p2": m["velocity"].copy(),
-                 "p3": batch_vec(force, n, "force", "leso") / self.mass,
-                 "a1": rot_to_euler(m["attitude"]), "a2": m["angular_velocity"].copy(),
-                 "a3": batch_vec(torque, n, "torque", "leso") / self.jd}
+        fresh = np.concatenate([m["position"], m["velocity"], batch_vec(force, n, "force", "leso") / self.mass,
+                                rot_to_euler(m["attitude"]), m["angular_velocity"],
+                                batch_vec(torque, n, "torque", "leso") / self.jd], axis=1)
         self._state = write_rows(self._state, fresh, rows)
         return n
 
     def _update(self, m: dict[str, NDArray[np.float64]], f: NDArray[np.float64], tau: NDArray[np.float64],
-                dt: float) -> tuple[ObserverEstimate, dict[str, NDArray[np.float64]]]:
-        s = self._state
-        b1, b2, b3 = self.beta_t
-        e = m["position"] - s["p1"]
-        u = self.gravity * _E3 - (f / self.mass)[:, None] * m["attitude"][:, :, 2]
-        p2_dot = s["p3"] + u + b2 * e
-        p1 = s["p1"] + dt * (s["p2"] + b1 * e) + (0.5 * dt * dt) * p2_dot
-        p2 = s["p2"] + dt * p2_dot
-        p3 = s["p3"] + dt * (b3 * e)
-        g1, g2, g3 = self.beta_a
-        ea = rot_to_euler(m["attitude"]) - s["a1"]
-        jx, jy, jz = self.jd
-        r = s["a2"]
-        coupling = np.stack([(jy - jz) / jx * r[:, 1] * r[:, 2], (jz - jx) / jy * r[:, 0] * r[:, 2],
-                             (jx - jy) / jz * r[:, 0] * r[:, 1]], axis=-1)
-        a2_dot = s["a3"] + coupling + tau / self.jd + g2 * ea
-        a1 = s["a1"] + dt * (s["a2"] + g1 * ea) + (0.5 * dt * dt) * a2_dot
-        a2 = s["a2"] + dt * a2_dot
-        a3 = s["a3"] + dt * (g3 * ea)
-        new = {"p1": p1, "p2": p2, "p3": p3, "a1": a1, "a2": a2, "a3": a3}
-        return self._estimate_of(new), new
+                dt: float) -> tuple[ObserverEstimate, NDArray[np.float64]]:
+        x = self._state
+        x_new = np.empty_like(x)
+        est = np.empty_like(x)
+        leso_step(x, m["position"], m["attitude"], f, tau, dt, self._gains, x_new, est)
+        return _estimate(est), x_new
 
     def estimate(self) -> ObserverEstimate:
         if self._state is None:
             raise RuntimeError("leso: call reset(measurement) first")
-        return self._estimate_of(self._state)
+        est = np.empty_like(self._state)
+        leso_estimate(self._state, self._gains, est)
+        return _estimate(est)
 
-    def _estimate_of(self, s: dict[str, NDArray[np.float64]]) -> ObserverEstimate:
-        return ObserverEstimate(force=self.mass * s["p3"], torque=self.jd * s["a3"], states={
-            "position": s["p1"].copy(), "velocity": s["p2"].copy(), "euler": s["a1"].copy(),
-            "euler_rate": s["a2"].copy()})
+
+def _estimate(est: NDArray[np.float64]) -> ObserverEstimate:
+    """The estimate from the kernel's buffer (N, 18): force, torque, position, velocity, euler, euler_rate."""
+    return ObserverEstimate(force=est[:, 0:3], torque=est[:, 3:6], states={
+        "position": est[:, 6:9], "velocity": est[:, 9:12], "euler": est[:, 12:15], "euler_rate": est[:, 15:18]})
+
+
+@njit(cache=True)
+def _estimate_row(x: NDArray[np.float64], gains: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+    """phi_hat = m z3 (position channel), tau_hat = J_diag z3 (Euler channel), then z1, z2 of both channels."""
+    mass = gains[0]
+    for j in range(3):
+        est[j] = mass * x[P3 + j]
+        est[3 + j] = gains[8 + j] * x[A3 + j]
+        est[6 + j] = x[P1 + j]
+        est[9 + j] = x[P2 + j]
+        est[12 + j] = x[A1 + j]
+        est[15 + j] = x[A2 + j]
+
+
+@njit(cache=True)
+def leso_estimate(x: NDArray[np.float64], gains: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+    """:func:`_estimate_row` of every row of the state ``x`` (N, 18) into ``est`` (N, 18)."""
+    for i in range(x.shape[0]):
+        _estimate_row(x[i], gains, est[i])
+
+
+@njit(cache=True)
+def leso_axis(z1: float, z2: float, z3: float, y: float, u: float, b1: float, b2: float, b3: float,
+              dt: float) -> tuple[float, float, float]:
+    """One step of Gao's third-order LESO on one axis (both channels use it)::
+
+        z1' = z2 + b1 (y - z1),   z2' = z3 + u + b2 (y - z1),   z3' = b3 (y - z1)
+
+    explicit Euler with y and u held, the z1 chain exact for the held z2' (z1 += dt (z2 + b1 e) + dt^2/2 z2')."""
+    e = y - z1
+    z2_dot = z3 + u + b2 * e
+    return z1 + dt * (z2 + b1 * e) + (0.5 * dt * dt) * z2_dot, z2 + dt * z2_dot, z3 + dt * (b3 * e)
+
+
+@njit(cache=True)
+def leso_step(x: NDArray[np.float64], pos: NDArray[np.float64], att: NDArray[np.float64],
+              thrust: NDArray[np.float64], torque: NDArray[np.float64], dt: float, gains: NDArray[np.float64],
+              x_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+    """One LESO step of every row: state ``x`` (N, 18) -> ``x_new``, estimate into ``est`` (N, 18).
+
+    ``gains``: (m, g, beta_t (3), beta_a (3), J_diag (3)).  Position channel: y = b^m, u = g e3 - (f/m) R^m e3;
+    Euler channel (Shao et al.'s simplified model): y = eta^m (Z-Y-X angles of R^m),
+    u_i = (J_j - J_k)/J_i z2_j z2_k + tau_i / J_i.
+    """
+    mass, g = gains[0], gains[1]
+    bt1, bt2, bt3, ba1, ba2, ba3 = gains[2], gains[3], gains[4], gains[5], gains[6], gains[7]
+    jx, jy, jz = gains[8], gains[9], gains[10]
+    eta = np.empty(3)
+    for i in range(x.shape[0]):
+        xi, xo = x[i], x_new[i]
+        f_over_m = thrust[i] / mass
+        for j in range(3):
+            u = (g if j == 2 else 0.0) - f_over_m * att[i, j, 2]
+            xo[P1 + j], xo[P2 + j], xo[P3 + j] = leso_axis(xi[P1 + j], xi[P2 + j], xi[P3 + j], pos[i, j], u,
+                                                           bt1, bt2, bt3, dt)
+        rot_to_euler_row(att[i], eta)
+        r0, r1, r2 = xi[A2], xi[A2 + 1], xi[A2 + 2]
+        u_rot = ((jy - jz) / jx * r1 * r2 + torque[i, 0] / jx, (jz - jx) / jy * r0 * r2 + torque[i, 1] / jy,
+                 (jx - jy) / jz * r0 * r1 + torque[i, 2] / jz)
+        for j in range(3):
+            xo[A1 + j], xo[A2 + j], xo[A3 + j] = leso_axis(xi[A1 + j], xi[A2 + j], xi[A3 + j], eta[j], u_rot[j],
+                                                           ba1, ba2, ba3, dt)
+        _estimate_row(xo, gains, est[i])
