@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 import scipy.linalg
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
@@ -55,12 +56,10 @@ HOLDS = ("zoh", "foh")
 CHANNELS = ("force", "torque")
 _E3 = np.array([0.0, 0.0, 1.0])
 _RATE_NAME = {"force": "velocity", "torque": "angular_velocity"}
+_ZEROS3 = np.zeros((1, 3))
+_EYE3 = np.eye(3)[None]      # the attitude argument of the torque channel (not read)
+_NO_FOH = {n: np.zeros((n + 1, 2)) for n in ORDERS}   # Gamma1 of a zero-order hold (not read)
 _DER_NAME = {"force": "force_derivatives", "torque": "torque_derivatives"}
-
-
-def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1], a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
 def _check_order(order: object) -> int:
@@ -222,19 +221,112 @@ class GesoFilter:
 
     def step(self, x: NDArray[np.float64], u_star: ArrayLike, y: ArrayLike, dt: float, hold: str = "zoh",
              y_next: ArrayLike | None = None) -> NDArray[np.float64]:
-        """Advance ``x`` (..., n+1) by ``dt``; ``u_star`` and ``y`` have shape (...,).
+        """Advance ``x`` (..., n+1) by ``dt``; ``u_star`` and ``y`` have shape (...,) (:func:`geso_filter_row`).
 
         With ``hold="foh"`` ``y_next`` (the measurement at the end of the step) is required.
         """
         mats = self.discretize(dt, hold)
-        uy = np.stack(np.broadcast_arrays(np.asarray(u_star, float), np.asarray(y, float)), axis=-1)
-        out = x @ mats[0].T + uy @ mats[1].T
-        if hold == "foh":
-            if y_next is None:
-                raise ValueError("hold='foh' needs y_next, the measurement at the end of the step")
-            dy = np.asarray(y_next, float) - np.asarray(y, float)
-            out = out + dy[..., None] * mats[2][:, 1]
-        return out
+        if hold == "foh" and y_next is None:
+            raise ValueError("hold='foh' needs y_next, the measurement at the end of the step")
+        x = np.asarray(x, dtype=float)
+        u_arr, y_arr = np.asarray(u_star, dtype=float), np.asarray(y, dtype=float)
+        dy = np.zeros(()) if y_next is None else np.asarray(y_next, dtype=float) - y_arr
+        shape = np.broadcast_shapes(x.shape[:-1], u_arr.shape, y_arr.shape, dy.shape)
+        m = self.order + 1
+        rows = np.ascontiguousarray(np.broadcast_to(x, shape + (m,)).reshape(-1, m))
+        flat = [np.ascontiguousarray(np.broadcast_to(a, shape).reshape(-1)) for a in (u_arr, y_arr, dy)]
+        out = np.empty_like(rows)
+        gamma1 = mats[2] if hold == "foh" else np.zeros((m, 2))
+        _geso_filter_rows(rows, flat[0], flat[1], flat[2], mats[0], mats[1], gamma1, hold == "foh", out)
+        return out.reshape(shape + (m,))
+
+
+@njit(cache=True)
+def geso_filter_row(x: NDArray[np.float64], u: float, y: float, dy: float, phi: NDArray[np.float64],
+                    gamma: NDArray[np.float64], gamma1: NDArray[np.float64], foh: bool,
+                    out: NDArray[np.float64]) -> None:
+    """One exact sampled-data step of eq. 22 on one axis: ``out = Phi x + Gamma [u*, y]`` (zero-order hold), plus
+    ``Gamma1[:, 1] (y_next - y)`` with ``foh`` (y linear over the step); matrices of :meth:`GesoFilter.discretize`."""
+    m = x.shape[0]
+    for r in range(m):
+        acc = gamma[r, 0] * u + gamma[r, 1] * y
+        for c in range(m):
+            acc += phi[r, c] * x[c]
+        if foh:
+            acc += gamma1[r, 1] * dy
+        out[r] = acc
+
+
+@njit(cache=True)
+def _geso_filter_rows(x: NDArray[np.float64], u: NDArray[np.float64], y: NDArray[np.float64],
+                      dy: NDArray[np.float64], phi: NDArray[np.float64], gamma: NDArray[np.float64],
+                      gamma1: NDArray[np.float64], foh: bool, out: NDArray[np.float64]) -> None:
+    for i in range(x.shape[0]):
+        geso_filter_row(x[i], u[i], y[i], dy[i], phi, gamma, gamma1, foh, out[i])
+
+
+@njit(cache=True)
+def geso_signals_row(is_force: bool, mass: float, inertia: NDArray[np.float64], rate: NDArray[np.float64],
+                     att: NDArray[np.float64], y: NDArray[np.float64], aux: NDArray[np.float64]) -> None:
+    """The channel's measured momentum y and the state-dependent part of u* (Sec. IV-A):
+
+    force channel: y = m v^m (world NED), aux = R^m e3 (u* = m g e3 - f aux);
+    torque channel: y = J Omega^m (body FRD), aux = J Omega^m x Omega^m (u* = tau + aux)."""
+    if is_force:
+        for j in range(3):
+            y[j] = mass * rate[j]
+            aux[j] = att[j, 2]
+    else:
+        for j in range(3):
+            y[j] = inertia[j, 0] * rate[0] + inertia[j, 1] * rate[1] + inertia[j, 2] * rate[2]
+        aux[0] = y[1] * rate[2] - y[2] * rate[1]
+        aux[1] = y[2] * rate[0] - y[0] * rate[2]
+        aux[2] = y[0] * rate[1] - y[1] * rate[0]
+
+
+@njit(cache=True)
+def geso_signals(is_force: bool, mass: float, inertia: NDArray[np.float64], rate: NDArray[np.float64],
+                 att: NDArray[np.float64], y: NDArray[np.float64], aux: NDArray[np.float64]) -> None:
+    """:func:`geso_signals_row` of every row (``att`` (N, 3, 3) is read only by the force channel; the torque
+    channel may pass one dummy matrix)."""
+    for i in range(rate.shape[0]):
+        geso_signals_row(is_force, mass, inertia, rate[i], att[i if is_force else 0], y[i], aux[i])
+
+
+@njit(cache=True)
+def geso_channel_step(x: NDArray[np.float64], y_old: NDArray[np.float64], aux_old: NDArray[np.float64],
+                      rate: NDArray[np.float64], att: NDArray[np.float64], thrust: NDArray[np.float64],
+                      torque: NDArray[np.float64], is_force: bool, foh: bool, mass: float, gravity: float,
+                      inertia: NDArray[np.float64], inertia_inv: NDArray[np.float64], phi: NDArray[np.float64],
+                      gamma: NDArray[np.float64], gamma1: NDArray[np.float64], x_new: NDArray[np.float64],
+                      y_new: NDArray[np.float64], aux_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+    """One GESO step of one channel for every row.
+
+    State ``x`` (N, 3, n+1) and the previous signals ``y_old``, ``aux_old`` (N, 3) -> ``x_new``, the new signals
+    ``y_new``, ``aux_new`` (:func:`geso_signals_row` of ``rate`` = v^m or Omega^m and ``att`` = R^m) and the
+    estimate ``est`` (N, 6 + 3 (n-1)): the disturbance (x[:, :, 1]), the rate (v = x0 / m or Omega = J^-1 x0),
+    then the derivatives d', ..., d^(n-1) (x[:, :, 2:], axis by axis).  u* is held over the step: the applied
+    input with its state-dependent part at the previous signals (zoh) or at the mean of the two (foh).
+    """
+    m = x.shape[2]
+    a_held = np.empty(3)
+    for i in range(x.shape[0]):
+        geso_signals_row(is_force, mass, inertia, rate[i], att[i if is_force else 0], y_new[i], aux_new[i])
+        for j in range(3):
+            a_held[j] = 0.5 * (aux_old[i, j] + aux_new[i, j]) if foh else aux_old[i, j]
+        for j in range(3):
+            u = (mass * gravity * (1.0 if j == 2 else 0.0) - thrust[i] * a_held[j]) if is_force \
+                else torque[i, j] + a_held[j]
+            geso_filter_row(x[i, j], u, y_old[i, j], y_new[i, j] - y_old[i, j], phi, gamma, gamma1, foh, x_new[i, j])
+            est[i, j] = x_new[i, j, 1]
+            for k in range(2, m):
+                est[i, 6 + 3 * (k - 2) + j] = x_new[i, j, k]
+        for j in range(3):
+            if is_force:
+                est[i, 3 + j] = x_new[i, j, 0] / mass
+            else:
+                est[i, 3 + j] = (inertia_inv[j, 0] * x_new[i, 0, 0] + inertia_inv[j, 1] * x_new[i, 1, 0]
+                                 + inertia_inv[j, 2] * x_new[i, 2, 0])
 
 
 def _parse_channels(channels: str | Iterable[str]) -> tuple[str, ...]:
@@ -305,25 +397,11 @@ class GESO(Observer):
 
     # ---- channel signals: (y, state-dependent part of u*) from a batched measurement ------------
     def _signals(self, chan: str, meas: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.float64], ...]:
-        need = (M.VELOCITY, M.ATTITUDE) if chan == "force" else (self.rate_key,)
-        for key in need:
-            if key not in meas:
-                raise ValueError(f"GESO {chan} channel needs measurement[{key!r}]; got keys {sorted(meas)}")
-            if not np.all(np.isfinite(meas[key])):
-                raise ValueError(f"measurement[{key!r}] contains non-finite values")
-        if chan == "force":
-            y = self.mass * meas[M.VELOCITY]
-            re3 = meas[M.ATTITUDE][..., :, 2].copy()  # R e3, (N, 3); kept in _prev: a copy, not a caller's view
-            return y, re3
-        omega = meas[self.rate_key]
-        jw = omega @ self.inertia.T
-        return jw, _cross(jw, omega)  # y = J Omega, J Omega x Omega
-
-    def _u_star(self, chan: str, aux: NDArray[np.float64], thrust: NDArray[np.float64],
-                torque: NDArray[np.float64]) -> NDArray[np.float64]:
-        if chan == "force":
-            return self.mass * self.gravity * _E3 - thrust[:, None] * aux
-        return torque + aux
+        rate = meas[M.VELOCITY if chan == "force" else self.rate_key]
+        att = meas[M.ATTITUDE] if chan == "force" else _EYE3
+        y, aux = np.empty_like(rate), np.empty_like(rate)
+        geso_signals(chan == "force", self.mass, self.inertia, np.ascontiguousarray(rate), att, y, aux)
+        return y, aux
 
     def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
                rows: NDArray[np.bool_] | None) -> int:
@@ -354,28 +432,31 @@ class GESO(Observer):
     def _update(self, meas: dict[str, NDArray[np.float64]], f: NDArray[np.float64], tau: NDArray[np.float64],
                 dt: float) -> tuple[ObserverEstimate, tuple[dict[str, NDArray[np.float64]], dict[str, Any]]]:
         n_batch = f.shape[0]
-        out = {"force": np.zeros((n_batch, 3)), "torque": np.zeros((n_batch, 3))}
+        out = {"force": _ZEROS3, "torque": _ZEROS3}
         states: dict[str, NDArray[np.float64]] = {}
         new_x: dict[str, NDArray[np.float64]] = {}
         new_prev: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+        foh = self.hold == "foh"
         for chan, filt in self.filters.items():
-            y_new, aux_new = self._signals(chan, meas)
+            mats = filt.discretize(dt, self.hold)
+            x = self._x[chan]
             y_old, aux_old = self._prev[chan]
-            if self.hold == "zoh":
-                u = self._u_star(chan, aux_old, f, tau)
-                x = filt.step(self._x[chan], u, y_old, dt, "zoh")
-            else:
-                u = self._u_star(chan, 0.5 * (aux_old + aux_new), f, tau)
-                x = filt.step(self._x[chan], u, y_old, dt, "foh", y_next=y_new)
-            new_x[chan] = x
+            is_force = chan == "force"
+            rate = meas[M.VELOCITY] if is_force else meas[self.rate_key]
+            att = meas[M.ATTITUDE] if is_force else _EYE3
+            x_new, y_new, aux_new = np.empty_like(x), np.empty_like(y_old), np.empty_like(y_old)
+            est = np.empty((n_batch, 3 * (filt.order + 1)))
+            geso_channel_step(x, y_old, aux_old, rate, att, f, tau, is_force, foh, self.mass, self.gravity,
+                              self.inertia, self.inertia_inv, mats[0], mats[1], mats[2] if foh else _NO_FOH[filt.order],
+                              x_new, y_new, aux_new, est)
+            new_x[chan] = x_new
             new_prev[chan] = (y_new, aux_new)
-            out[chan] = x[..., 1].copy()
-            if chan == "force":
-                states["velocity"] = x[..., 0] / self.mass
-                states["force_derivatives"] = np.moveaxis(x[..., 2:], -1, 1).copy()
-            else:
-                states["angular_velocity"] = x[..., 0] @ self.inertia_inv.T
-                states["torque_derivatives"] = np.moveaxis(x[..., 2:], -1, 1).copy()
+            out[chan] = est[:, 0:3]
+            states[_RATE_NAME[chan]] = est[:, 3:6]
+            states[_DER_NAME[chan]] = est[:, 6:].reshape(n_batch, filt.order - 1, 3)
+        if len(self.filters) == 1:
+            missing = "torque" if "force" in self.filters else "force"
+            out[missing] = np.zeros((n_batch, 3))
         return ObserverEstimate(force=out["force"], torque=out["torque"], states=states), (new_x, new_prev)
 
     def _commit(self, state: tuple[dict[str, NDArray[np.float64]], dict[str, Any]]) -> None:
