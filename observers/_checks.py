@@ -44,3 +44,28 @@ def first_large_row(a: NDArray[np.float64], bound: float) -> int:
             if not (abs(x) <= bound):        # NaN fails the comparison
                 return i
     return -1
+
+
+@njit(cache=True)
+def first_bad_wrench(force: NDArray[np.float64], torque: NDArray[np.float64], force_bound: float,
+                     torque_bound: float) -> int:
+    """Check an estimate's force and torque (N, 3) against their bounds (NaN and inf fail): -1 if both pass, else
+    2 * row for the first bad force row, 2 * row + 1 for the first bad torque row (force checked first)."""
+    row = first_large_row(force, force_bound)
+    if row >= 0:
+        return 2 * row
+    row = first_large_row(torque, torque_bound)
+    if row >= 0:
+        return 2 * row + 1
+    return -1
+
+
+@njit(cache=True)
+def first_nonfinite_input(thrust: NDArray[np.float64], torque: NDArray[np.float64]) -> int:
+    """Check the known inputs, thrust (N,) and torque (N, 3): -1 if finite, else 2 * row for the first non-finite
+    thrust, 2 * row + 1 for the first non-finite torque row (thrust checked first)."""
+    for i in range(thrust.shape[0]):
+        if not math.isfinite(thrust[i]):
+            return 2 * i
+    row = first_nonfinite_row(torque)
+    return -1 if row < 0 else 2 * row + 1

@@ -96,11 +96,19 @@ def positive(who: str, **values: float) -> None:
 
 @njit(cache=True)
 def sig_row(x: float, a: float) -> float:
-    """sig^a(x) = |x|^a sign(x) of one number (0 at 0 for a > 0)."""
+    """sig^a(x) = |x|^a sign(x) of one number (0 at 0 for a > 0); |x|^(1/2) and |x|^(3/2) by a square root,
+    several times cheaper than pow (the STO's and the default FxTSDO's exponents)."""
+    ax = abs(x)
+    if a == 0.5:
+        mag = math.sqrt(ax)
+    elif a == 1.5:
+        mag = ax * math.sqrt(ax)
+    else:
+        mag = ax**a
     if x > 0.0:
-        return x**a
+        return mag
     if x < 0.0:
-        return -((-x) ** a)
+        return -mag
     return 0.0
 
 

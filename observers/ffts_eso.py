@@ -75,7 +75,8 @@ from fawtgym.observers.hc_ffts import (
 
 _KEYS = ("position", "velocity", "attitude", "angular_velocity")
 #: the gains array the kernel reads, in this order
-GAIN_NAMES = ("mass", "gravity", "p", "kt1", "kt2", "kt3", "kappa_t", "ka1", "ka2", "ka3", "kappa_a", "K1", "K2", "K3")
+GAIN_NAMES = ("mass", "gravity", "p", "kt1", "kt2", "kt3", "kappa_t", "ka1", "ka2", "ka3", "kappa_a", "K1", "K2", "K3",
+              "J (9, row-major)", "J^-1 (9, row-major)")
 #: columns of the state (N, 24): b_hat, v_hat, phi_hat, Omega_hat, tau_hat, R_hat (row-major 9)
 B, V, PHI, W, TAU, R = 0, 3, 6, 9, 12, 15
 #: columns of the estimate buffer (N, 24): force, torque, position, velocity, angular_velocity, attitude (9)
@@ -181,7 +182,7 @@ class FFTSESO(Observer):
         self.eps = float(eps)
         self._state: NDArray[np.float64] | None = None
         self._gains = np.array([self.mass, self.gravity, p, kt1, kt2, kt3, kappa_t, ka1, ka2, ka3, kappa_a,
-                                *self.morse_k], dtype=float)
+                                *self.morse_k, *self.inertia.ravel(), *self.inertia_inv.ravel()], dtype=float)
         # stiffest-mode gains of the two halves (euler_stable_eps): e_v' ~ -kappa_t g' e_v, and
         # e_Omega' ~ -kappa_a g' (tr(K) I - K) e_Omega at E = I (eq. 66)
         self._stiff_t = self.kappa_t
@@ -217,10 +218,10 @@ class FFTSESO(Observer):
                 dt: float) -> tuple[ObserverEstimate, NDArray[np.float64]]:
         x = self._state
         eps_t, eps_a = self.eps_at(dt)
-        x_new = np.empty_like(x)
-        est = np.empty_like(x)
+        x_new = np.empty(x.shape)
+        est = np.empty(x.shape)
         ffts_eso_step(x, m["position"], m["velocity"], m["attitude"], m["angular_velocity"], f, tau, dt, eps_t,
-                      eps_a, self._gains, self.inertia, self.inertia_inv, x_new, est)
+                      eps_a, self._gains, x_new, est)
         return _estimate(est), x_new
 
     def estimate(self) -> ObserverEstimate:
@@ -263,8 +264,7 @@ def ffts_eso_estimate(x: NDArray[np.float64], est: NDArray[np.float64]) -> None:
 def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray[np.float64],
                   att: NDArray[np.float64], omega: NDArray[np.float64], thrust: NDArray[np.float64],
                   torque: NDArray[np.float64], dt: float, eps_t: float, eps_a: float, gains: NDArray[np.float64],
-                  inertia: NDArray[np.float64], inertia_inv: NDArray[np.float64], x_new: NDArray[np.float64],
-                  est: NDArray[np.float64]) -> None:
+                  x_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
     """One FFTS-ESO step of every row: state ``x`` (N, 24) -> ``x_new``, estimate into ``est`` (N, 24).
 
     Measurement b^m (N, 3), v^m (N, 3), R^m (N, 3, 3), Omega^m (N, 3), applied thrust (N,) and torque (N, 3)
@@ -275,6 +275,8 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
     kt1, kt2, kt3, kappa_t = gains[3], gains[4], gains[5], gains[6]
     ka1, ka2, ka3, kappa_a = gains[7], gains[8], gains[9], gains[10]
     morse_k = gains[11:14]
+    inertia = gains[14:23].reshape((3, 3))
+    inertia_inv = gains[23:32].reshape((3, 3))
     half_dt2 = 0.5 * dt * dt
     vec = np.empty((18, 3))                                                 # the row's 3-vector intermediates
     e_b, e_v, psi_t, g_b, rate_b, inj1, inj2 = vec[0], vec[1], vec[2], vec[3], vec[4], vec[5], vec[6]

@@ -64,7 +64,8 @@ class FxTSDO(Observer):
             raise ValueError(f"fxtsdo: fixed-time exponents need 0 < a1 < 1 < a2, got a1={a1!r}, a2={a2!r}")
         self.k1, self.k2, self.a1, self.a2 = float(k1), float(k2), float(a1), float(a2)
         self._state: NDArray[np.float64] | None = None
-        self._gains = np.array([self.mass, self.gravity, self.k1, self.k2, self.a1, self.a2])
+        self._gains = np.array([self.mass, self.gravity, self.k1, self.k2, self.a1, self.a2,
+                                *self.inertia.ravel(), *self.inertia_inv.ravel()])
         # explicit Euler of d' = law(r - d) is stable while law's slope times dt < 2; the a2 > 1 term's slope
         # k2 a2 |e|^(a2-1) grows without bound, so dt is bounded to keep errors up to LARGE_ERROR stable
         self.max_dt = 2.0 / (self.k2 * self.a2 * LARGE_ERROR ** (self.a2 - 1.0))
@@ -84,10 +85,9 @@ class FxTSDO(Observer):
     def _update(self, m: dict[str, NDArray[np.float64]], f: NDArray[np.float64], tau: NDArray[np.float64],
                 dt: float) -> tuple[ObserverEstimate, NDArray[np.float64]]:
         x = self._state
-        x_new = np.empty_like(x)
+        x_new = np.empty(x.shape)
         est = np.empty((x.shape[0], 6))
-        fxtsdo_step(x, m["velocity"], m["attitude"], m["angular_velocity"], f, tau, dt, self._gains, self.inertia,
-                    self.inertia_inv, x_new, est)
+        fxtsdo_step(x, m["velocity"], m["attitude"], m["angular_velocity"], f, tau, dt, self._gains, x_new, est)
         return ObserverEstimate(force=est[:, 0:3], torque=est[:, 3:6], states={}), x_new
 
     def estimate(self) -> ObserverEstimate:
@@ -123,14 +123,16 @@ def fixed_time_law(e: float, k1: float, k2: float, a1: float, a2: float) -> floa
 @njit(cache=True)
 def fxtsdo_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.float64],
                 omega: NDArray[np.float64], thrust: NDArray[np.float64], torque: NDArray[np.float64], dt: float,
-                gains: NDArray[np.float64], inertia: NDArray[np.float64], inertia_inv: NDArray[np.float64],
-                x_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+                gains: NDArray[np.float64], x_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
     """One FxTSDO step of every row: state ``x`` (N, 12) -> ``x_new``, estimate into ``est`` (N, 6).
 
     eps = (velocity difference) / dt - known acceleration - d_hat; d_hat += dt (k1 sig^a1(eps) + k2 sig^a2(eps)),
-    on the translational and the rotational channel (module docstring).  ``gains``: (m, g, k1, k2, a1, a2).
+    on the translational and the rotational channel (module docstring).  ``gains``: (m, g, k1, k2, a1, a2, J (9),
+    J^-1 (9)).
     """
     mass, g, k1, k2, a1, a2 = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5]
+    inertia = gains[6:15].reshape((3, 3))
+    inertia_inv = gains[15:24].reshape((3, 3))
     acc_known, ang_known = np.empty(3), np.empty(3)
     for i in range(x.shape[0]):
         xi, xo = x[i], x_new[i]

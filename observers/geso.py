@@ -56,9 +56,7 @@ HOLDS = ("zoh", "foh")
 CHANNELS = ("force", "torque")
 _E3 = np.array([0.0, 0.0, 1.0])
 _RATE_NAME = {"force": "velocity", "torque": "angular_velocity"}
-_ZEROS3 = np.zeros((1, 3))
 _EYE3 = np.eye(3)[None]      # the attitude argument of the torque channel (not read)
-_NO_FOH = {n: np.zeros((n + 1, 2)) for n in ORDERS}   # Gamma1 of a zero-order hold (not read)
 _DER_NAME = {"force": "force_derivatives", "torque": "torque_derivatives"}
 
 
@@ -178,7 +176,7 @@ class GesoFilter:
         #: observer matrix A - L C and input matrix [B, L] for the inputs (u*, y), eq. 22
         self.f = a - np.outer(self.gains, c[0])
         self.g = np.hstack([b, self.gains[:, None]])
-        self._cache: dict[tuple[float, str], tuple[NDArray[np.float64], ...]] = {}
+        self._cache: dict[tuple[float, str], tuple[NDArray[np.float64], ...]] = {}   # per (dt, hold)
 
     def discretize(self, dt: float, hold: str = "zoh") -> tuple[NDArray[np.float64], ...]:
         """Exact discrete matrices for step ``dt``.
@@ -214,6 +212,22 @@ class GesoFilter:
                 raise ValueError(f"GESO discretization at dt={dt} overflowed (gains {self.gains})")
         return self._cache[key]
 
+    def step_matrix(self, dt: float, hold: str = "zoh") -> NDArray[np.float64]:
+        """:meth:`discretize` packed for :func:`geso_filter_row`: ``[Phi | Gamma | Gamma1]``, shape (n+1, n+5)
+        (Gamma1 = 0 for ``"zoh"``: y held)."""
+        key = (float(dt), hold + "/packed")
+        packed = self._cache.get(key)
+        if packed is None:
+            mats = self.discretize(dt, hold)
+            m = self.order + 1
+            packed = np.zeros((m, m + 4))
+            packed[:, :m], packed[:, m:m + 2] = mats[0], mats[1]
+            if hold == "foh":
+                packed[:, m + 2:] = mats[2]
+            self._cache[key] = (packed,)
+            return packed
+        return packed[0]
+
     def derivative(self, x: NDArray[np.float64], u_star: ArrayLike, y: ArrayLike) -> NDArray[np.float64]:
         """Continuous right-hand side of eq. 22, ``(A - L C) x + B u* + L y``, batch (..., n+1)."""
         uy = np.stack(np.broadcast_arrays(np.asarray(u_star, float), np.asarray(y, float)), axis=-1)
@@ -225,7 +239,7 @@ class GesoFilter:
 
         With ``hold="foh"`` ``y_next`` (the measurement at the end of the step) is required.
         """
-        mats = self.discretize(dt, hold)
+        packed = self.step_matrix(dt, hold)
         if hold == "foh" and y_next is None:
             raise ValueError("hold='foh' needs y_next, the measurement at the end of the step")
         x = np.asarray(x, dtype=float)
@@ -236,33 +250,31 @@ class GesoFilter:
         rows = np.ascontiguousarray(np.broadcast_to(x, shape + (m,)).reshape(-1, m))
         flat = [np.ascontiguousarray(np.broadcast_to(a, shape).reshape(-1)) for a in (u_arr, y_arr, dy)]
         out = np.empty_like(rows)
-        gamma1 = mats[2] if hold == "foh" else np.zeros((m, 2))
-        _geso_filter_rows(rows, flat[0], flat[1], flat[2], mats[0], mats[1], gamma1, hold == "foh", out)
+        _geso_filter_rows(rows, flat[0], flat[1], flat[2], packed, out)
         return out.reshape(shape + (m,))
 
 
 @njit(cache=True)
-def geso_filter_row(x: NDArray[np.float64], u: float, y: float, dy: float, phi: NDArray[np.float64],
-                    gamma: NDArray[np.float64], gamma1: NDArray[np.float64], foh: bool,
+def geso_filter_row(x: NDArray[np.float64], u: float, y: float, dy: float, mats: NDArray[np.float64],
                     out: NDArray[np.float64]) -> None:
-    """One exact sampled-data step of eq. 22 on one axis: ``out = Phi x + Gamma [u*, y]`` (zero-order hold), plus
-    ``Gamma1[:, 1] (y_next - y)`` with ``foh`` (y linear over the step); matrices of :meth:`GesoFilter.discretize`."""
+    """One exact sampled-data step of eq. 22 on one axis, m = len(x) = n + 1 states::
+
+        out = Phi x + Gamma [u*, y] + Gamma1 [0, y_next - y]
+
+    ``mats`` = [Phi | Gamma | Gamma1] (m, m + 4) of :meth:`GesoFilter.step_matrix` (Gamma1 = 0: y held)."""
     m = x.shape[0]
     for r in range(m):
-        acc = gamma[r, 0] * u + gamma[r, 1] * y
+        acc = mats[r, m] * u + mats[r, m + 1] * y + mats[r, m + 3] * dy
         for c in range(m):
-            acc += phi[r, c] * x[c]
-        if foh:
-            acc += gamma1[r, 1] * dy
+            acc += mats[r, c] * x[c]
         out[r] = acc
 
 
 @njit(cache=True)
 def _geso_filter_rows(x: NDArray[np.float64], u: NDArray[np.float64], y: NDArray[np.float64],
-                      dy: NDArray[np.float64], phi: NDArray[np.float64], gamma: NDArray[np.float64],
-                      gamma1: NDArray[np.float64], foh: bool, out: NDArray[np.float64]) -> None:
+                      dy: NDArray[np.float64], mats: NDArray[np.float64], out: NDArray[np.float64]) -> None:
     for i in range(x.shape[0]):
-        geso_filter_row(x[i], u[i], y[i], dy[i], phi, gamma, gamma1, foh, out[i])
+        geso_filter_row(x[i], u[i], y[i], dy[i], mats, out[i])
 
 
 @njit(cache=True)
@@ -293,40 +305,61 @@ def geso_signals(is_force: bool, mass: float, inertia: NDArray[np.float64], rate
         geso_signals_row(is_force, mass, inertia, rate[i], att[i if is_force else 0], y[i], aux[i])
 
 
-@njit(cache=True)
-def geso_channel_step(x: NDArray[np.float64], y_old: NDArray[np.float64], aux_old: NDArray[np.float64],
-                      rate: NDArray[np.float64], att: NDArray[np.float64], thrust: NDArray[np.float64],
-                      torque: NDArray[np.float64], is_force: bool, foh: bool, mass: float, gravity: float,
-                      inertia: NDArray[np.float64], inertia_inv: NDArray[np.float64], phi: NDArray[np.float64],
-                      gamma: NDArray[np.float64], gamma1: NDArray[np.float64], x_new: NDArray[np.float64],
-                      y_new: NDArray[np.float64], aux_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
-    """One GESO step of one channel for every row.
+#: layout of the GESO state (N, K, 3, M + 2) per channel slot k and axis: x_hat (M entries, zero-padded beyond
+#: the slot's n + 1), then the previous signals y and aux (:func:`geso_signals_row`)
+PARAM_NAMES = ("mass", "gravity", "J (9, row-major)", "J^-1 (9, row-major)")
 
-    State ``x`` (N, 3, n+1) and the previous signals ``y_old``, ``aux_old`` (N, 3) -> ``x_new``, the new signals
-    ``y_new``, ``aux_new`` (:func:`geso_signals_row` of ``rate`` = v^m or Omega^m and ``att`` = R^m) and the
-    estimate ``est`` (N, 6 + 3 (n-1)): the disturbance (x[:, :, 1]), the rate (v = x0 / m or Omega = J^-1 x0),
-    then the derivatives d', ..., d^(n-1) (x[:, :, 2:], axis by axis).  u* is held over the step: the applied
-    input with its state-dependent part at the previous signals (zoh) or at the mean of the two (foh).
+
+@njit(cache=True)
+def geso_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.float64],
+              rate: NDArray[np.float64], thrust: NDArray[np.float64], torque: NDArray[np.float64],
+              slots: NDArray[np.int64], foh: bool, params: NDArray[np.float64], mats: NDArray[np.float64],
+              x_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+    """One GESO step of every row and channel slot.
+
+    ``x`` (N, K, 3, M + 2): per slot k (``slots[k]`` = (kind, n_k + 1), kind 0 = force, 1 = torque channel) and
+    axis, x_hat (n_k + 1 entries, zero-padded to M = max n_k + 1), then the previous
+    signals y, aux.  ``vel`` = v^m, ``att`` = R^m (force channel),
+    ``rate`` = Omega^m (torque channel); ``mats`` (K, M, M + 4) the packed step matrices of each slot at this dt
+    (:meth:`GesoFilter.step_matrix`); ``params`` as :data:`PARAM_NAMES`.  Writes ``x_new`` and ``est``
+    (N, K, 3 M): the disturbance (x_hat[1] per axis), the rate (v = x0 / m or Omega = J^-1 x0), then the
+    derivatives d', ..., d^(n-1), axis by axis.  u* is held over the step: the applied input with its
+    state-dependent part at the previous signals (zoh) or at the mean of the previous and the new (foh).
     """
-    m = x.shape[2]
-    a_held = np.empty(3)
+    mass, gravity = params[0], params[1]
+    inertia = params[2:11].reshape((3, 3))
+    inertia_inv = params[11:20].reshape((3, 3))
+    mm = x.shape[3] - 2
+    y_new, aux_new = np.empty(3), np.empty(3)
     for i in range(x.shape[0]):
-        geso_signals_row(is_force, mass, inertia, rate[i], att[i if is_force else 0], y_new[i], aux_new[i])
-        for j in range(3):
-            a_held[j] = 0.5 * (aux_old[i, j] + aux_new[i, j]) if foh else aux_old[i, j]
-        for j in range(3):
-            u = (mass * gravity * (1.0 if j == 2 else 0.0) - thrust[i] * a_held[j]) if is_force \
-                else torque[i, j] + a_held[j]
-            geso_filter_row(x[i, j], u, y_old[i, j], y_new[i, j] - y_old[i, j], phi, gamma, gamma1, foh, x_new[i, j])
-            est[i, j] = x_new[i, j, 1]
-            for k in range(2, m):
-                est[i, 6 + 3 * (k - 2) + j] = x_new[i, j, k]
-        for j in range(3):
+        for k in range(x.shape[1]):
+            is_force = slots[k, 0] == 0
+            m = slots[k, 1]                                    # the slot's n + 1
             if is_force:
-                est[i, 3 + j] = x_new[i, j, 0] / mass
+                geso_signals_row(True, mass, inertia, vel[i], att[i], y_new, aux_new)
             else:
-                est[i, 3 + j] = (inertia_inv[j, 0] * x_new[i, 0, 0] + inertia_inv[j, 1] * x_new[i, 1, 0]
-                                 + inertia_inv[j, 2] * x_new[i, 2, 0])
+                geso_signals_row(False, mass, inertia, rate[i], att[0], y_new, aux_new)
+            for j in range(3):
+                xs, xo = x[i, k, j], x_new[i, k, j]
+                y_old, aux_old = xs[mm], xs[mm + 1]
+                a_held = 0.5 * (aux_old + aux_new[j]) if foh else aux_old
+                u = (mass * gravity * (1.0 if j == 2 else 0.0) - thrust[i] * a_held) if is_force \
+                    else torque[i, j] + a_held
+                geso_filter_row(xs[:m], u, y_old, y_new[j] - y_old, mats[k, :m, :m + 4], xo[:m])
+                for c in range(m, mm):
+                    xo[c] = 0.0
+                xo[mm], xo[mm + 1] = y_new[j], aux_new[j]
+                est[i, k, j] = xo[1]
+                for c in range(2, m):
+                    est[i, k, 6 + 3 * (c - 2) + j] = xo[c]
+                for c in range(m, mm):
+                    est[i, k, 6 + 3 * (c - 2) + j] = 0.0
+            for j in range(3):
+                if is_force:
+                    est[i, k, 3 + j] = x_new[i, k, j, 0] / mass
+                else:
+                    est[i, k, 3 + j] = (inertia_inv[j, 0] * x_new[i, k, 0, 0] + inertia_inv[j, 1] * x_new[i, k, 1, 0]
+                                        + inertia_inv[j, 2] * x_new[i, k, 2, 0])
 
 
 def _parse_channels(channels: str | Iterable[str]) -> tuple[str, ...]:
@@ -386,8 +419,12 @@ class GESO(Observer):
         self.hold = hold
         self.rate_key = rate_key
         self.filters = {c: GesoFilter(orders[c], bws[c]) for c in chans}
-        self._x: dict[str, NDArray[np.float64]] = {}
-        self._prev: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+        #: the kernel's channel slots: (kind 0 = force / 1 = torque, n + 1) each, and M = the largest n + 1
+        self._slots = np.array([[CHANNELS.index(c), f.order + 1] for c, f in self.filters.items()], dtype=np.int64)
+        self._m = int(self._slots[:, 1].max())
+        self._params = np.concatenate([[self.mass, self.gravity], self.inertia.ravel(), self.inertia_inv.ravel()])
+        self._mats: dict[float, NDArray[np.float64]] = {}
+        self._state: NDArray[np.float64] | None = None
         keys: tuple[str, ...] = ((M.VELOCITY, M.ATTITUDE) if "force" in chans else ()) + (
             (rate_key,) if "torque" in chans else ())
         self.required_keys = keys
@@ -395,69 +432,66 @@ class GESO(Observer):
         #: the Nyquist rate: its bandwidth w_b must satisfy w_b dt < pi; max_dt = 1 / max w_b keeps w_b dt <= 1
         self.max_dt = 1.0 / max(float(f.gains[0]) / (f.order + 1) for f in self.filters.values())
 
-    # ---- channel signals: (y, state-dependent part of u*) from a batched measurement ------------
-    def _signals(self, chan: str, meas: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.float64], ...]:
-        rate = meas[M.VELOCITY if chan == "force" else self.rate_key]
-        att = meas[M.ATTITUDE] if chan == "force" else _EYE3
-        y, aux = np.empty_like(rate), np.empty_like(rate)
-        geso_signals(chan == "force", self.mass, self.inertia, np.ascontiguousarray(rate), att, y, aux)
-        return y, aux
+    def _step_matrices(self, dt: float) -> NDArray[np.float64]:
+        """The packed step matrices of every slot at ``dt`` (K, M, M + 4), slot k's (n_k + 1, n_k + 5) top left."""
+        mats = self._mats.get(dt)
+        if mats is None:
+            mats = np.zeros((len(self.filters), self._m, self._m + 4))
+            for k, filt in enumerate(self.filters.values()):
+                packed = filt.step_matrix(dt, self.hold)
+                mats[k, :packed.shape[0], :packed.shape[1]] = packed
+            self._mats[dt] = mats
+        return mats
 
     def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
                rows: NDArray[np.bool_] | None) -> int:
         """Start at x0_hat = y, d_hat = the given guess (default 0), higher derivatives 0.
 
-        State per channel: ``_x[chan]`` (N, 3, n+1) and the previous signals ``_prev[chan]`` = (y, aux), (N, 3)
-        each.  The per-dt step matrices (:meth:`GesoFilter.discretize`) are constants, not state."""
+        State: ``_state`` (N, K, 3, M + 2), per channel slot and axis x_hat (zero-padded to M entries) and the
+        previous signals y, aux (:func:`geso_step`).  The per-dt step matrices are constants, not state."""
         meas = M.batch_measurement(measurement)
-        x_new: dict[str, NDArray[np.float64]] = {}
-        prev_new: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
-        for chan, filt in self.filters.items():
-            y, aux = self._signals(chan, meas)
-            x = np.zeros(y.shape + (filt.order + 1,))
-            x[..., 0] = y
-            guess = force if chan == "force" else torque
+        n = meas[self.required_keys[0]].shape[0]
+        mm = self._m
+        fresh = np.zeros((n, len(self.filters), 3, mm + 2))
+        for k, chan in enumerate(self.filters):
+            is_force = chan == "force"
+            rate = np.ascontiguousarray(meas[M.VELOCITY if is_force else self.rate_key])
+            y, aux = np.empty_like(rate), np.empty_like(rate)
+            geso_signals(is_force, self.mass, self.inertia, rate, meas[M.ATTITUDE] if is_force else _EYE3, y, aux)
+            fresh[:, k, :, 0] = y
+            fresh[:, k, :, mm] = y
+            fresh[:, k, :, mm + 1] = aux
+            guess = force if is_force else torque
             if guess is not None:
                 g = np.asarray(guess, dtype=float)
                 if g.shape[-1:] != (3,) or not np.all(np.isfinite(g)):
                     raise ValueError(f"initial {chan} guess must be finite with shape (3,) or (N, 3), "
                                      f"got {g.shape}")
-                x[..., 1] = np.broadcast_to(g, y.shape)
-            x_new[chan] = x
-            prev_new[chan] = (y, aux)
-        self._x = write_rows(self._x, x_new, rows)
-        self._prev = write_rows(self._prev, prev_new, rows)
-        return next(iter(x_new.values())).shape[0]
+                fresh[:, k, :, 1] = np.broadcast_to(g, (n, 3))
+        self._state = write_rows(self._state, fresh, rows)
+        return n
 
     def _update(self, meas: dict[str, NDArray[np.float64]], f: NDArray[np.float64], tau: NDArray[np.float64],
-                dt: float) -> tuple[ObserverEstimate, tuple[dict[str, NDArray[np.float64]], dict[str, Any]]]:
-        n_batch = f.shape[0]
-        out = {"force": _ZEROS3, "torque": _ZEROS3}
+                dt: float) -> tuple[ObserverEstimate, NDArray[np.float64]]:
+        x = self._state
+        n = x.shape[0]
+        mats = self._mats.get(dt)
+        if mats is None:
+            mats = self._step_matrices(dt)
+        vel = meas.get(M.VELOCITY)
+        rate = meas.get(self.rate_key)
+        vel = rate if vel is None else vel                    # a channel's absent input is never read
+        rate = vel if rate is None else rate
+        x_new = np.empty(x.shape)
+        est = np.empty((n, x.shape[1], 3 * self._m))
+        geso_step(x, vel, meas.get(M.ATTITUDE, _EYE3), rate, f, tau, self._slots, self.hold == "foh", self._params,
+                  mats, x_new, est)
+        out: dict[str, NDArray[np.float64]] = {}
         states: dict[str, NDArray[np.float64]] = {}
-        new_x: dict[str, NDArray[np.float64]] = {}
-        new_prev: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
-        foh = self.hold == "foh"
-        for chan, filt in self.filters.items():
-            mats = filt.discretize(dt, self.hold)
-            x = self._x[chan]
-            y_old, aux_old = self._prev[chan]
-            is_force = chan == "force"
-            rate = meas[M.VELOCITY] if is_force else meas[self.rate_key]
-            att = meas[M.ATTITUDE] if is_force else _EYE3
-            x_new, y_new, aux_new = np.empty_like(x), np.empty_like(y_old), np.empty_like(y_old)
-            est = np.empty((n_batch, 3 * (filt.order + 1)))
-            geso_channel_step(x, y_old, aux_old, rate, att, f, tau, is_force, foh, self.mass, self.gravity,
-                              self.inertia, self.inertia_inv, mats[0], mats[1], mats[2] if foh else _NO_FOH[filt.order],
-                              x_new, y_new, aux_new, est)
-            new_x[chan] = x_new
-            new_prev[chan] = (y_new, aux_new)
-            out[chan] = est[:, 0:3]
-            states[_RATE_NAME[chan]] = est[:, 3:6]
-            states[_DER_NAME[chan]] = est[:, 6:].reshape(n_batch, filt.order - 1, 3)
-        if len(self.filters) == 1:
-            missing = "torque" if "force" in self.filters else "force"
-            out[missing] = np.zeros((n_batch, 3))
-        return ObserverEstimate(force=out["force"], torque=out["torque"], states=states), (new_x, new_prev)
-
-    def _commit(self, state: tuple[dict[str, NDArray[np.float64]], dict[str, Any]]) -> None:
-        self._x, self._prev = state
+        for k, (chan, filt) in enumerate(self.filters.items()):
+            out[chan] = est[:, k, 0:3]
+            states[_RATE_NAME[chan]] = est[:, k, 3:6]
+            states[_DER_NAME[chan]] = est[:, k, 6:3 * (filt.order + 1)].reshape(n, filt.order - 1, 3)
+        if len(out) == 1:                                     # the channel this instance does not estimate
+            out["torque" if "force" in out else "force"] = np.zeros((n, 3))
+        return ObserverEstimate(force=out["force"], torque=out["torque"], states=states), x_new

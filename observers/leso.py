@@ -86,8 +86,8 @@ class LESO(Observer):
     def _update(self, m: dict[str, NDArray[np.float64]], f: NDArray[np.float64], tau: NDArray[np.float64],
                 dt: float) -> tuple[ObserverEstimate, NDArray[np.float64]]:
         x = self._state
-        x_new = np.empty_like(x)
-        est = np.empty_like(x)
+        x_new = np.empty(x.shape)
+        est = np.empty(x.shape)
         leso_step(x, m["position"], m["attitude"], f, tau, dt, self._gains, x_new, est)
         return _estimate(est), x_new
 

@@ -74,7 +74,8 @@ class SuperTwistingObserver(Observer):
         self.lam_t, self.alpha_t = levant_gains(float(bound_t))
         self.lam_a, self.alpha_a = levant_gains(float(bound_a))
         self._state: NDArray[np.float64] | None = None
-        self._gains = np.array([self.mass, self.gravity, self.lam_t, self.alpha_t, self.lam_a, self.alpha_a])
+        self._gains = np.array([self.mass, self.gravity, self.lam_t, self.alpha_t, self.lam_a, self.alpha_a,
+                                *self.inertia.ravel(), *self.inertia_inv.ravel()])
 
     def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
                rows: NDArray[np.bool_] | None) -> int:
@@ -90,10 +91,9 @@ class SuperTwistingObserver(Observer):
     def _update(self, m: dict[str, NDArray[np.float64]], f: NDArray[np.float64], tau: NDArray[np.float64],
                 dt: float) -> tuple[ObserverEstimate, NDArray[np.float64]]:
         x = self._state
-        x_new = np.empty_like(x)
-        est = np.empty_like(x)
-        sto_step(x, m["velocity"], m["attitude"], m["angular_velocity"], f, tau, dt, self._gains, self.inertia,
-                 self.inertia_inv, x_new, est)
+        x_new = np.empty(x.shape)
+        est = np.empty(x.shape)
+        sto_step(x, m["velocity"], m["attitude"], m["angular_velocity"], f, tau, dt, self._gains, x_new, est)
         return _estimate(est), x_new
 
     def estimate(self) -> ObserverEstimate:
@@ -143,14 +143,16 @@ def super_twisting_axis(x_hat: float, d_hat: float, y: float, known: float, lam:
 @njit(cache=True)
 def sto_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.float64],
              omega: NDArray[np.float64], thrust: NDArray[np.float64], torque: NDArray[np.float64], dt: float,
-             gains: NDArray[np.float64], inertia: NDArray[np.float64], inertia_inv: NDArray[np.float64],
-             x_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+             gains: NDArray[np.float64], x_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
     """One STO step of every row: state ``x`` (N, 12) -> ``x_new``, estimate into ``est`` (N, 12).
 
     Velocity channel: y = v^m, known = g e3 - (f/m) R^m e3; angular channel: y = Omega^m,
-    known = J^-1 (J Omega^m x Omega^m + tau).  ``gains``: (m, g, lambda_t, alpha_t, lambda_a, alpha_a).
+    known = J^-1 (J Omega^m x Omega^m + tau).  ``gains``: (m, g, lambda_t, alpha_t, lambda_a, alpha_a, J (9),
+    J^-1 (9)).
     """
     mass, g, lam_t, alpha_t, lam_a, alpha_a = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5]
+    inertia = gains[6:15].reshape((3, 3))
+    inertia_inv = gains[15:24].reshape((3, 3))
     acc_known, ang_known = np.empty(3), np.empty(3)
     for i in range(x.shape[0]):
         xi, xo = x[i], x_new[i]
