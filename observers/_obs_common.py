@@ -1,37 +1,19 @@
 """Small helpers shared by the Wang et al. (2024) observers (FFTS-ESO, LESO, FxTSDO, STO).
 
-Not an observer itself (the leading underscore keeps it out of the auto-import/registry).
+Not an observer itself (the leading underscore keeps it out of the auto-import/registry).  The row helpers
+(``*_row``) are compiled and called by the observers' kernels per row.  ``floats`` / ``single_inputs`` serve the
+N = 1 float paths that remain in other observers (qb, pdt_sta, hc_eso; issue 14 removes them there) and go
+with the last of those paths.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
 
 import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
-
-from fawtgym.core.measurement import batch_measurement
-
-if TYPE_CHECKING:
-    from fawtgym.observers.base import Observer
-
-
-def require(measurement: Mapping[str, ArrayLike], keys: Sequence[str], who: str) -> dict[str, NDArray[np.float64]]:
-    """Batch the measurement and check that ``keys`` are present and finite (ValueError otherwise)."""
-    meas = batch_measurement(measurement)
-    missing = [k for k in keys if k not in meas]
-    if missing:
-        raise ValueError(f"{who} needs measurement keys {list(keys)}; missing {missing} (got {sorted(meas)})")
-    n = meas[keys[0]].shape[0]
-    for k in keys:
-        if meas[k].shape[0] != n:
-            raise ValueError(f"{who}: measurement[{k!r}] has batch size {meas[k].shape[0]}, expected {n}")
-        if not np.all(np.isfinite(meas[k])):
-            raise ValueError(f"{who}: measurement[{k!r}] contains non-finite values")
-    return meas
 
 
 def batch_vec(x: ArrayLike | None, n: int, label: str, who: str) -> NDArray[np.float64]:
@@ -44,47 +26,6 @@ def batch_vec(x: ArrayLike | None, n: int, label: str, who: str) -> NDArray[np.f
     if a.shape != (n, 3) or not np.all(np.isfinite(a)):
         raise ValueError(f"{who}: {label} must be finite with shape (3,) or ({n}, 3), got shape {a.shape}")
     return np.array(a)
-
-
-def batch_thrust(f: NDArray[np.float64], n: int, who: str) -> NDArray[np.float64]:
-    """Thrust (1,) or (N,) -> (N,)."""
-    if f.shape == (1,) and n != 1:
-        f = np.broadcast_to(f, (n,))
-    if f.shape != (n,):
-        raise ValueError(f"{who}: thrust must have shape ({n},), got {f.shape}")
-    return f
-
-
-def batch_torque(tau: NDArray[np.float64], n: int, who: str) -> NDArray[np.float64]:
-    if tau.shape == (1, 3) and n != 1:
-        tau = np.broadcast_to(tau, (n, 3))
-    if tau.shape != (n, 3):
-        raise ValueError(f"{who}: torque must have shape (3,) or ({n}, 3), got {tau.shape}")
-    return tau
-
-
-def step_inputs(obs: Observer, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
-                dt: float, keys: Sequence[str], n: int, who: str
-                ) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.float64], NDArray[np.float64]]:
-    """The common input checks of ``update()`` for an observer whose state holds ``n`` vehicles (fixed at reset).
-
-    ``dt``, thrust and torque as in :meth:`Observer._inputs`; the measurement through :func:`require`; its batch
-    size (that of ``keys[0]``) must equal ``n``.  Returns (measurement, thrust (n,), torque (n, 3)).
-    """
-    _, f, tau = obs._inputs({}, thrust, torque, dt)
-    m = require(measurement, keys, who)
-    if m[keys[0]].shape[0] != n:
-        raise ValueError(f"{who}: measurement batch size {m[keys[0]].shape[0]} != reset batch size {n}")
-    return m, batch_thrust(f, n, who), batch_torque(tau, n, who)
-
-
-def check_finite(who: str, **arrays: NDArray[np.float64]) -> None:
-    """Raise FloatingPointError naming the first non-finite state (never return NaN/inf silently)."""
-    for name, a in arrays.items():
-        if not np.all(np.isfinite(a)):
-            bad = np.unique(np.nonzero(~np.isfinite(a))[0])
-            raise FloatingPointError(f"{who}: state {name!r} became non-finite for batch rows {bad.tolist()}; "
-                                     "the observer diverged (check gains, dt and the measurement)")
 
 
 def positive(who: str, **values: float) -> None:
@@ -146,11 +87,6 @@ def cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]
     return a[..., _I1] * b[..., _I2] - a[..., _I2] * b[..., _I1]
 
 
-def all_finite(*arrays: NDArray[np.float64]) -> bool:
-    """True iff every entry of every array is finite (one reduction per array)."""
-    return bool(np.isfinite(sum(float(np.sum(a)) for a in arrays)))
-
-
 def floats(x: object) -> list[float]:
     """All entries of ``x`` as a flat list of Python floats (the N = 1 fast paths; one call for a float64 ndarray).
 
@@ -184,26 +120,3 @@ def single_inputs(measurement: Mapping[str, object], keys: tuple[str, ...], thru
             or not math.isfinite(sum(sum(v) for v in values) + fl[0] + sum(tq))):
         return None
     return values, fl[0], tq
-
-
-def single_state(obs: Observer, names: Sequence[str]) -> list[float]:
-    """The N = 1 state of ``obs`` (its ``_s`` dict of (1, 3) arrays under ``names``) as one flat float list:
-    the floats the last fast step cached while ``_s`` is still the dict it stored, else read from ``_s``."""
-    cache = obs._single
-    if cache is not None and cache[0] is obs._s:
-        return cache[1]
-    flat: list[float] = []
-    for k in names:
-        flat += obs._s[k][0].tolist()
-    return flat
-
-
-def store_single_state(obs: Observer, who: str, names: Sequence[str], flat: list[float]) -> None:
-    """Keep a fast step's new N = 1 state: :func:`check_finite` (FloatingPointError naming the first non-finite
-    state), then ``obs._s`` = (1, 3) views of one buffer under ``names`` and ``obs._single`` = (that dict, ``flat``)."""
-    buf = np.array(flat)
-    state = {k: buf[None, 3 * i:3 * i + 3] for i, k in enumerate(names)}
-    if not math.isfinite(sum(flat)):
-        check_finite(who, **{k: v[0] for k, v in state.items()})
-    obs._s = state
-    obs._single = (state, flat)

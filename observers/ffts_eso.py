@@ -60,7 +60,7 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3 import project_so3
 from fawtgym.core.so3_kernels import cross_row, exp_so3_row, mat_mul_row, mat_t_vec_row, mat_vec_row
-from fawtgym.observers._obs_common import batch_vec, require
+from fawtgym.observers._obs_common import batch_vec
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 from fawtgym.observers.hc_ffts import (
     DEFAULT_EPS,
@@ -206,7 +206,7 @@ class FFTSESO(Observer):
         """b_hat, v_hat, R_hat, Omega_hat := measured values; phi_hat, tau_hat := given guesses (default 0).
 
         State: ``_state`` (N, 24), columns b_hat, v_hat, phi_hat, Omega_hat, tau_hat, R_hat (row-major)."""
-        m = require(measurement, _KEYS, "ffts_eso")
+        m = measurement        # checked by Observer.reset (required_keys)
         n = m["position"].shape[0]
         fresh = np.concatenate([m["position"], m["velocity"], batch_vec(force, n, "force", "ffts_eso"),
                                 m["angular_velocity"], batch_vec(torque, n, "torque", "ffts_eso"),

@@ -32,7 +32,6 @@ from fawtgym.observers._obs_common import (
     known_acceleration_row,
     known_angular_acceleration_row,
     positive,
-    require,
     sig_row,
 )
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
@@ -74,7 +73,7 @@ class FxTSDO(Observer):
                rows: NDArray[np.bool_] | None) -> int:
         """Previous velocities := measured; d_hat := the given guesses (as accelerations).  State: ``_state``
         (N, 12), columns v_prev, w_prev, d_t_hat, d_a_hat."""
-        m = require(measurement, _KEYS, "fxtsdo")
+        m = measurement        # checked by Observer.reset (required_keys)
         n = m["velocity"].shape[0]
         fresh = np.concatenate([m["velocity"], m["angular_velocity"],
                                 batch_vec(force, n, "force", "fxtsdo") / self.mass,

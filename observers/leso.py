@@ -36,7 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.core.frames import rot_to_euler
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import rot_to_euler_row
-from fawtgym.observers._obs_common import batch_vec, positive, require
+from fawtgym.observers._obs_common import batch_vec, positive
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 
 _KEYS = ("position", "velocity", "attitude", "angular_velocity")
@@ -75,7 +75,7 @@ class LESO(Observer):
         """z1 := measured b / eta, z2 := measured v / Omega (as Euler rates), z3 := given disturbance guess.
 
         State: ``_state`` (N, 18), columns z1, z2, z3 of position then of the Euler angles."""
-        m = require(measurement, _KEYS, "leso")
+        m = measurement        # checked by Observer.reset (required_keys)
         n = m["position"].shape[0]
         fresh = np.concatenate([m["position"], m["velocity"], batch_vec(force, n, "force", "leso") / self.mass,
                                 rot_to_euler(m["attitude"]), m["angular_velocity"],

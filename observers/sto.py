@@ -39,7 +39,6 @@ from fawtgym.observers._obs_common import (
     known_acceleration_row,
     known_angular_acceleration_row,
     positive,
-    require,
     sig_row,
 )
 from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
@@ -81,7 +80,7 @@ class SuperTwistingObserver(Observer):
                rows: NDArray[np.bool_] | None) -> int:
         """v_hat, Omega_hat := measured; d_hat := the given guesses (as accelerations).  State: ``_state`` (N, 12),
         columns v_hat, Omega_hat, d_t_hat, d_a_hat."""
-        m = require(measurement, _KEYS, "sto")
+        m = measurement        # checked by Observer.reset (required_keys)
         n = m["velocity"].shape[0]
         fresh = np.concatenate([m["velocity"], m["angular_velocity"], batch_vec(force, n, "force", "sto") / self.mass,
                                 batch_vec(torque, n, "torque", "sto") @ self.inertia_inv.T], axis=1)
