@@ -78,7 +78,7 @@ def _measured_attitude_rows(sf, mag, ref, weights, gravity, min_field, R, valid)
 
 
 @njit(cache=True)
-def _pdt_sta_rows(sf, mag, tau, dt, ref, weights, c, J, J_inv, p, anchor, x1, x2, t,
+def _pdt_sta_rows(sf, mag, tau, dt, k, anchor, x1, x2, t,
                   anchor_out, x1_out, x2_out, t_out, R_hat, omega_hat, R_q, valid):  # type: ignore[no-untyped-def]
     """One update of every row, into the ``*_out`` arrays and the outputs (the state arrays are not written).
 
@@ -87,8 +87,11 @@ def _pdt_sta_rows(sf, mag, tau, dt, ref, weights, c, J, J_inv, p, anchor, x1, x2
     (y = g_hat: e1 = 0, no correction this step, and R_q reported as the prediction R_a D(g_hat)^T); one STSMO
     step (eqs. 75-77 / 81-82) with omega_hat of eq. 80; the re-anchoring R_a := R_a D(g_hat)^T, g_hat := 0,
     g_hat' := 1/2 Gamma(0) omega_hat (eq. 47) where ||g_hat|| > ``reanchor``; the outputs R_hat = R_a D(g_hat)^T
-    (eq. 45) and omega_hat (eq. 80).  ``c`` = (gravity, min_field, reanchor), ``p`` the STSMO's constants."""
-    gravity, min_field, reanchor = c[0], c[1], c[2]
+    (eq. 45) and omega_hat (eq. 80).  ``k``: the constants in one array (:meth:`PdtStaAttitudeObserver._constants`):
+    gravity, min_field, reanchor, the unit references (2, 3), the QUEST weights (2), J, J^-1 and the STSMO's ``p``."""
+    gravity, min_field, reanchor = k[0], k[1], k[2]
+    ref, weights = k[3:9].reshape(2, 3), k[9:11]
+    J, J_inv, p = k[11:20].reshape(3, 3), k[20:29].reshape(3, 3), k[29:]
     body, q, g = np.empty((2, 3)), np.empty(4), np.empty(3)
     rel, D = np.empty((3, 3)), np.empty((3, 3))
     y, w = np.empty(3), np.empty(3)
@@ -172,7 +175,8 @@ class PdtStaAttitudeObserver(Observer):
         self.references = np.stack([np.array([0.0, 0.0, -self.gravity]), m])  # specific force at rest, field
         self._ref_unit = np.ascontiguousarray(self.references / np.linalg.norm(self.references, axis=1)[:, None])
         self._min_field = 0.1 * float(np.linalg.norm(m))
-        self._consts = np.array([self.gravity, self._min_field, self.reanchor])
+        self._k = np.concatenate([[self.gravity, self._min_field, self.reanchor], self._ref_unit.ravel(),
+                                  self.weights, self.core.J.ravel(), self.core.J_inv.ravel(), self.core.params])
         self.anchor: NDArray[np.float64] = np.eye(3)[None]
 
     def _vectors(self, meas: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -204,9 +208,8 @@ class PdtStaAttitudeObserver(Observer):
         sf, mag = self._vectors(meas)
         anchor, x1, x2, t = np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
         R_hat, omega_hat, R_q, valid = np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3, 3)), np.empty(n, bool)
-        _pdt_sta_rows(sf, mag, np.ascontiguousarray(torque), dt, self._ref_unit, self.weights, self._consts, core.J,
-                      core.J_inv, core._p, self.anchor, core.x1, core.x2, core.t, anchor, x1, x2, t, R_hat, omega_hat,
-                      R_q, valid)
+        _pdt_sta_rows(sf, mag, np.ascontiguousarray(torque), dt, self._k, self.anchor, core.x1, core.x2, core.t,
+                      anchor, x1, x2, t, R_hat, omega_hat, R_q, valid)
         # "gibbs" is the new state's x1: no update writes into a state array after it is stored
         est = ObserverEstimate(force=np.zeros((n, 3)), torque=np.zeros((n, 3)), states={
             "attitude": R_hat, "angular_velocity": omega_hat, "attitude_quest": R_q, "gibbs": x1,
