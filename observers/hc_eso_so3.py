@@ -194,12 +194,12 @@ def _step_rows(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, h):  # type: ignore[
 
 @njit(cache=True)
 def _update_rows(r_hat, w, sigma_hat, l, o, tau, use_attitude, sf, mag, att, rate, J, J_inv, E, EW, c, h, steps,
-                 r_new, w_new, sigma_new, l_new, o_new, tau_hat):  # type: ignore[no-untyped-def]
+                 out, l_new, o_new):  # type: ignore[no-untyped-def]
     """One observer update of every row from the state (``r_hat``, ``w``, ``sigma_hat``) and the held L, Omega^m
-    (``l``, ``o``), none of them written: ``steps`` Lie-Euler substeps of size h into ``r_new``, ``w_new``,
-    ``sigma_new``, the held L propagated by exp(h (Omega^m)^x) between them; then the new measurement's L and rate
-    into ``l_new``, ``o_new`` (the held sample of the next update) and the torque estimate J sigma_hat into
-    ``tau_hat``.
+    (``l``, ``o``), none of them written: ``steps`` Lie-Euler substeps of size h, the held L propagated by
+    exp(h (Omega^m)^x) between them, into ``out`` (N, 21): force (0) | torque J sigma_hat | R_hat (9) | Omega_hat |
+    sigma_hat; then the new measurement's L and rate into ``l_new``, ``o_new`` (the held sample of the next
+    update).
 
     Returns (status, row): (0, -1) done, or (k, i): the IMU vectors of row i are unusable
     (:func:`vector_attitude.imu_body_vectors_row` code k).  The inputs are checked finite by
@@ -207,15 +207,17 @@ def _update_rows(r_hat, w, sigma_hat, l, o, tau, use_attitude, sf, mag, att, rat
     n = r_hat.shape[0]
     scratch = np.empty((6, 3, 3))
     for i in range(n):
-        r_new[i] = r_hat[i]
-        w_new[i] = w[i]
-        sigma_new[i] = sigma_hat[i]
+        row = out[i]
+        r_new, w_new, sigma_new, tau_hat = row[6:15].reshape(3, 3), row[15:18], row[18:21], row[3:6]
+        r_new[:, :] = r_hat[i]
+        w_new[:] = w[i]
+        sigma_new[:] = sigma_hat[i]
         li = scratch[4]
         li[:, :] = l[i]
         if steps > 1:
             exp_so3_row(h * o[i], scratch[5])
         for k in range(steps):  # time substeps
-            hc_eso_step_row(r_new[i], w_new[i], sigma_new[i], li, o[i], tau[i], J, J_inv, c, h, scratch)
+            hc_eso_step_row(r_new, w_new, sigma_new, li, o[i], tau[i], J, J_inv, c, h, scratch)
             if k + 1 < steps:  # the held vectors for the next substep (after the last one, new ones come)
                 scratch[3] = li
                 mat_mul_row(scratch[3], scratch[5], li)
@@ -223,9 +225,9 @@ def _update_rows(r_hat, w, sigma_hat, l, o, tau, use_attitude, sf, mag, att, rat
         if code:
             return code, i
         o_new[i] = rate[i]
-        s = sigma_new[i]
         for k in range(3):
-            tau_hat[i, k] = J[k, 0] * s[0] + J[k, 1] * s[1] + J[k, 2] * s[2]
+            row[k] = 0.0  # the force: HC-ESO estimates the torque only
+            tau_hat[k] = J[k, 0] * sigma_new[0] + J[k, 1] * sigma_new[1] + J[k, 2] * sigma_new[2]
     return 0, -1
 
 
@@ -351,8 +353,8 @@ class HcEsoSO3(Observer):
         n = rate.shape[0]
         l_new, z3, z33 = np.empty((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3, 3))
         code, row = _update_rows(z33, z3, z3, z33, z3, z3, self.vectors == "attitude", sf, mag, att, rate, self._J,
-                                 self._J_inv, self._e, self._ew, self._c, 0.0, 0, np.empty((n, 3, 3)),
-                                 np.empty((n, 3)), np.empty((n, 3)), l_new, np.empty((n, 3)), np.empty((n, 3)))
+                                 self._J_inv, self._e, self._ew, self._c, 0.0, 0, np.empty((n, 21)), l_new,
+                                 np.empty((n, 3)))
         self._raise(code, row)
         return l_new
 
@@ -386,15 +388,14 @@ class HcEsoSO3(Observer):
         n = self._r_hat.shape[0]
         sf, mag, att, rate = self._measured(meas)
         steps = max(1, math.ceil(dt / self.max_step - 1e-9))
-        r_hat, w_hat, sigma, l_new, o_new, tau_hat = (np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3)),
-                                                      np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3)))
+        out, l_new, o_new = np.empty((n, 21)), np.empty((n, 3, 3)), np.empty((n, 3))
         code, row = _update_rows(self._r_hat, self._w_hat, self._sigma, self._l, self._o,
                                  np.ascontiguousarray(torque), self.vectors == "attitude", sf, mag, att, rate, self._J,
-                                 self._J_inv, self._e, self._ew, self._c, dt / steps, steps, r_hat, w_hat, sigma, l_new,
-                                 o_new, tau_hat)
+                                 self._J_inv, self._e, self._ew, self._c, dt / steps, steps, out, l_new, o_new)
         self._raise(code, row)
-        # the estimate's arrays are the new state's: no update writes into a state array after it is stored
-        est = ObserverEstimate(force=np.zeros((n, 3)), torque=tau_hat,
+        # the estimate: views of one buffer, which are also the new state (no update writes into a stored state)
+        r_hat, w_hat, sigma = out[:, 6:15].reshape(n, 3, 3), out[:, 15:18], out[:, 18:21]
+        est = ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6],
                                states={"attitude": r_hat, "angular_velocity": w_hat, "sigma": sigma})
         return est, (r_hat, w_hat, sigma, l_new, o_new)
 

@@ -180,17 +180,25 @@ def _estimate_row(x, R, mass, J_inv, force, torque, velocity, omega, derivs):  #
 
 
 @njit(cache=True)
-def _estimate_rows(x, R, mass, J_inv, force, torque, velocity, omega, derivs):  # type: ignore[no-untyped-def]
+def _estimate_rows(x, R, mass, J_inv, out):  # type: ignore[no-untyped-def]
+    """:func:`_estimate_row` of every row into ``out`` (N, 12 + n_d): force | torque | velocity | Omega | d', ..."""
     for i in range(x.shape[0]):
-        _estimate_row(x[i], R[i], mass, J_inv, force[i], torque[i], velocity[i], omega[i], derivs[i])
+        o = out[i]
+        _estimate_row(x[i], R[i], mass, J_inv, o[0:3], o[3:6], o[6:9], o[9:12], o[12:])
+
+
+def _estimate_views(out: NDArray[np.float64]) -> ObserverEstimate:
+    """The estimate as views of the one buffer the kernels write (:func:`_estimate_rows`)."""
+    return ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6], states={
+        "velocity": out[:, 6:9], "angular_velocity": out[:, 9:12], "disturbance_derivatives": out[:, 12:]})
 
 
 @njit(cache=True)
 def _qb_rows(x, y_prev, R_prev, R, velocity, rate, specific_force, thrust, torque, mass, gravity, J, J_inv,
-             stacked, x_out, y_out, force, torque_hat, velocity_hat, omega_hat, derivs):  # type: ignore[no-untyped-def]
+             stacked, x_out, y_out, out):  # type: ignore[no-untyped-def]
     """One update of every row: u_k (eq. 52) with Rbar = (R_prev + R) / 2, y_{k+1} (eq. 54), then
     x_{k+1} = Phi x_k + Gu u_k + Gy0 y_k + Gy1 (y_{k+1} - y_k) as one product [x, u, y_prev, y] @ ``stacked``
-    (:func:`discretize`), and the estimate (:func:`_estimate_row`)."""
+    (:func:`discretize`), and the estimate into ``out`` (:func:`_estimate_rows`)."""
     n, nx = x.shape
     z = np.empty((n, nx + 24))
     Rbar = np.empty((3, 3))
@@ -205,8 +213,7 @@ def _qb_rows(x, y_prev, R_prev, R, velocity, rate, specific_force, thrust, torqu
         momentum_output_row(mass, J, R[i], velocity[i], rate[i], specific_force[i], thrust[i], y_out[i])
         zi[nx + 15:] = y_out[i]
     x_out[:, :] = np.dot(z, stacked)
-    for i in range(n):
-        _estimate_row(x_out[i], R[i], mass, J_inv, force[i], torque_hat[i], velocity_hat[i], omega_hat[i], derivs[i])
+    _estimate_rows(x_out, R, mass, J_inv, out)
 
 
 #: distinct step lengths whose discretization (one matrix exponential each) is kept
@@ -302,15 +309,11 @@ class QBObserver(Observer):
         stacked = self._stacked(dt)
         c = np.ascontiguousarray
         R = c(meas[M.ATTITUDE])
-        x, y = np.empty((n, nx)), np.empty((n, 9))
-        force, tq, vel, omega, derivs = (np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)),
-                                         np.empty((n, nx - 12)))
+        x, y, out = np.empty((n, nx)), np.empty((n, 9)), np.empty((n, nx))
         _qb_rows(self._x, self._y, self._R, R, c(meas[M.VELOCITY]), c(meas[M.ANGULAR_VELOCITY]),
                  c(meas[M.SPECIFIC_FORCE]), c(thrust), c(torque), self.mass, self.gravity, self._J, self._J_inv,
-                 stacked, x, y, force, tq, vel, omega, derivs)
-        est = ObserverEstimate(force=force, torque=tq, states={
-            "velocity": vel, "angular_velocity": omega, "disturbance_derivatives": derivs})
-        return est, (x, y, R.copy())
+                 stacked, x, y, out)
+        return _estimate_views(out), (x, y, R.copy())
 
     def _commit(self, state: Any) -> None:
         self._x, self._y, self._R = state
@@ -331,12 +334,9 @@ class QBObserver(Observer):
         """The current estimate (after reset/update)."""
         if self._n_rows is None:
             raise RuntimeError("qb: estimate() before reset(); call reset(measurement) first")
-        n, nx = self._x.shape
-        force, tq, vel, omega, derivs = (np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)),
-                                         np.empty((n, nx - 12)))
-        _estimate_rows(self._x, self._R, self.mass, self._J_inv, force, tq, vel, omega, derivs)
-        return ObserverEstimate(force=force, torque=tq, states={
-            "velocity": vel, "angular_velocity": omega, "disturbance_derivatives": derivs})
+        out = np.empty(self._x.shape)
+        _estimate_rows(self._x, self._R, self.mass, self._J_inv, out)
+        return _estimate_views(out)
 
 
 # ------------------------------------------------------------------ design (needs cvxpy) ----
