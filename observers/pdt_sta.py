@@ -78,16 +78,17 @@ def _measured_attitude_rows(sf, mag, ref, weights, gravity, min_field, R, valid)
 
 
 @njit(cache=True)
-def _pdt_sta_rows(sf, mag, tau, dt, k, anchor, x1, x2, t,
-                  anchor_out, x1_out, x2_out, t_out, R_hat, omega_hat, R_q, valid):  # type: ignore[no-untyped-def]
-    """One update of every row, into the ``*_out`` arrays and the outputs (the state arrays are not written).
+def _pdt_sta_rows(sf, mag, tau, dt, k, anchor, x1, x2, t, state, est, valid):  # type: ignore[no-untyped-def]
+    """One update of every row into ``state`` (N, 16): anchor R_a (9) | g_hat | g_hat' | t, and ``est`` (N, 30):
+    force (0) | torque (0) | R_hat (9) | omega_hat | R_q (9) | g_hat, and ``valid`` (N,) (the inputs are not
+    written).
 
     Per row: the QUEST attitude R_q (:func:`measured_attitude_row`); the Gibbs measurement relative to the anchor
     attitude R_a, y = g of (R_a^T R_q)^T (eq. 79), or, where the vectors give no attitude, the prediction itself
     (y = g_hat: e1 = 0, no correction this step, and R_q reported as the prediction R_a D(g_hat)^T); one STSMO
     step (eqs. 75-77 / 81-82) with omega_hat of eq. 80; the re-anchoring R_a := R_a D(g_hat)^T, g_hat := 0,
     g_hat' := 1/2 Gamma(0) omega_hat (eq. 47) where ||g_hat|| > ``reanchor``; the outputs R_hat = R_a D(g_hat)^T
-    (eq. 45) and omega_hat (eq. 80).  ``k``: the constants in one array (:meth:`PdtStaAttitudeObserver._constants`):
+    (eq. 45) and omega_hat (eq. 80).  ``k``: the constants in one array (see ``PdtStaAttitudeObserver._k``):
     gravity, min_field, reanchor, the unit references (2, 3), the QUEST weights (2), J, J^-1 and the STSMO's ``p``."""
     gravity, min_field, reanchor = k[0], k[1], k[2]
     ref, weights = k[3:9].reshape(2, 3), k[9:11]
@@ -97,30 +98,36 @@ def _pdt_sta_rows(sf, mag, tau, dt, k, anchor, x1, x2, t,
     y, w = np.empty(3), np.empty(3)
     for i in range(x1.shape[0]):
         A = anchor[i]
-        valid[i] = measured_attitude_row(sf[i], mag[i], ref, weights, gravity, min_field, body, q, g, R_q[i])
+        s, e = state[i], est[i]
+        A_new, g_new, gd_new = s[0:9].reshape(3, 3), s[9:12], s[12:15]
+        R_hat, omega_hat, R_q = e[6:15].reshape(3, 3), e[15:18], e[18:27].reshape(3, 3)
+        valid[i] = measured_attitude_row(sf[i], mag[i], ref, weights, gravity, min_field, body, q, g, R_q)
         if valid[i]:
-            _mat_t_mul_row(A, R_q[i], rel)
+            _mat_t_mul_row(A, R_q, rel)
             y[0], y[1], y[2] = rot_to_gibbs_row(rel, 1e-6, _Y_MAX)  # eq. 79
         else:
             gibbs_to_rot_row(x1[i, 0], x1[i, 1], x1[i, 2], D)
-            mat_mul_row(A, D, R_q[i])
+            mat_mul_row(A, D, R_q)
             y[0], y[1], y[2] = x1[i, 0], x1[i, 1], x1[i, 2]
         w[0], w[1], w[2] = omega_row(x1[i, 0], x1[i, 1], x1[i, 2], x2[i, 0], x2[i, 1], x2[i, 2])  # eq. 80
-        stsmo_row(x1[i], x2[i], t[i], y, tau[i], w, J, J_inv, p, dt, x1_out[i], x2_out[i])  # a non-finite state
-        t_out[i] = t[i] + dt
-        g0, g1, g2 = x1_out[i, 0], x1_out[i, 1], x1_out[i, 2]
+        stsmo_row(x1[i], x2[i], t[i], y, tau[i], w, J, J_inv, p, dt, g_new, gd_new)  # a non-finite state
+        s[15] = t[i] + dt
+        g0, g1, g2 = g_new[0], g_new[1], g_new[2]
         if math.sqrt(g0 * g0 + g1 * g1 + g2 * g2) > reanchor:  # (a non-finite one is caught by Observer.update)
-            w0, w1, w2 = omega_row(g0, g1, g2, x2_out[i, 0], x2_out[i, 1], x2_out[i, 2])
+            w0, w1, w2 = omega_row(g0, g1, g2, gd_new[0], gd_new[1], gd_new[2])
             gibbs_to_rot_row(g0, g1, g2, D)
-            mat_mul_row(A, D, anchor_out[i])
-            x1_out[i, 0] = x1_out[i, 1] = x1_out[i, 2] = 0.0
-            x2_out[i, 0], x2_out[i, 1], x2_out[i, 2] = 0.5 * w0, 0.5 * w1, 0.5 * w2  # g' = 1/2 Gamma(0) omega
+            mat_mul_row(A, D, A_new)
+            g_new[0] = g_new[1] = g_new[2] = 0.0
+            gd_new[0], gd_new[1], gd_new[2] = 0.5 * w0, 0.5 * w1, 0.5 * w2  # g' = 1/2 Gamma(0) omega (eq. 47)
         else:
-            anchor_out[i] = A
-        gibbs_to_rot_row(x1_out[i, 0], x1_out[i, 1], x1_out[i, 2], D)
-        mat_mul_row(anchor_out[i], D, R_hat[i])  # eq. 45
-        omega_hat[i, 0], omega_hat[i, 1], omega_hat[i, 2] = omega_row(x1_out[i, 0], x1_out[i, 1], x1_out[i, 2],
-                                                                      x2_out[i, 0], x2_out[i, 1], x2_out[i, 2])
+            A_new[:, :] = A
+        gibbs_to_rot_row(g_new[0], g_new[1], g_new[2], D)
+        mat_mul_row(A_new, D, R_hat)  # eq. 45
+        omega_hat[0], omega_hat[1], omega_hat[2] = omega_row(g_new[0], g_new[1], g_new[2], gd_new[0], gd_new[1],
+                                                             gd_new[2])
+        for j in range(6):
+            e[j] = 0.0  # no disturbance estimate
+        e[27], e[28], e[29] = g_new[0], g_new[1], g_new[2]
 
 
 @register_observer("pdt_sta")
@@ -130,8 +137,9 @@ class PdtStaAttitudeObserver(Observer):
     Reads ``specific_force`` and ``magnetometer`` only (no gyro, no attitude), uses the applied body
     torque u and J (eq. 76), and reports ``states["attitude"]`` R_hat (N, 3, 3), ``states["angular_velocity"]``
     omega_hat (N, 3) (eq. 80), ``states["attitude_quest"]`` (the static QUEST attitude), ``states["gibbs"]``
-    (g_hat relative to the row's anchor) and ``states["quest_valid"]`` (N,) (False where the vectors gave no
-    attitude this step).  It estimates no disturbance (``channels`` is empty; force and torque are zeros).
+    (g_hat relative to the row's anchor); the attribute ``quest_valid`` (N,) bool is False where the last update's
+    vectors gave no attitude (no correction that step; it is not an estimate, so not in ``states``).  It estimates
+    no disturbance (``channels`` is empty; force and torque are zeros).
 
     Options: ``t_c`` [1.5 s], ``eta`` [5], ``kappa1`` [2.5], ``kappa2`` [6 lambda_min(J)]: the STSMO gains
     (eqs. 75-77; kappa2 bounds the unknown angular acceleration times J); ``noise_bound`` [0]: > 0 switches early
@@ -178,6 +186,8 @@ class PdtStaAttitudeObserver(Observer):
         self._k = np.concatenate([[self.gravity, self._min_field, self.reanchor], self._ref_unit.ravel(),
                                   self.weights, self.core.J.ravel(), self.core.J_inv.ravel(), self.core.params])
         self.anchor: NDArray[np.float64] = np.eye(3)[None]
+        #: False where the last update's vectors gave no attitude (N,)
+        self.quest_valid: NDArray[np.bool_] = np.ones(1, dtype=bool)
 
     def _vectors(self, meas: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The accelerometer and magnetometer rows (N, 3), C-contiguous (checked by :meth:`Observer.update` /
@@ -198,6 +208,7 @@ class PdtStaAttitudeObserver(Observer):
                              f"(rows {np.nonzero(~valid)[0].tolist()}: |a| < 0.2 g, weak field or parallel)")
         self.core.reset(np.zeros((n, 3)), rows=rows)
         self.anchor = np.ascontiguousarray(write_rows(self.anchor, R_q, rows))
+        self.quest_valid = write_rows(self.quest_valid, valid, rows)
         return n
 
     def _update(self, meas: dict[str, NDArray[np.float64]], thrust: NDArray[np.float64],
@@ -206,18 +217,18 @@ class PdtStaAttitudeObserver(Observer):
         core = self.core
         n = core.n
         sf, mag = self._vectors(meas)
-        anchor, x1, x2, t = np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
-        R_hat, omega_hat, R_q, valid = np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3, 3)), np.empty(n, bool)
+        state, out, valid = np.empty((n, 16)), np.empty((n, 30)), np.empty(n, bool)
         _pdt_sta_rows(sf, mag, np.ascontiguousarray(torque), dt, self._k, self.anchor, core.x1, core.x2, core.t,
-                      anchor, x1, x2, t, R_hat, omega_hat, R_q, valid)
-        # "gibbs" is the new state's x1: no update writes into a state array after it is stored
-        est = ObserverEstimate(force=np.zeros((n, 3)), torque=np.zeros((n, 3)), states={
-            "attitude": R_hat, "angular_velocity": omega_hat, "attitude_quest": R_q, "gibbs": x1,
-            "quest_valid": valid})
-        return est, (anchor, x1, x2, t)
+                      state, out, valid)
+        # views of two buffers: the new state (no update writes into a stored state) and the estimate
+        anchor, x1, x2, t = state[:, 0:9].reshape(n, 3, 3), state[:, 9:12], state[:, 12:15], state[:, 15]
+        est = ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6], states={
+            "attitude": out[:, 6:15].reshape(n, 3, 3), "angular_velocity": out[:, 15:18],
+            "attitude_quest": out[:, 18:27].reshape(n, 3, 3), "gibbs": out[:, 27:30]})
+        return est, (anchor, x1, x2, t, valid)
 
     def _commit(self, state: Any) -> None:
-        self.anchor, self.core.x1, self.core.x2, self.core.t = state
+        self.anchor, self.core.x1, self.core.x2, self.core.t, self.quest_valid = state
 
     def params(self) -> dict[str, Any]:
         c = self.core
