@@ -221,9 +221,9 @@ def test_update_before_reset_is_a_runtime_error() -> None:
 
 @pytest.mark.parametrize("n", [1, 3])
 def test_dt_above_max_dt_is_refused(n):
-    """dt is bounded by the STA phase's forward-Euler step (max_dt = 0.05 s, see PdtStaAttitudeObserver)."""
+    """dt is bounded by the STA phase's forward-Euler step (max_dt = 0.02 s, see PdtStaAttitudeObserver)."""
     obs = make_observer("pdt_sta", 1.0, [0.03, 0.03, 0.06])
     obs.reset(_hover_meas(n))
-    with pytest.raises(ValueError, match=r"^pdt_sta: dt must be .* \(0, 0.05\]"):
-        obs.update(_hover_meas(n), np.ones(n), np.zeros((n, 3)), 0.06)
-    obs.update(_hover_meas(n), np.ones(n), np.zeros((n, 3)), 0.05)
+    with pytest.raises(ValueError, match=r"^pdt_sta: dt must be .* \(0, 0.02\]"):
+        obs.update(_hover_meas(n), np.ones(n), np.zeros((n, 3)), 0.025)
+    obs.update(_hover_meas(n), np.ones(n), np.zeros((n, 3)), 0.02)
