@@ -70,7 +70,7 @@ class Observer:
     #: registry name, set by :func:`register_observer`
     name: ClassVar[str] = ""
     #: which disturbance channels it estimates: subset of {"force", "torque"}
-    channels: ClassVar[frozenset[str]] = frozenset({"force", "torque"})
+    channels: frozenset[str] = frozenset({"force", "torque"})
     #: measurement keys the law reads: :meth:`update` (and :meth:`reset`) check them (present, N rows of the
     #: shape of :mod:`fawtgym.core.measurement`, real, finite; ``"attitude"`` a rotation).  A subclass states
     #: them (an instance whose keys depend on its options sets ``self.required_keys`` in ``__init__``).
@@ -114,8 +114,7 @@ class Observer:
         observer's batch, the rows where the mask is True get exactly the state a freshly built observer
         reset on those rows' measurements (and guesses) would have -- only their measurement is read, the
         other rows' may be anything, e.g. non-finite -- and the rows where it is False keep their state
-        bitwise.  An all-False mask changes nothing; an all-True mask is a full reset.  At N = 1 a mask
-        is all or nothing, so it never reaches a float fast path half-way.
+        bitwise.  An all-False mask changes nothing; an all-True mask is a full reset.
 
         Raises ValueError (one line; the same text at every N apart from the sizes it names) when
         ``rows`` is given before any full reset, is not a bool array of shape (N,), or ``measurement``
@@ -160,16 +159,17 @@ class Observer:
         shape = np.shape(measurement[key])
         return int(shape[0]) if len(shape) > len(TRAILING_SHAPES[key]) else 1
 
-    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None, **options: Any) -> int:
+    def _reset(self, measurement: Mapping[str, Any], force: ArrayLike | None, torque: ArrayLike | None,
+               rows: NDArray[np.bool_] | None) -> int:
         """Build the fresh state of the rows of ``measurement`` (and the guesses) and store it.
 
         ``rows`` None: a full reset, the fresh state replaces the state.  Else ``rows`` is the observer's
         bool mask (N,) with both values present, ``measurement`` holds only the masked rows (already
         checked to be rows of this batch) and ``force`` / ``torque`` are None, (3,) or one row per masked
-        row; store ``write_rows(state, fresh, rows)``, after bringing any float cache of the state up to
+        row; store ``write_rows(state, fresh, rows)``, after bringing any cache of the state up to
         date, and build the fresh state completely before writing it (an error leaves the state as it
-        was).  Returns the number of rows of ``measurement``.
+        was).  Returns the number of rows of ``measurement``.  An observer that states :attr:`required_keys`
+        receives those keys only, checked as :meth:`update` checks them (float64, finite, a rotation).
         """
         raise NotImplementedError(f"{type(self).__name__} must implement _reset (or override reset)")
 
@@ -244,8 +244,9 @@ class Observer:
             if value.base is not buf:
                 shared = False
                 break
-        if shared and first_nonfinite_row(buf if buf.ndim == 2 else buf.reshape(buf.shape[0], -1)) < 0:
-            return
+        if shared and buf is not None:
+            if first_nonfinite_row(buf if buf.ndim == 2 else buf.reshape(buf.shape[0], -1)) < 0:
+                return
         for channel, value in states.items():
             row = first_nonfinite_row(value if value.ndim == 2 else value.reshape(value.shape[0], -1))
             if row >= 0:

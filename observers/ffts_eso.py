@@ -28,10 +28,11 @@ e_Omega = Omega^m - E_R^T Omega_hat), e_R = s_K(E_R) (Lemma 5, eq. 41) and e_w =
 Discretisation: the measurement and the applied thrust/torque are held over ``dt`` (zero-order hold);
 the vector states are advanced by explicit Euler, the kinematic chains b_hat' = v_hat and
 R_hat' = R_hat Omega_hat^ exactly for the held accelerations (R_hat by the exponential map,
-:func:`fawtgym.core.so3.integrate_rotation`, so R_hat stays on SO(3)).  The time derivative of
+:func:`fawtgym.core.so3_kernels.exp_so3_row`, so R_hat stays on SO(3)).  The whole step is one compiled kernel
+over rows, :func:`ffts_eso_step` (the same code at N = 1 and N = 1024).  The time derivative of
 the fractional power (the H-terms) is unbounded at e = 0, so the fractional power is regularised as
 g(e) = max(e^T e, eps)^((1-p)/p) e (exact for |e| > sqrt(eps), linear inside) and its *exact* derivative
-is used (:func:`fawtgym.observers.hc_ffts.frac_power` / :func:`~fawtgym.observers.hc_ffts.frac_power_rate`), so the
+is used (:func:`fawtgym.observers.hc_ffts.frac_power_row`, batch forms ``frac_power`` / ``frac_power_rate``), so the
 implemented observer is the paper's with psi's fractional term replaced by g; finite at e = 0.
 
 The floor eps depends on p and dt.  g's largest slope is eps^((1-p)/p) (at the ball's edge), and the
@@ -66,11 +67,9 @@ from fawtgym.observers.hc_ffts import (
     DEFAULT_EPS,
     check_p,
     euler_stable_eps,
-    frac_power_rate_row,
     frac_power_row,
     hurwitz_matrix,
-    phi1_row,
-    phi2_row,
+    phi_row,
 )
 
 _KEYS = ("position", "velocity", "attitude", "angular_velocity")
@@ -180,7 +179,7 @@ class FFTSESO(Observer):
         self.ka1, self.ka2, self.ka3 = float(ka1), float(ka2), float(ka3)
         self.morse_k = np.asarray(morse_k, dtype=float)
         self.eps = float(eps)
-        self._state: NDArray[np.float64] | None = None
+        self._state: NDArray[np.float64] = np.empty((0, 0))      # (N, k) after reset
         self._gains = np.array([self.mass, self.gravity, p, kt1, kt2, kt3, kappa_t, ka1, ka2, ka3, kappa_a,
                                 *self.morse_k, *self.inertia.ravel(), *self.inertia_inv.ravel()], dtype=float)
         # stiffest-mode gains of the two halves (euler_stable_eps): e_v' ~ -kappa_t g' e_v, and
@@ -201,8 +200,8 @@ class FFTSESO(Observer):
         return self._eps_cache[1], self._eps_cache[2]
 
     # ---- interface -------------------------------------------------------------------------
-    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None) -> int:
+    def _reset(self, measurement: Mapping[str, NDArray[np.float64]], force: ArrayLike | None,
+               torque: ArrayLike | None, rows: NDArray[np.bool_] | None) -> int:
         """b_hat, v_hat, R_hat, Omega_hat := measured values; phi_hat, tau_hat := given guesses (default 0).
 
         State: ``_state`` (N, 24), columns b_hat, v_hat, phi_hat, Omega_hat, tau_hat, R_hat (row-major)."""
@@ -225,7 +224,7 @@ class FFTSESO(Observer):
         return _estimate(est), x_new
 
     def estimate(self) -> ObserverEstimate:
-        if self._state is None:
+        if self._n_rows is None:
             raise RuntimeError("ffts_eso: call reset(measurement) first")
         est = np.empty_like(self._state)
         ffts_eso_estimate(self._state, est)
@@ -290,12 +289,10 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
         for j in range(3):
             e_b[j] = pos[i, j] - xi[B + j]                                  # e_b = b^m - b_hat
             e_v[j] = vel[i, j] - xi[V + j]                                  # e_v = v^m - v_hat
-        frac_power_row(e_b, p, eps_t, g_b)                                  # |e_b|^(2(1-p)/p) e_b, regularised
-        frac_power_rate_row(e_b, e_v, p, eps_t, rate_b)                     # its rate (the H-term of eq. 49)
+        frac_power_row(e_b, e_v, p, eps_t, g_b, rate_b)  # |e_b|^(2(1-p)/p) e_b (regularised), its rate (H-term)
         for j in range(3):
             psi_t[j] = e_v[j] + kappa_t * (e_b[j] + g_b[j])                 # psi_t, eq. (50)
-        phi1_row(psi_t, kt3, p, inj1)                                       # eq. (9)
-        phi2_row(psi_t, kt3, p, inj2)
+        phi_row(psi_t, kt3, p, inj1, inj2)                                  # phi1, phi2 of eq. (9)
         f_over_m = thrust[i] / mass
         for j in range(3):
             # v_hat' = g e3 - (f/m) R^m e3 + k_t1 phi1(psi_t) + kappa_t (g'(e_b) + e_v) + phi_hat / m, eq. (49)
@@ -316,12 +313,10 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
             e_om[j] = omega[i, j] - t1[j]                                   # e_Omega, eq. (47)
         s_k_row(e_mat, morse_k, e_r)                                        # e_R = s_K(E), eq. (41)
         s_k_rate_row(e_mat, e_om, morse_k, e_w)                             # e_w = d/dt e_R, eq. (66)
-        frac_power_row(e_r, p, eps_a, g_r)
-        frac_power_rate_row(e_r, e_w, p, eps_a, rate_r)
+        frac_power_row(e_r, e_w, p, eps_a, g_r, rate_r)
         for j in range(3):
             psi_a[j] = e_om[j] + kappa_a * (e_r[j] + g_r[j])                # psi_a, eq. (69)
-        phi1_row(psi_a, ka3, p, inj1)
-        phi2_row(psi_a, ka3, p, inj2)
+        phi_row(psi_a, ka3, p, inj1, inj2)
         mat_vec_row(inertia, omega[i], jw)
         cross_row(jw, omega[i], gyro)                                       # J Om^m x Om^m
         for j in range(3):

@@ -62,15 +62,15 @@ class FxTSDO(Observer):
         if not (0.0 < a1 < 1.0 < a2):
             raise ValueError(f"fxtsdo: fixed-time exponents need 0 < a1 < 1 < a2, got a1={a1!r}, a2={a2!r}")
         self.k1, self.k2, self.a1, self.a2 = float(k1), float(k2), float(a1), float(a2)
-        self._state: NDArray[np.float64] | None = None
+        self._state: NDArray[np.float64] = np.empty((0, 0))      # (N, k) after reset
         self._gains = np.array([self.mass, self.gravity, self.k1, self.k2, self.a1, self.a2,
                                 *self.inertia.ravel(), *self.inertia_inv.ravel()])
         # explicit Euler of d' = law(r - d) is stable while law's slope times dt < 2; the a2 > 1 term's slope
         # k2 a2 |e|^(a2-1) grows without bound, so dt is bounded to keep errors up to LARGE_ERROR stable
         self.max_dt = 2.0 / (self.k2 * self.a2 * LARGE_ERROR ** (self.a2 - 1.0))
 
-    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None) -> int:
+    def _reset(self, measurement: Mapping[str, NDArray[np.float64]], force: ArrayLike | None,
+               torque: ArrayLike | None, rows: NDArray[np.bool_] | None) -> int:
         """Previous velocities := measured; d_hat := the given guesses (as accelerations).  State: ``_state``
         (N, 12), columns v_prev, w_prev, d_t_hat, d_a_hat."""
         m = measurement        # checked by Observer.reset (required_keys)
@@ -90,7 +90,7 @@ class FxTSDO(Observer):
         return ObserverEstimate(force=est[:, 0:3], torque=est[:, 3:6], states={}), x_new
 
     def estimate(self) -> ObserverEstimate:
-        if self._state is None:
+        if self._n_rows is None:
             raise RuntimeError("fxtsdo: call reset(measurement) first")
         est = np.empty((self._state.shape[0], 6))
         fxtsdo_estimate(self._state, self._gains, self.inertia, est)

@@ -177,6 +177,7 @@ class GesoFilter:
         self.f = a - np.outer(self.gains, c[0])
         self.g = np.hstack([b, self.gains[:, None]])
         self._cache: dict[tuple[float, str], tuple[NDArray[np.float64], ...]] = {}   # per (dt, hold)
+        self._packed: dict[tuple[float, str], NDArray[np.float64]] = {}
 
     def discretize(self, dt: float, hold: str = "zoh") -> tuple[NDArray[np.float64], ...]:
         """Exact discrete matrices for step ``dt``.
@@ -215,8 +216,8 @@ class GesoFilter:
     def step_matrix(self, dt: float, hold: str = "zoh") -> NDArray[np.float64]:
         """:meth:`discretize` packed for :func:`geso_filter_row`: ``[Phi | Gamma | Gamma1]``, shape (n+1, n+5)
         (Gamma1 = 0 for ``"zoh"``: y held)."""
-        key = (float(dt), hold + "/packed")
-        packed = self._cache.get(key)
+        key = (float(dt), hold)
+        packed = self._packed.get(key)
         if packed is None:
             mats = self.discretize(dt, hold)
             m = self.order + 1
@@ -224,9 +225,8 @@ class GesoFilter:
             packed[:, :m], packed[:, m:m + 2] = mats[0], mats[1]
             if hold == "foh":
                 packed[:, m + 2:] = mats[2]
-            self._cache[key] = (packed,)
-            return packed
-        return packed[0]
+            self._packed[key] = packed
+        return packed
 
     def derivative(self, x: NDArray[np.float64], u_star: ArrayLike, y: ArrayLike) -> NDArray[np.float64]:
         """Continuous right-hand side of eq. 22, ``(A - L C) x + B u* + L y``, batch (..., n+1)."""
@@ -322,9 +322,10 @@ def geso_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.
     signals y, aux.  ``vel`` = v^m, ``att`` = R^m (force channel),
     ``rate`` = Omega^m (torque channel); ``mats`` (K, M, M + 4) the packed step matrices of each slot at this dt
     (:meth:`GesoFilter.step_matrix`); ``params`` as :data:`PARAM_NAMES`.  Writes ``x_new`` and ``est``
-    (N, K, 3 M): the disturbance (x_hat[1] per axis), the rate (v = x0 / m or Omega = J^-1 x0), then the
-    derivatives d', ..., d^(n-1), axis by axis.  u* is held over the step: the applied input with its
-    state-dependent part at the previous signals (zoh) or at the mean of the previous and the new (foh).
+    (N, K, M, 3): per slot the disturbance (x_hat[1] of each axis), the rate (v = x0 / m or Omega = J^-1 x0),
+    then the derivatives d', ..., d^(n-1) (rows beyond n_k + 1 are padding).  u* is held over the step: the
+    applied input with its state-dependent part at the previous signals (zoh) or at the mean of the previous
+    and the new (foh).
     """
     mass, gravity = params[0], params[1]
     inertia = params[2:11].reshape((3, 3))
@@ -349,17 +350,15 @@ def geso_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.
                 for c in range(m, mm):
                     xo[c] = 0.0
                 xo[mm], xo[mm + 1] = y_new[j], aux_new[j]
-                est[i, k, j] = xo[1]
-                for c in range(2, m):
-                    est[i, k, 6 + 3 * (c - 2) + j] = xo[c]
-                for c in range(m, mm):
-                    est[i, k, 6 + 3 * (c - 2) + j] = 0.0
+                est[i, k, 0, j] = xo[1]
+                for c in range(2, mm):
+                    est[i, k, c, j] = xo[c]          # 0 beyond the slot's n + 1
             for j in range(3):
                 if is_force:
-                    est[i, k, 3 + j] = x_new[i, k, j, 0] / mass
+                    est[i, k, 1, j] = x_new[i, k, j, 0] / mass
                 else:
-                    est[i, k, 3 + j] = (inertia_inv[j, 0] * x_new[i, k, 0, 0] + inertia_inv[j, 1] * x_new[i, k, 1, 0]
-                                        + inertia_inv[j, 2] * x_new[i, k, 2, 0])
+                    est[i, k, 1, j] = (inertia_inv[j, 0] * x_new[i, k, 0, 0] + inertia_inv[j, 1] * x_new[i, k, 1, 0]
+                                       + inertia_inv[j, 2] * x_new[i, k, 2, 0])
 
 
 def _parse_channels(channels: str | Iterable[str]) -> tuple[str, ...]:
@@ -424,7 +423,7 @@ class GESO(Observer):
         self._m = int(self._slots[:, 1].max())
         self._params = np.concatenate([[self.mass, self.gravity], self.inertia.ravel(), self.inertia_inv.ravel()])
         self._mats: dict[float, NDArray[np.float64]] = {}
-        self._state: NDArray[np.float64] | None = None
+        self._state: NDArray[np.float64] = np.empty((0, 0))      # (N, k) after reset
         keys: tuple[str, ...] = ((M.VELOCITY, M.ATTITUDE) if "force" in chans else ()) + (
             (rate_key,) if "torque" in chans else ())
         self.required_keys = keys
@@ -443,8 +442,8 @@ class GESO(Observer):
             self._mats[dt] = mats
         return mats
 
-    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None) -> int:
+    def _reset(self, measurement: Mapping[str, NDArray[np.float64]], force: ArrayLike | None,
+               torque: ArrayLike | None, rows: NDArray[np.bool_] | None) -> int:
         """Start at x0_hat = y, d_hat = the given guess (default 0), higher derivatives 0.
 
         State: ``_state`` (N, K, 3, M + 2), per channel slot and axis x_hat (zero-padded to M entries) and the
@@ -478,20 +477,19 @@ class GESO(Observer):
         mats = self._mats.get(dt)
         if mats is None:
             mats = self._step_matrices(dt)
-        vel = meas.get(M.VELOCITY)
-        rate = meas.get(self.rate_key)
-        vel = rate if vel is None else vel                    # a channel's absent input is never read
-        rate = vel if rate is None else rate
+        # a channel's absent input is never read: the other channel's array stands in for it
+        vel = meas[M.VELOCITY] if M.VELOCITY in meas else meas[self.rate_key]
+        rate = meas[self.rate_key] if self.rate_key in meas else vel
         x_new = np.empty(x.shape)
-        est = np.empty((n, x.shape[1], 3 * self._m))
+        est = np.empty((n, x.shape[1], self._m, 3))
         geso_step(x, vel, meas.get(M.ATTITUDE, _EYE3), rate, f, tau, self._slots, self.hold == "foh", self._params,
                   mats, x_new, est)
         out: dict[str, NDArray[np.float64]] = {}
         states: dict[str, NDArray[np.float64]] = {}
         for k, (chan, filt) in enumerate(self.filters.items()):
-            out[chan] = est[:, k, 0:3]
-            states[_RATE_NAME[chan]] = est[:, k, 3:6]
-            states[_DER_NAME[chan]] = est[:, k, 6:3 * (filt.order + 1)].reshape(n, filt.order - 1, 3)
+            out[chan] = est[:, k, 0]
+            states[_RATE_NAME[chan]] = est[:, k, 1]
+            states[_DER_NAME[chan]] = est[:, k, 2:filt.order + 1]
         if len(out) == 1:                                     # the channel this instance does not estimate
             out["torque" if "force" in out else "force"] = np.zeros((n, 3))
         return ObserverEstimate(force=out["force"], torque=out["torque"], states=states), x_new

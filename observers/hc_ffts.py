@@ -4,9 +4,9 @@ Source: (Wang, Hamrah, Sanyal, Glauser 2024), Sec. 3.
 
 * :func:`phi1`, :func:`phi2` -- the output-injection maps of eq. (9); both are continuous at 0 and
   evaluated without NaN/inf there (the fractional power of ``e^T e`` is only taken where it is > 0).
-  Each law of eqs. (9)/(49)/(50) is written once, on one row, as a compiled helper (:func:`phi1_row`,
-  :func:`phi2_row`, :func:`frac_power_row`, :func:`frac_power_rate_row`) that the ESO kernels call per row;
-  the batch functions here loop them over the rows.
+  Each law of eqs. (9)/(49)/(50) is written once, on one row, as a compiled helper (:func:`phi_row`: phi_1 and
+  phi_2; :func:`frac_power_row`: g and its rate) that the ESO kernels call per row; the batch functions here
+  loop them over the rows.
 * :func:`phi1_jacobian` -- eq. (12), so that eq. (13) ``phi2 = phi1' phi1`` can be checked.
 * :func:`frac_power` / :func:`frac_power_rate` -- the term ``(e^T e)^((1-p)/p) e`` of eqs. (50)/(69)
   and its time derivative ``(e^T e)^((1-p)/p) H(e, (p-1)/p) e'`` (Def. 1, eq. 8) used by the ESOs.
@@ -63,62 +63,58 @@ def _pow_or_zero(r2: float, a: float) -> float:
 
 
 @njit(cache=True)
-def phi1_row(e: NDArray[np.float64], k3: float, p: float, out: NDArray[np.float64]) -> None:
-    """out = phi_1(e) = k3 e + (e^T e)^a e, a = (1-p)/(3p-2), eq. (9); 0 at e = 0."""
-    gain = k3 + _pow_or_zero(_dot_row(e, e), (1.0 - p) / (3.0 * p - 2.0))
+def phi_row(e: NDArray[np.float64], k3: float, p: float, phi1_out: NDArray[np.float64],
+            phi2_out: NDArray[np.float64]) -> None:
+    """phi_1(e) and phi_2(e) of eq. (9), a = (1-p)/(3p-2), q = |e|^(2a) (0 at e = 0)::
+
+        phi_1 = (k3 + q) e,     phi_2 = (k3^2 + 2 k3 (2p-1)/(3p-2) q + p/(3p-2) q^2) e
+
+    (one fractional power for both: the ESOs need the pair)."""
+    q = _pow_or_zero(_dot_row(e, e), (1.0 - p) / (3.0 * p - 2.0))
+    gain1 = k3 + q
+    gain2 = k3 * k3 + 2.0 * k3 * (2.0 * p - 1.0) / (3.0 * p - 2.0) * q + p / (3.0 * p - 2.0) * q * q
     for j in range(e.shape[0]):
-        out[j] = gain * e[j]
+        phi1_out[j] = gain1 * e[j]
+        phi2_out[j] = gain2 * e[j]
 
 
 @njit(cache=True)
-def phi2_row(e: NDArray[np.float64], k3: float, p: float, out: NDArray[np.float64]) -> None:
-    """out = phi_2(e) = (k3^2 + 2 k3 (2p-1)/(3p-2) |e|^(2a) + p/(3p-2) |e|^(4a)) e, eq. (9)."""
-    q = _pow_or_zero(_dot_row(e, e), (1.0 - p) / (3.0 * p - 2.0))          # |e|^(2a)
-    gain = k3 * k3 + 2.0 * k3 * (2.0 * p - 1.0) / (3.0 * p - 2.0) * q + p / (3.0 * p - 2.0) * q * q
-    for j in range(e.shape[0]):
-        out[j] = gain * e[j]
+def frac_power_row(e: NDArray[np.float64], edot: NDArray[np.float64], p: float, eps: float,
+                   g_out: NDArray[np.float64], rate_out: NDArray[np.float64]) -> None:
+    """g(e) = max(e^T e, eps)^c e (eqs. 50/69, regularised) and its time derivative along e' = edot (eqs. 49/68)::
 
+        r = max(e^T e, eps),  c = (1-p)/p,  k = (p-1)/p
+        g = r^c e,   g' = r^c (e' - 2k (e.e') e / r)  for e^T e > eps  (H(e, k) e' of Def. 1, eq. 8),
+                     g' = eps^c e'                    inside the ball
 
-@njit(cache=True)
-def frac_power_row(e: NDArray[np.float64], p: float, eps: float, out: NDArray[np.float64]) -> None:
-    """out = g(e) = max(e^T e, eps)^((1-p)/p) e (eqs. 50/69, regularised; eps <= 0: the exact power, 0 at 0)."""
+    (one fractional power for both).  ``eps`` <= 0: the exact power (e^T e)^c e, 0 at e = 0; its rate is then
+    only meaningful away from e = 0."""
     r2 = _dot_row(e, e)
     c = (1.0 - p) / p
-    pw = _pow_or_zero(r2, c) if eps <= 0.0 else max(r2, eps) ** c
+    if eps > 0.0:
+        r = max(r2, eps)
+        pw = r**c
+    else:
+        r = r2
+        pw = _pow_or_zero(r2, c)
+    coef = 2.0 * (p - 1.0) / p * _dot_row(e, edot) / r if r2 > eps and r > 0.0 else 0.0
     for j in range(e.shape[0]):
-        out[j] = pw * e[j]
+        g_out[j] = pw * e[j]
+        rate_out[j] = pw * (edot[j] - coef * e[j])
 
 
 @njit(cache=True)
-def frac_power_rate_row(e: NDArray[np.float64], edot: NDArray[np.float64], p: float, eps: float,
-                        out: NDArray[np.float64]) -> None:
-    """out = d/dt g(e) along e' = edot (eps > 0): r^c (e' - 2k (e.e') e / r) outside the ball (eq. 49/68 with
-    H(e, k) of Def. 1, eq. 8), eps^c e' inside; r = max(e^T e, eps), c = (1-p)/p, k = (p-1)/p."""
-    r2 = _dot_row(e, e)
-    r = max(r2, eps)
-    coef = 2.0 * (p - 1.0) / p * _dot_row(e, edot) / r if r2 > eps else 0.0
-    pw = r ** ((1.0 - p) / p)
-    for j in range(e.shape[0]):
-        out[j] = pw * (edot[j] - coef * e[j])
-
-
-@njit(cache=True)
-def _phi_rows(e: NDArray[np.float64], k3: float, p: float, which: int, out: NDArray[np.float64]) -> None:
+def _phi_rows(e: NDArray[np.float64], k3: float, p: float, out1: NDArray[np.float64],
+              out2: NDArray[np.float64]) -> None:
     for i in range(e.shape[0]):
-        if which == 1:
-            phi1_row(e[i], k3, p, out[i])
-        else:
-            phi2_row(e[i], k3, p, out[i])
+        phi_row(e[i], k3, p, out1[i], out2[i])
 
 
 @njit(cache=True)
-def _frac_power_rows(e: NDArray[np.float64], edot: NDArray[np.float64], p: float, eps: float, rate: bool,
-                     out: NDArray[np.float64]) -> None:
+def _frac_power_rows(e: NDArray[np.float64], edot: NDArray[np.float64], p: float, eps: float,
+                     g_out: NDArray[np.float64], rate_out: NDArray[np.float64]) -> None:
     for i in range(e.shape[0]):
-        if rate:
-            frac_power_rate_row(e[i], edot[i], p, eps, out[i])
-        else:
-            frac_power_row(e[i], p, eps, out[i])
+        frac_power_row(e[i], edot[i], p, eps, g_out[i], rate_out[i])
 
 
 def _rows_2d(e: ArrayLike) -> tuple[NDArray[np.float64], tuple[int, ...]]:
@@ -127,20 +123,20 @@ def _rows_2d(e: ArrayLike) -> tuple[NDArray[np.float64], tuple[int, ...]]:
 
 
 def phi1(e: ArrayLike, k3: float, p: float) -> NDArray[np.float64]:
-    """phi_1(e) = k3 e + (e^T e)^((1-p)/(3p-2)) e, eq. (9), over leading axes (:func:`phi1_row`).  phi_1(0) = 0."""
+    """phi_1(e) = k3 e + (e^T e)^((1-p)/(3p-2)) e, eq. (9), over leading axes (:func:`phi_row`).  phi_1(0) = 0."""
     rows, shape = _rows_2d(e)
-    out = np.empty_like(rows)
-    _phi_rows(rows, float(k3), float(p), 1, out)
-    return out.reshape(shape)
+    out1, out2 = np.empty_like(rows), np.empty_like(rows)
+    _phi_rows(rows, float(k3), float(p), out1, out2)
+    return out1.reshape(shape)
 
 
 def phi2(e: ArrayLike, k3: float, p: float) -> NDArray[np.float64]:
     """phi_2(e) of eq. (9): k3^2 e + 2 k3 (2p-1)/(3p-2) |e|^(2a) e + p/(3p-2) |e|^(4a) e, a=(1-p)/(3p-2)
-    (:func:`phi2_row`)."""
+    (:func:`phi_row`)."""
     rows, shape = _rows_2d(e)
-    out = np.empty_like(rows)
-    _phi_rows(rows, float(k3), float(p), 2, out)
-    return out.reshape(shape)
+    out1, out2 = np.empty_like(rows), np.empty_like(rows)
+    _phi_rows(rows, float(k3), float(p), out1, out2)
+    return out2.reshape(shape)
 
 
 def phi1_jacobian(e: ArrayLike, k3: float, p: float, eps: float = DEFAULT_EPS) -> NDArray[np.float64]:
@@ -181,13 +177,13 @@ def frac_power(e: ArrayLike, p: float, eps: float = 0.0) -> NDArray[np.float64]:
     explicit Euler at step dt must take eps from :func:`euler_stable_eps` (a fixed 1e-12 diverges for p > 1.4).
     """
     rows, shape = _rows_2d(e)
-    out = np.empty_like(rows)
-    _frac_power_rows(rows, rows, float(p), float(eps), False, out)
+    out, rate = np.empty_like(rows), np.empty_like(rows)
+    _frac_power_rows(rows, rows, float(p), float(eps), out, rate)
     return out.reshape(shape)
 
 
 def frac_power_rate(e: ArrayLike, edot: ArrayLike, p: float, eps: float = DEFAULT_EPS) -> NDArray[np.float64]:
-    """Exact time derivative of :func:`frac_power` (same eps > 0) along e' = edot (:func:`frac_power_rate_row`).
+    """Exact time derivative of :func:`frac_power` (same eps > 0) along e' = edot (:func:`frac_power_row`).
 
     For |e| > sqrt(eps): (e^T e)^((1-p)/p) H(e, (p-1)/p) e' as in eqs. (49)/(68) (Definition 1), computed as
     r^c (e' - 2k (e.e') e / r) with r = e^T e, c = (1-p)/p, k = (p-1)/p.  Inside the ball: eps^c e'.
@@ -198,8 +194,8 @@ def frac_power_rate(e: ArrayLike, edot: ArrayLike, p: float, eps: float = DEFAUL
     e_arr, edot_arr = np.broadcast_arrays(np.asarray(e, dtype=float), np.asarray(edot, dtype=float))
     rows, shape = _rows_2d(e_arr)
     rates, _ = _rows_2d(edot_arr)
-    out = np.empty_like(rows)
-    _frac_power_rows(rows, rates, float(p), float(eps), True, out)
+    g, out = np.empty_like(rows), np.empty_like(rows)
+    _frac_power_rows(rows, rates, float(p), float(eps), g, out)
     return out.reshape(shape)
 
 
@@ -276,6 +272,9 @@ class HCFFTSD:
     k3: float
     p: float
     q: tuple[tuple[float, float], tuple[float, float]] = ((1.0, 0.0), (0.0, 1.0))
+    #: P* of eq. (17) and (gamma_1, gamma_2) of eq. (32), computed at construction
+    _pm: NDArray[np.float64] = dataclasses.field(init=False, repr=False, compare=False)
+    _gammas: tuple[float, float] = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         check_p(self.p)

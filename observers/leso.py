@@ -66,12 +66,12 @@ class LESO(Observer):
         self.beta_a = bandwidth_gains(float(omega_a))
         self.jd = np.diag(self.inertia).copy()
         self._gains = np.array([self.mass, self.gravity, *self.beta_t, *self.beta_a, *self.jd])
-        self._state: NDArray[np.float64] | None = None
+        self._state: NDArray[np.float64] = np.empty((0, 0))      # (N, k) after reset
         # Euler with the exact z1 chain is stable iff omega0 dt < 2/3 (spectral radius of the error map, tested)
         self.max_dt = 1.0 / (3.0 * max(float(omega_t), float(omega_a)))
 
-    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None) -> int:
+    def _reset(self, measurement: Mapping[str, NDArray[np.float64]], force: ArrayLike | None,
+               torque: ArrayLike | None, rows: NDArray[np.bool_] | None) -> int:
         """z1 := measured b / eta, z2 := measured v / Omega (as Euler rates), z3 := given disturbance guess.
 
         State: ``_state`` (N, 18), columns z1, z2, z3 of position then of the Euler angles."""
@@ -92,7 +92,7 @@ class LESO(Observer):
         return _estimate(est), x_new
 
     def estimate(self) -> ObserverEstimate:
-        if self._state is None:
+        if self._n_rows is None:
             raise RuntimeError("leso: call reset(measurement) first")
         est = np.empty_like(self._state)
         leso_estimate(self._state, self._gains, est)

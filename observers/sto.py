@@ -72,12 +72,12 @@ class SuperTwistingObserver(Observer):
         positive("sto", bound_t=bound_t, bound_a=bound_a)
         self.lam_t, self.alpha_t = levant_gains(float(bound_t))
         self.lam_a, self.alpha_a = levant_gains(float(bound_a))
-        self._state: NDArray[np.float64] | None = None
+        self._state: NDArray[np.float64] = np.empty((0, 0))      # (N, k) after reset
         self._gains = np.array([self.mass, self.gravity, self.lam_t, self.alpha_t, self.lam_a, self.alpha_a,
                                 *self.inertia.ravel(), *self.inertia_inv.ravel()])
 
-    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None) -> int:
+    def _reset(self, measurement: Mapping[str, NDArray[np.float64]], force: ArrayLike | None,
+               torque: ArrayLike | None, rows: NDArray[np.bool_] | None) -> int:
         """v_hat, Omega_hat := measured; d_hat := the given guesses (as accelerations).  State: ``_state`` (N, 12),
         columns v_hat, Omega_hat, d_t_hat, d_a_hat."""
         m = measurement        # checked by Observer.reset (required_keys)
@@ -96,7 +96,7 @@ class SuperTwistingObserver(Observer):
         return _estimate(est), x_new
 
     def estimate(self) -> ObserverEstimate:
-        if self._state is None:
+        if self._n_rows is None:
             raise RuntimeError("sto: call reset(measurement) first")
         est = np.empty_like(self._state)
         sto_estimate(self._state, self._gains, self.inertia, est)

@@ -226,3 +226,20 @@ def test_leso_breaks_through_90_deg_pitch_while_ffts_eso_does_not():
     assert worst["ffts_eso"] < 1e-6      # no disturbance, none estimated
     assert worst["leso"] > 0.1           # Euler angles jump by pi at 90 deg: a spurious torque of > 0.1 N m
 
+
+
+def test_leso_max_dt_is_half_the_euler_stability_limit():
+    """The LESO step (Gao's axis law, z1 chain exact) is linear in (z1, z2, z3); its error map's spectral radius
+    crosses 1 at omega0 dt = 2/3, and max_dt = 1 / (3 omega0) is half of that."""
+    from fawtgym.observers.leso import leso_axis
+
+    def radius(w0, dt):
+        b1, b2, b3 = 3 * w0, 3 * w0**2, w0**3
+        cols = [leso_axis(*z, 0.0, 0.0, b1, b2, b3, dt) for z in np.eye(3)]   # y = u = 0: the map's columns
+        return np.max(np.abs(np.linalg.eigvals(np.array(cols).T)))
+
+    for w0 in (2.0, 10.0, 40.0):
+        assert radius(w0, 0.99 * (2 / 3) / w0) < 1.0 < radius(w0, 1.01 * (2 / 3) / w0)
+    obs = make_observer("leso", MASS, J, omega_t=10.0, omega_a=20.0)
+    assert obs.max_dt == pytest.approx(1 / 60)
+    assert radius(20.0, obs.max_dt) < 0.9

@@ -200,3 +200,31 @@ def test_state_unchanged_after_failed_update(name: str) -> None:
     np.testing.assert_array_equal(a.torque, b.torque)
     for k in b.states:
         np.testing.assert_array_equal(a.states[k], b.states[k])
+
+
+@pytest.mark.parametrize("case", ["missing_key", "nonfinite", "complex", "attitude"])
+@pytest.mark.parametrize("name", LAYERED)
+def test_reset_checks_the_measurement_alike_at_every_batch_size(name: str, case: str) -> None:
+    """reset() runs the same measurement checks as update() (the keys the law reads) before building any state."""
+    obs = _make(name)
+    if case == "attitude" and "attitude" not in obs.required_keys:
+        pytest.skip(f"{name} does not read the attitude")
+    errors = []
+    for n in (1, 3):
+        meas = {k: v[:n].copy() for k, v in hover_measurement(3, np.random.default_rng(1)).items()}
+        key = obs.required_keys[0]
+        if case == "missing_key":
+            del meas[key]
+        elif case == "nonfinite":
+            meas[key][0].flat[0] = np.inf
+        elif case == "complex":
+            meas[key] = meas[key] * (1 + 0j)
+        else:
+            meas["attitude"][0] = np.diag([1.0, 1.0, -1.0])
+        fresh = _make(name)
+        with pytest.raises((ValueError, TypeError)) as info:
+            fresh.reset(meas)
+        errors.append(info.value)
+        with pytest.raises(RuntimeError):          # nothing was built: the observer is still not reset
+            fresh.update(meas, np.zeros(n), np.zeros((n, 3)), 1e-3)
+    assert type(errors[0]) is type(errors[1]) and _norm(str(errors[0])) == _norm(str(errors[1]))
