@@ -6,7 +6,7 @@ in an ``.npz`` file TOGETHER WITH its design inputs (A, B, C, D, W1, W2, Q, E1, 
 vehicle mass/inertia the noise ellipsoid Q2 refers to, the volume and P).  Running the observer
 only loads that file.
 
-Mapping to the env (see ``/work/team/ENV_API.md``): at each control step, with the measurement
+Mapping to the env (``info["measurement"]`` and ``info["applied"]``): at each control step, with the measurement
 ``R`` (``attitude``), ``v`` (``velocity``), ``Omega`` (``angular_velocity``), ``a_sf``
 (``specific_force``) and the applied collective thrust ``f`` and rotor torque ``tau`` of
 ``info["applied"]``::

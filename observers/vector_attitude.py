@@ -12,7 +12,13 @@ Its gradient terms used by the HC-ESO are ``s_K(Q)`` (eq. 21), ``s_L(R_hat)`` wi
 
 For a vehicle with an accelerometer and a magnetometer (the env's IMU) :func:`imu_vector_set`
 builds three inertial directions: gravity (down, from the specific force, valid when the
-vehicle's own acceleration is small compared with g), the Earth field, and their cross product.
+vehicle's own acceleration is small compared with g), the Earth field, and their cross product
+(:func:`imu_body_vectors_row`, the row function the HC-ESO's kernel calls).
+
+The batch functions of eqs. 21-28 here are the paper's definitions, used by the tests and the reproduction; the
+HC-ESO's kernel evaluates s_L, w_L, z_L and H(s_L) w_L in closed form per row
+(:func:`fawtgym.observers.hc_eso_so3.hc_eso_rates_row`), and tests/test_obs2_hceso_observer.py checks its
+rates against these definitions through the error dynamics of eq. 31.
 """
 
 from __future__ import annotations
