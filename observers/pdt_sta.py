@@ -1,408 +1,236 @@
-"""Modified super-twisting algorithm (STA) with a predefined convergence time, scalar theory.
+"""``pdt_sta``: gyroless attitude and angular-velocity estimator, QUEST + the predefined-time STSMO.
 
-Source: (Silva and Santos, "Attitude determination for multirotor
-aerial vehicles using a predefined-time super twisting algorithm"), Section 3.
+Source: Silva and Santos (2023), Secs. 4-5: QUEST attitude from the accelerometer and the magnetometer
+(eqs. 56-66, :mod:`.quest`), its Gibbs vector g_Q (eq. 79) driving the modified super-twisting observer
+(eqs. 75-77, or the conventional one of eqs. 81-82, :mod:`.stsmo`) of (g, g'), the attitude R = D(g)^T
+(eq. 45, :mod:`.gibbs`) and the rate by certainty equivalence omega_hat = 2 Gamma(g_hat)^-1 g_hat' (eq. 80).
 
-The modified STA (eqs. 20-22)::
+Frames.  The paper's S^g (z along the local vertical) and S^b (z normal to the rotor plane) are world NED and
+body FRD (its local field m_g = [13.7, -4.6, -10.9] uT has the NED shape of the field at its authors' site).
+The paper's accelerometer reference is a_g = g e3 (eq. 50), the gravity direction; the project's
+``specific_force`` is R^T (a - g e3), so this estimator uses -g e3 as the accelerometer's reference vector (the
+same direction pairing, the sensor's sign).
 
-    sigma(t, x) = eta / (t_c - t) * x1                     t in [t0, t_c)
-                = kappa1 |x1|^(1/2) sign(x1)               t >= t_c
-    x1' = -sigma(t, x) + x2
-    x2' = -kappa2 sign(x1) + delta(t)
-
-Between two zero crossings t_j < t_{j+1} of x1 (unperturbed, delta = 0) it has the closed form of
-eqs. 23-25 (Theorem 1), implemented in :func:`analytic_segment` and chained over crossings in
-:func:`zero_crossings` / :func:`analytic_solution`.  Theorem 2's predefined-time-convergence (PTC)
-area X = {|x2(t)| <= kappa2 (t_c - t)} gives the gain conditions (30) and (36)
-(:func:`kappa2_interval_36`), and Algorithm 1 tunes (eta, kappa2) until x2(t1) lies in X
-(:func:`tune_algorithm1`).  Section 3.1's early switching for measurement noise uses eq. 43,
-t_e = t_c - eta * ell (:func:`early_switch_time`), and sigma_e of eq. 44 (:func:`sigma`,
-``t_switch=t_e``); eq. 39 bounds x1 (:func:`xi_bound`).
-
-Two readings of eq. 44.  As printed, sigma_e = eta/(t_e - t) x1 on [t0, t_e): the singular instant
-just moves to t_e, and the gain still goes to infinity there.  The text around it (eqs. 42-43: t_e is
-where the gain eta/(t_c - t) reaches 1/ell; "the states will not converge to the origin at the
-switching instant, but to a vicinity of it") describes keeping eta/(t_c - t) and switching to the
-STA term at t_e, where the gain is the finite 1/ell.  ``early_form="tc"`` (default) implements the
-text; ``early_form="eq44"`` the formula as printed.
-
-The paper writes Theorem 2 with t0 = 0; here every time is measured from t0 (t -> t - t0), which is
-the same result for any t0.  eta is an integer >= 3 in the paper; the formulas only need eta > 2,
-but we keep the paper's eta >= 3 (Corollary 1) and accept any real value >= 3.
-
-The same transition of the time-varying part, x1(t) = x1(s) ((t_c - t)/(t_c - s))^eta (eq. 7,
-Proposition 1), gives :func:`exact_linear_step`, the discretization used by the observers: it stays
-stable up to t_c for any step size, unlike a forward-Euler step of eta/(t_c - t), whose factor
-1 - h eta/(t_c - t) leaves (-1, 1) in the last eta/2 steps before t_c.
+One update of every row is one kernel (:func:`_pdt_sta_rows`, numba) called alike for N = 1 and N = 1024.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from collections.abc import Callable
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import brentq
+
+from fawtgym.core.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FORCE, batch_measurement
+from fawtgym.core.rows import write_rows
+from fawtgym.core.so3_kernels import mat_mul_row, quat_to_rot_row
+
+from .base import Observer, ObserverEstimate, register_observer
+from .gibbs import gibbs_to_rot_row, omega_row, rot_to_gibbs_row
+from .predefined_sta import early_switch_time
+from .quest import quest_row
+from .stsmo import GibbsSTSMO, stsmo_row
+
+#: a measured Gibbs vector relative to the anchor is clipped to this norm (a half turn has none)
+_Y_MAX = 1e3
 
 
-# --------------------------------------------------------------------------------------------------
-# parameter checks
-# --------------------------------------------------------------------------------------------------
-def _finite(name: str, value: float) -> float:
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    return v
+@njit(cache=True)
+def measured_attitude_row(sf, mag, ref, weights, gravity, min_field, body, q, g, R):  # type: ignore[no-untyped-def]
+    """QUEST attitude (eqs. 56-66) of one row from the accelerometer ``sf`` and the magnetometer ``mag`` against
+    the unit references ``ref`` (2, 3) into ``R`` (3, 3) (scratch ``body`` (2, 3), ``q`` (4,), ``g`` (3,)).
+
+    Returns False, leaving ``R`` untouched, where the vectors give no usable attitude: the accelerometer reads
+    < 0.2 g (free fall, a hard manoeuvre), the magnetometer < ``min_field``, or the two are within 1 deg of
+    parallel; these are QUEST's preconditions, so :func:`quest_row` runs without further checks."""
+    na = math.sqrt(sf[0] * sf[0] + sf[1] * sf[1] + sf[2] * sf[2])
+    nm = math.sqrt(mag[0] * mag[0] + mag[1] * mag[1] + mag[2] * mag[2])
+    c0 = sf[1] * mag[2] - sf[2] * mag[1]
+    c1 = sf[2] * mag[0] - sf[0] * mag[2]
+    c2 = sf[0] * mag[1] - sf[1] * mag[0]
+    sin = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / max(na * nm, 1e-300)
+    if not (na > 0.2 * gravity and nm > min_field and sin > 0.0175):
+        return False
+    for k in range(3):
+        body[0, k] = sf[k] / na
+        body[1, k] = mag[k] / nm
+    quest_row(body, ref, weights, q, g)
+    quat_to_rot_row(q, R)
+    return True
 
 
-def check_params(t_c: float, eta: float, kappa2: float | None = None, kappa1: float | None = None,
-                 t0: float = 0.0) -> None:
-    """Raise ValueError unless t_c > t0, eta >= 3 (Corollary 1), kappa1 > 0 and kappa2 > 0 (eqs. 16-22)."""
-    t0 = _finite("t0", t0)
-    if not _finite("t_c", t_c) > t0:
-        raise ValueError(f"t_c must be later than t0 = {t0}, got t_c = {t_c!r}")
-    if not _finite("eta", eta) >= 3.0:
-        raise ValueError(f"eta must be >= 3 (Corollary 1 of the paper), got {eta!r}")
-    for name, val in (("kappa1", kappa1), ("kappa2", kappa2)):
-        if val is not None and not _finite(name, val) > 0:
-            raise ValueError(f"{name} must be > 0, got {val!r}")
+@njit(cache=True)
+def _mat_t_mul_row(A, B, out):  # type: ignore[no-untyped-def]
+    """out = A^T B (3 x 3; core.so3_kernels has A B only)."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = A[0, i] * B[0, j] + A[1, i] * B[1, j] + A[2, i] * B[2, j]
 
 
-# --------------------------------------------------------------------------------------------------
-# right-hand side, eqs. 20-22 and 44
-# --------------------------------------------------------------------------------------------------
-def switch_and_gain_times(t_c: float, t_switch: float | None, early_form: str) -> tuple[float, float]:
-    """(t_s, t_d): the switching instant and the instant in the gain eta/(t_d - t) (see module doc)."""
-    if early_form not in ("tc", "eq44"):
-        raise ValueError(f"early_form must be 'tc' (the text of Sec. 3.1) or 'eq44' (as printed), got {early_form!r}")
-    t_s = t_c if t_switch is None else float(t_switch)
-    if not t_s <= t_c:
-        raise ValueError(f"t_switch must be <= t_c = {t_c}, got {t_switch!r}")
-    return t_s, (t_c if early_form == "tc" else t_s)
+@njit(cache=True)
+def _measured_attitude_rows(sf, mag, ref, weights, gravity, min_field, R, valid):  # type: ignore[no-untyped-def]
+    body, q, g = np.empty((2, 3)), np.empty(4), np.empty(3)
+    for i in range(sf.shape[0]):
+        valid[i] = measured_attitude_row(sf[i], mag[i], ref, weights, gravity, min_field, body, q, g, R[i])
 
 
-def sigma(t: float, x1: ArrayLike, t_c: float, eta: float, kappa1: float,
-          t_switch: float | None = None, early_form: str = "tc") -> NDArray[np.float64]:
-    """The stabilizing function sigma of eq. 20, or sigma_e of eq. 44 when ``t_switch`` = t_e < t_c.
+@njit(cache=True)
+def _pdt_sta_rows(sf, mag, tau, dt, k, anchor, x1, x2, t, state, est, valid):  # type: ignore[no-untyped-def]
+    """One update of every row into ``state`` (N, 16): anchor R_a (9) | g_hat | g_hat' | t, and ``est`` (N, 30):
+    force (0) | torque (0) | R_hat (9) | omega_hat | R_q (9) | g_hat, and ``valid`` (N,) (the inputs are not
+    written).
 
-    For t < t_s (t_s = t_switch or t_c): eta / (t_d - t) * x1 with t_d = t_c (``early_form="tc"``) or
-    t_d = t_s (``"eq44"``, eq. 44 as printed); afterwards the STA term kappa1 |x1|^(1/2) sign(x1).
-    """
-    t_s, t_d = switch_and_gain_times(t_c, t_switch, early_form)
-    x1 = np.asarray(x1, dtype=float)
-    if t < t_s:
-        return eta / (t_d - t) * x1
-    return kappa1 * np.sqrt(np.abs(x1)) * np.sign(x1)
-
-
-def modified_sta_rhs(t_c: float, eta: float, kappa1: float, kappa2: float, t_switch: float | None = None,
-                     delta: Callable[[float], float] | None = None,
-                     early_form: str = "tc") -> Callable[[float, ArrayLike], NDArray]:
-    """f(t, x) of eqs. 21-22 (scalar x = (x1, x2)) for :func:`scipy.integrate.solve_ivp`."""
-    check_params(t_c, eta, kappa2, kappa1)
-
-    def rhs(t: float, x: ArrayLike) -> NDArray[np.float64]:
-        x1, x2 = float(x[0]), float(x[1])
-        d = 0.0 if delta is None else float(delta(t))
-        return np.array([-float(sigma(t, x1, t_c, eta, kappa1, t_switch, early_form)) + x2,
-                         -kappa2 * np.sign(x1) + d])
-
-    return rhs
-
-
-def exact_linear_step(x1: ArrayLike, x2: ArrayLike, target: ArrayLike, t: ArrayLike, h: ArrayLike,
-                      t_s: ArrayLike, eta: float) -> NDArray[np.float64]:
-    """Exact step of x1' = -eta/(t_s - t) (x1 - target) + x2 over [t, t + h], x2 and target held.
-
-    The homogeneous transition is eq. 7 (Proposition 1): phi = ((t_s - t - h)/(t_s - t))^eta; the
-    held input x2 adds psi x2 with psi = int phi(t + h, s) ds = tau1 (1 - (tau1/tau0)^(eta-1)) / (eta - 1),
-    tau0 = t_s - t, tau1 = t_s - t - h.  Requires t + h <= t_s (broadcasts over a batch).
-    """
-    tau0 = np.asarray(t_s, dtype=float) - np.asarray(t, dtype=float)
-    tau1 = tau0 - np.asarray(h, dtype=float)
-    if np.any(tau1 < -1e-12 * np.maximum(1.0, np.abs(tau0))) or np.any(tau0 <= 0):
-        raise ValueError("exact_linear_step needs t < t_s and t + h <= t_s")
-    tau1 = np.maximum(tau1, 0.0)
-    r = tau1 / tau0
-    phi = r**eta
-    psi = tau1 * (1.0 - r ** (eta - 1.0)) / (eta - 1.0)
-    x1 = np.asarray(x1, dtype=float)
-    if x1.ndim > phi.ndim:  # batch of vectors (N, 3) with per-row times (N,)
-        phi, psi = phi[..., None], psi[..., None]
-    target = np.asarray(target, dtype=float)
-    return target + phi * (x1 - target) + psi * np.asarray(x2, dtype=float)
-
-
-# --------------------------------------------------------------------------------------------------
-# analytic solution, eqs. 23-25 (Theorem 1)
-# --------------------------------------------------------------------------------------------------
-def alpha_j(t_j: float, x1_j: float, x2_j: float, t_c: float, eta: float, kappa2: float,
-            s: float | None = None) -> float:
-    """alpha(t_j) of eq. 25; ``s`` = sign(x1) on the segment (default sign(x1_j))."""
-    s = float(np.sign(x1_j)) if s is None else float(s)
-    T = t_c - t_j
-    return x1_j - T * (x2_j * (eta - 2.0) + s * kappa2 * T) / ((eta - 2.0) * (eta - 1.0))
-
-
-def analytic_segment(t: ArrayLike, t_j: float, x1_j: float, x2_j: float, t_c: float, eta: float,
-                     kappa2: float, s: float | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(x1(t), x2(t)) of eqs. 23-24 on [t_j, t_{j+1}) where sign(x1) = ``s`` stays constant.
-
-    At a crossing x1_j = 0 the sign on the next segment is -sign before it: pass it as ``s``.
-    """
-    s = float(np.sign(x1_j)) if s is None else float(s)
-    if s == 0.0:
-        raise ValueError("the segment's sign s must be +1 or -1 (x1_j = 0 needs an explicit s)")
-    t = np.asarray(t, dtype=float)
-    tau = t_c - t
-    a = alpha_j(t_j, x1_j, x2_j, t_c, eta, kappa2, s)
-    x1 = tau / ((eta - 2.0) * (eta - 1.0)) * (s * kappa2 * (tau - (eta - 2.0) * (t - t_j)) + (eta - 2.0) * x2_j) \
-        + a * (tau / (t_c - t_j)) ** eta
-    x2 = x2_j - kappa2 * s * (t - t_j)
-    return x1, x2
-
-
-def _next_crossing(t_j: float, x1_j: float, x2_j: float, s: float, t_c: float, eta: float,
-                   kappa2: float) -> float | None:
-    """First zero of x1 (eq. 23) in (t_j, t_c), or None.
-
-    With tau = t_c - t, x1 = tau h(tau), h(tau) = c1 + c2 tau + c3 tau^(eta-1); h'' has one sign
-    on tau > 0, so h has at most two zeros, separated by the one zero of h'.  Each monotone piece is
-    bracketed and solved with Brent's method, so no crossing is skipped.
-    """
-    T = t_c - t_j
-    a = alpha_j(t_j, x1_j, x2_j, t_c, eta, kappa2, s)
-    b = -kappa2 * s
-    c1 = (x2_j + b * T) / (eta - 1.0)
-    c2 = -b / (eta - 2.0)
-    c3 = a / T**eta
-
-    def h(tau: float) -> float:
-        return c1 + c2 * tau + c3 * tau ** (eta - 1.0)
-
-    # stationary point of h: c2 + c3 (eta - 1) tau^(eta-2) = 0
-    knots = [0.0, T]
-    if c3 != 0.0:
-        ratio = -c2 / (c3 * (eta - 1.0))
-        if ratio > 0:
-            tau_star = ratio ** (1.0 / (eta - 2.0))
-            if 0.0 < tau_star < T:
-                knots = [0.0, tau_star, T]
-    tol = 1e-12 * max(1.0, abs(c1), abs(c2) * T, abs(c3) * T ** (eta - 1.0))
-    roots = []
-    for lo, hi in zip(knots[:-1], knots[1:], strict=True):
-        h_lo, h_hi = h(lo), h(hi)
-        if hi == T and abs(h_hi) <= tol:
-            continue  # the segment's own start (x1_j = 0); h is monotone here, so no other zero
-        if h_lo == 0.0:
-            continue  # tau = 0 is t_c itself
-        if h_lo * h_hi < 0:
-            roots.append(brentq(h, lo, hi, xtol=1e-15, rtol=1e-15, maxiter=200))
-    if not roots:
-        return None
-    return t_c - max(roots)  # largest tau = earliest time
-
-
-@dataclasses.dataclass(frozen=True)
-class Crossing:
-    """A zero crossing t_j of x1 with x2(t_j) and the sign of x1 just before it."""
-
-    t: float
-    x2: float
-    sign_before: float
-
-
-def zero_crossings(x0: tuple[float, float], t_c: float, eta: float, kappa2: float, t0: float = 0.0,
-                   max_crossings: int = 200) -> list[Crossing]:
-    """The zero crossings t_1 < t_2 < ... < t_c of x1 (Theorem 1), chaining eqs. 23-25.
-
-    They accumulate at t_c when the state slides into the origin; at most ``max_crossings`` are returned.
-    """
-    check_params(t_c, eta, kappa2, t0=t0)
-    x1_j, x2_j = float(x0[0]), float(x0[1])
-    if x1_j == 0.0:
-        raise ValueError("x1(t0) must be nonzero (sign(x1(t0)) fixes the first segment)")
-    t_j, s = float(t0), float(np.sign(x1_j))
-    out: list[Crossing] = []
-    while len(out) < max_crossings:
-        t_next = _next_crossing(t_j, x1_j, x2_j, s, t_c, eta, kappa2)
-        if t_next is None or t_next <= t_j or t_c - t_next < 1e-13 * max(1.0, t_c):
-            break
-        x2_next = x2_j - kappa2 * s * (t_next - t_j)
-        out.append(Crossing(t_next, x2_next, s))
-        t_j, x1_j, x2_j, s = t_next, 0.0, x2_next, -s
-    return out
-
-
-def analytic_solution(t: ArrayLike, x0: tuple[float, float], t_c: float, eta: float, kappa2: float,
-                      t0: float = 0.0, max_crossings: int = 200) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """x1(t), x2(t) of the unperturbed modified STA on [t0, t_c) by eqs. 23-25 chained over crossings."""
-    t = np.asarray(t, dtype=float)
-    if np.any(t < t0) or np.any(t >= t_c):
-        raise ValueError(f"analytic_solution covers [t0, t_c) = [{t0}, {t_c}); got times outside it")
-    cross = zero_crossings(x0, t_c, eta, kappa2, t0, max_crossings)
-    starts = [(float(t0), float(x0[0]), float(x0[1]), float(np.sign(x0[0])))]
-    starts += [(c.t, 0.0, c.x2, -c.sign_before) for c in cross]
-    x1 = np.empty_like(t)
-    x2 = np.empty_like(t)
-    seg = np.searchsorted([s[0] for s in starts], t, side="right") - 1
-    for k, (tj, x1j, x2j, s) in enumerate(starts):
-        mask = seg == k
-        if np.any(mask):
-            x1[mask], x2[mask] = analytic_segment(t[mask], tj, x1j, x2j, t_c, eta, kappa2, s)
-    return x1, x2
-
-
-# --------------------------------------------------------------------------------------------------
-# Theorem 2, Algorithm 1, early switching (Sec. 3.1)
-# --------------------------------------------------------------------------------------------------
-def in_ptc_area(t: ArrayLike, x2: ArrayLike, t_c: float, kappa2: float) -> NDArray[np.bool_]:
-    """(t, x2) in X = {-kappa2 (t_c - t) <= x2 <= kappa2 (t_c - t)} (Theorem 2)."""
-    bound = kappa2 * (t_c - np.asarray(t, dtype=float))
-    return np.abs(np.asarray(x2, dtype=float)) <= bound
-
-
-def kappa2_interval_36(x0: tuple[float, float], t1: float, t_c: float, t0: float = 0.0) -> tuple[float, float]:
-    """Interval [lo, hi] of kappa2 satisfying (30) and (36) for a given first crossing t1.
-
-    From (33): -kappa2 (t_c - t1) <= x2(t0) - kappa2 sign(x1(t0)) (t1 - t0) <= kappa2 (t_c - t1).
-    With T = t_c - t0 and T1 = t1 - t0:
-    opposite signs of x1(t0), x2(t0) (second row of 36): kappa2 >= |x2(t0)| / (T - 2 T1);
-    same signs (first row): kappa2 >= |x2(t0)| / T (eq. 30) and, if 2 T1 > T, kappa2 <= |x2(t0)| / (2 T1 - T)
-    (Algorithm 1's ``floor``).  Returns (lo, inf) when there is no upper bound; raises ValueError if
-    the opposite-sign case has T <= 2 T1 (no kappa2 works for this t1: raise eta instead).
-    """
-    x10, x20 = float(x0[0]), float(x0[1])
-    T, T1 = t_c - t0, t1 - t0
-    if not 0 < T1 < T:
-        raise ValueError(f"t1 must lie in (t0, t_c) = ({t0}, {t_c}), got {t1!r}")
-    lo30 = abs(x20) / T
-    if x20 == 0.0 or np.sign(x10) == np.sign(x20):
-        hi = abs(x20) / (2 * T1 - T) if 2 * T1 > T else math.inf
-        return lo30, hi
-    if T - 2 * T1 <= 0:
-        raise ValueError(f"no kappa2 satisfies (36): t_c - 2 t1 = {T - 2 * T1:.6g} <= 0; increase eta")
-    return max(lo30, abs(x20) / (T - 2 * T1)), math.inf
-
-
-@dataclasses.dataclass(frozen=True)
-class Tuning:
-    """Result of :func:`tune_algorithm1`."""
-
-    eta: float
-    kappa2: float
-    t1: float | None
-    x2_t1: float | None
-    iterations: int
-
-
-def first_crossing_in_ptc(x0: tuple[float, float], t_c: float, eta: float, kappa2: float,
-                          t0: float = 0.0) -> tuple[bool, float | None, float | None]:
-    """(x2(t1) in X, t1, x2(t1)); without a crossing before t_c, x2(t_c) must be 0 (X's apex)."""
-    cross = zero_crossings(x0, t_c, eta, kappa2, t0, max_crossings=1)
-    if not cross:
-        _, x2_end = analytic_segment(t_c, t0, x0[0], x0[1], t_c, eta, kappa2)
-        return bool(abs(float(x2_end)) <= 1e-12), None, None
-    c = cross[0]
-    return bool(in_ptc_area(c.t, c.x2, t_c, kappa2)), c.t, c.x2
-
-
-def tune_algorithm1(x0: tuple[float, float], t_c: float, eta: float = 3.0, kappa2: float | None = None,
-                    t0: float = 0.0, strategy: str = "gain", max_iter: int = 100) -> Tuning:
-    """Algorithm 1: adjust kappa2 (``strategy="gain"``) or eta (``"rate"``) until x2(t1) is in X.
-
-    Starts from kappa2 >= |x2(t0)| / (t_c - t0) (eq. 30; the default is ceil of that, at least 1).
-    ``"gain"`` sets kappa2 to ceil (opposite signs) / floor (same signs) of |x2(t0)/(t_c - 2 t1)| as
-    the paper's pseudo-code, but never below the eq.-30 value and always moving by at least 1 so the
-    loop cannot stall; ``"rate"`` increases eta by 1.  t1 is recomputed from eq. 23 after each change.
-    Raises ValueError when no admissible pair is found within ``max_iter`` changes.
-    """
-    if strategy not in ("gain", "rate"):
-        raise ValueError(f"strategy must be 'gain' or 'rate', got {strategy!r}")
-    x20 = abs(float(x0[1]))
-    k30 = x20 / (t_c - t0)
-    kappa2 = float(max(1.0, math.ceil(k30))) if kappa2 is None else float(kappa2)
-    check_params(t_c, eta, kappa2, t0=t0)
-    if kappa2 < k30:
-        raise ValueError(f"kappa2 = {kappa2} violates (30): needs kappa2 >= |x2(t0)|/(t_c - t0) = {k30:.6g}")
-    same = float(x0[1]) == 0.0 or np.sign(x0[0]) == np.sign(x0[1])
-    for it in range(max_iter + 1):
-        ok, t1, x2_t1 = first_crossing_in_ptc(x0, t_c, eta, kappa2, t0)
-        if ok:
-            return Tuning(float(eta), float(kappa2), t1, x2_t1, it)
-        if strategy == "rate" or t1 is None or (not same and t_c - 2 * t1 <= t0):
-            eta = eta + 1.0
-            continue
-        denom = abs(t_c - t0 - 2 * (t1 - t0))
-        if same:
-            new = float(math.floor(x20 / denom))
-            new = min(new, kappa2 - 1.0)
-            if new < k30:
-                eta = eta + 1.0  # no admissible gain left: fall back to the rate
-                continue
+    Per row: the QUEST attitude R_q (:func:`measured_attitude_row`); the Gibbs measurement relative to the anchor
+    attitude R_a, y = g of (R_a^T R_q)^T (eq. 79), or, where the vectors give no attitude, the prediction itself
+    (y = g_hat: e1 = 0, no correction this step, and R_q reported as the prediction R_a D(g_hat)^T); one STSMO
+    step (eqs. 75-77 / 81-82) with omega_hat of eq. 80; the re-anchoring R_a := R_a D(g_hat)^T, g_hat := 0,
+    g_hat' := 1/2 Gamma(0) omega_hat (eq. 47) where ||g_hat|| > ``reanchor``; the outputs R_hat = R_a D(g_hat)^T
+    (eq. 45) and omega_hat (eq. 80).  ``k``: the constants in one array (see ``PdtStaAttitudeObserver._k``):
+    gravity, min_field, reanchor, the unit references (2, 3), the QUEST weights (2), J, J^-1 and the STSMO's ``p``."""
+    gravity, min_field, reanchor = k[0], k[1], k[2]
+    ref, weights = k[3:9].reshape(2, 3), k[9:11]
+    J, J_inv, p = k[11:20].reshape(3, 3), k[20:29].reshape(3, 3), k[29:]
+    body, q, g = np.empty((2, 3)), np.empty(4), np.empty(3)
+    rel, D = np.empty((3, 3)), np.empty((3, 3))
+    y, w = np.empty(3), np.empty(3)
+    for i in range(x1.shape[0]):
+        A = anchor[i]
+        s, e = state[i], est[i]
+        A_new, g_new, gd_new = s[0:9].reshape(3, 3), s[9:12], s[12:15]
+        R_hat, omega_hat, R_q = e[6:15].reshape(3, 3), e[15:18], e[18:27].reshape(3, 3)
+        valid[i] = measured_attitude_row(sf[i], mag[i], ref, weights, gravity, min_field, body, q, g, R_q)
+        if valid[i]:
+            _mat_t_mul_row(A, R_q, rel)
+            y[0], y[1], y[2] = rot_to_gibbs_row(rel, 1e-6, _Y_MAX)  # eq. 79
         else:
-            new = max(float(math.ceil(x20 / denom)), kappa2 + 1.0)
-        kappa2 = new
-    raise ValueError(f"Algorithm 1 found no (eta, kappa2) within {max_iter} iterations "
-                     f"(last eta = {eta}, kappa2 = {kappa2}) for x0 = {x0}, t_c = {t_c}")
+            gibbs_to_rot_row(x1[i, 0], x1[i, 1], x1[i, 2], D)
+            mat_mul_row(A, D, R_q)
+            y[0], y[1], y[2] = x1[i, 0], x1[i, 1], x1[i, 2]
+        w[0], w[1], w[2] = omega_row(x1[i, 0], x1[i, 1], x1[i, 2], x2[i, 0], x2[i, 1], x2[i, 2])  # eq. 80
+        stsmo_row(x1[i], x2[i], t[i], y, tau[i], w, J, J_inv, p, dt, g_new, gd_new)  # a non-finite state
+        s[15] = t[i] + dt
+        g0, g1, g2 = g_new[0], g_new[1], g_new[2]
+        if math.sqrt(g0 * g0 + g1 * g1 + g2 * g2) > reanchor:  # (a non-finite one is caught by Observer.update)
+            w0, w1, w2 = omega_row(g0, g1, g2, gd_new[0], gd_new[1], gd_new[2])
+            gibbs_to_rot_row(g0, g1, g2, D)
+            mat_mul_row(A, D, A_new)
+            g_new[0] = g_new[1] = g_new[2] = 0.0
+            gd_new[0], gd_new[1], gd_new[2] = 0.5 * w0, 0.5 * w1, 0.5 * w2  # g' = 1/2 Gamma(0) omega (eq. 47)
+        else:
+            A_new[:, :] = A
+        gibbs_to_rot_row(g_new[0], g_new[1], g_new[2], D)
+        mat_mul_row(A_new, D, R_hat)  # eq. 45
+        omega_hat[0], omega_hat[1], omega_hat[2] = omega_row(g_new[0], g_new[1], g_new[2], gd_new[0], gd_new[1],
+                                                             gd_new[2])
+        for j in range(6):
+            e[j] = 0.0  # no disturbance estimate
+        e[27], e[28], e[29] = g_new[0], g_new[1], g_new[2]
 
 
-def early_switch_time(t_c: float, eta: float, noise_bound: float, t0: float = 0.0) -> float:
-    """Eq. 43: t_e = t_c - eta * ell, the instant where eta/(t_c - t) * ell = 1 (eq. 42)."""
-    check_params(t_c, eta, t0=t0)
-    if not (math.isfinite(noise_bound) and noise_bound >= 0):
-        raise ValueError(f"noise_bound (ell) must be finite and >= 0, got {noise_bound!r}")
-    t_e = t_c - eta * noise_bound
-    if t_e <= t0:
-        raise ValueError(f"t_e = t_c - eta*ell = {t_e:.6g} is not after t0 = {t0}: reduce eta or ell, or raise t_c")
-    return t_e
+@register_observer("pdt_sta")
+class PdtStaAttitudeObserver(Observer):
+    """Gyroless attitude/rate estimator: QUEST (accelerometer + magnetometer) + predefined-time STSMO.
 
+    Reads ``specific_force`` and ``magnetometer`` only (no gyro, no attitude), uses the applied body
+    torque u and J (eq. 76), and reports ``states["attitude"]`` R_hat (N, 3, 3), ``states["angular_velocity"]``
+    omega_hat (N, 3) (eq. 80), ``states["attitude_quest"]`` (the static QUEST attitude), ``states["gibbs"]``
+    (g_hat relative to the row's anchor); the attribute ``quest_valid`` (N,) bool is False where the last update's
+    vectors gave no attitude (no correction that step; it is not an estimate, so not in ``states``).  It estimates
+    no disturbance (``channels`` is empty; force and torque are zeros).
 
-def xi_bound(t: ArrayLike, x1_0: float, t_c: float, eta: float, kappa2: float, t0: float = 0.0) -> NDArray[np.float64]:
-    """Eq. 39: xi(t) bounding |x1(t)| on [t0, t_c) when x2 stays in X (Corollary 3)."""
-    check_params(t_c, eta, kappa2, t0=t0)
-    tau = t_c - np.asarray(t, dtype=float)
-    T = t_c - t0
-    return kappa2 * tau**2 / (eta - 2.0) + (abs(x1_0) - kappa2 * T**2 / (eta - 2.0)) * (tau / T) ** eta
+    Options: ``t_c`` [1.5 s], ``eta`` [5], ``kappa1`` [2.5], ``kappa2`` [6 lambda_min(J)]: the STSMO gains
+    (eqs. 75-77; kappa2 bounds the unknown angular acceleration times J); ``noise_bound`` [0]: > 0 switches early
+    at t_e = t_c - eta * noise_bound (eq. 43); ``mode`` ["predefined"] or "conventional" (eqs. 81-82);
+    ``weights`` [(1, 1)]: QUEST weights of the accelerometer and the magnetometer; ``magnetic_field``
+    [``EARTH_FIELD_NED``]; ``reanchor`` [1].  Assumes small linear acceleration (the paper's v' = 0 of eq. 50):
+    the accelerometer stands in for the gravity direction.
 
-
-def simulate_scalar(x0: tuple[float, float], t_end: float, h: float, t_c: float, eta: float, kappa1: float,
-                    kappa2: float, t_switch: float | None = None, delta: Callable[[float], float] | None = None,
-                    noise: NDArray[np.float64] | None = None,
-                    early_form: str = "tc") -> tuple[NDArray, NDArray, NDArray]:
-    """Fixed-step simulation of eqs. 21-22 (with eq. 40-41 noise on x1 inside sigma and sign, eq. 44).
-
-    The time-varying phase uses :func:`exact_linear_step`; after the switch, forward Euler (as the
-    paper's simulations).  ``noise`` (len = steps) is v of eq. 41.  Returns t, x1, x2.
+    The Gibbs vector is singular at a half turn, so the observer works relative to an anchor attitude R_a (the
+    QUEST attitude at reset): it estimates g of (R_a^T R)^T and re-anchors a row to its current estimate (keeping
+    omega_hat) whenever ||g_hat|| exceeds ``reanchor`` (default 1, 90 deg).
     """
-    check_params(t_c, eta, kappa2, kappa1)
-    t_s, t_d = switch_and_gain_times(t_c, t_switch, early_form)
-    n = int(round(t_end / h))
-    if noise is not None and len(noise) < n:
-        raise ValueError(f"noise needs at least {n} samples, got {len(noise)}")
-    x1s = np.empty(n + 1)
-    x2s = np.empty(n + 1)
-    x1, x2 = float(x0[0]), float(x0[1])
-    x1s[0], x2s[0] = x1, x2
-    nz = [0.0] * n if noise is None else [float(v) for v in noise[:n]]
-    for k in range(n):  # plain floats: a scalar reference simulation, not a batch hot path
-        tk = k * h
-        v = nz[k]
-        xm = x1 + v
-        sgn = (xm > 0) - (xm < 0)
-        d = 0.0 if delta is None else float(delta(tk))
-        h1 = min(h, max(t_s - tk, 0.0))
-        if h1 > 0:
-            # x1' = -eta/(t_d - t)(x1 + v) + x2: exact step towards -v (eq. 7 transition, see exact_linear_step)
-            tau0 = t_d - tk
-            tau1 = max(tau0 - h1, 0.0)
-            r = tau1 / tau0
-            x1 = -v + r**eta * (x1 + v) + tau1 * (1.0 - r ** (eta - 1.0)) / (eta - 1.0) * x2
-        h2 = h - h1
-        if h2 > 0:
-            x1 = x1 + h2 * (-kappa1 * math.sqrt(abs(xm)) * sgn + x2)
-        x2 = x2 + h * (-kappa2 * sgn + d)
-        x1s[k + 1], x2s[k + 1] = x1, x2
-    return np.arange(n + 1) * h, x1s, x2s
+
+    channels = frozenset()
+    required_keys = (SPECIFIC_FORCE, MAGNETOMETER)
+    #: the STA phase (eq. 77 after t_c) is forward Euler, whose discrete chattering band grows with dt (like
+    #: kappa1 dt^(1/2) in g_hat): on a 0.22 rad/s rotation with exact vectors (tests/test_obs2_pdt_attitude.py's
+    #: slow rotation, default gains) the rate error after t_c is 0.03 rad/s at 5 ms, 0.13 at 20 ms (0.6 of the
+    #: signal) and 0.31 at 50 ms (worse than omega_hat = 0); 20 ms (50 Hz) is the bound
+    max_dt = 0.02
+
+    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, t_c: float = 1.5,
+                 eta: float = 5.0, kappa1: float = 2.5, kappa2: float | None = None, noise_bound: float = 0.0,
+                 mode: str = "predefined", weights: tuple[float, float] = (1.0, 1.0),
+                 magnetic_field: ArrayLike = EARTH_FIELD_NED, reanchor: float = 1.0) -> None:
+        super().__init__(mass, inertia, gravity)
+        t_switch = early_switch_time(t_c, eta, noise_bound) if noise_bound > 0 else None
+        if kappa2 is None:
+            kappa2 = 6.0 * float(np.linalg.eigvalsh(self.inertia).min())
+        self.core = GibbsSTSMO(self.inertia, t_c, eta, kappa1, kappa2, mode, t_switch)
+        w = np.asarray(weights, dtype=float)
+        if w.shape != (2,) or not np.all(np.isfinite(w)) or np.any(w <= 0):
+            raise ValueError(f"weights must be two positive numbers (accelerometer, magnetometer), got {weights!r}")
+        self.weights = w
+        m = np.asarray(magnetic_field, dtype=float)
+        if m.shape != (3,) or not np.all(np.isfinite(m)) or np.linalg.norm(np.cross(m, [0, 0, 1.0])) < 1e-6:
+            raise ValueError("magnetic_field must be a finite 3-vector not parallel to gravity, "
+                             f"got {magnetic_field!r}")
+        if not (np.isfinite(reanchor) and 0 < reanchor <= 10):
+            raise ValueError(f"reanchor must lie in (0, 10] (a Gibbs-vector norm), got {reanchor!r}")
+        self.reanchor = float(reanchor)
+        self.references = np.stack([np.array([0.0, 0.0, -self.gravity]), m])  # specific force at rest, field
+        self._ref_unit = np.ascontiguousarray(self.references / np.linalg.norm(self.references, axis=1)[:, None])
+        self._min_field = 0.1 * float(np.linalg.norm(m))
+        self._k = np.concatenate([[self.gravity, self._min_field, self.reanchor], self._ref_unit.ravel(),
+                                  self.weights, self.core.J.ravel(), self.core.J_inv.ravel(), self.core.params])
+        self.anchor: NDArray[np.float64] = np.eye(3)[None]
+        #: False where the last update's vectors gave no attitude (N,)
+        self.quest_valid: NDArray[np.bool_] = np.ones(1, dtype=bool)
+
+    def _vectors(self, meas: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The accelerometer and magnetometer rows (N, 3), C-contiguous (checked by :meth:`Observer.update` /
+        :meth:`Observer.reset`: present, N rows, finite)."""
+        return np.ascontiguousarray(meas[SPECIFIC_FORCE]), np.ascontiguousarray(meas[MAGNETOMETER])
+
+    def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
+               rows: NDArray[np.bool_] | None, **options: Any) -> int:
+        """Anchor R_a := the QUEST attitude, g_hat = g_hat' = 0, clock t = 0 (force/torque guesses unused).
+
+        State: ``anchor`` (N, 3, 3) and the core's x1, x2 (N, 3) and t (N,) (:meth:`GibbsSTSMO.reset`)."""
+        sf, mag = self._vectors(batch_measurement(measurement))
+        n = sf.shape[0]
+        R_q, valid = np.empty((n, 3, 3)), np.empty(n, dtype=np.bool_)
+        _measured_attitude_rows(sf, mag, self._ref_unit, self.weights, self.gravity, self._min_field, R_q, valid)
+        if not valid.all():
+            raise ValueError("cannot initialize pdt_sta: accelerometer/magnetometer give no attitude "
+                             f"(rows {np.nonzero(~valid)[0].tolist()}: |a| < 0.2 g, weak field or parallel)")
+        self.core.reset(np.zeros((n, 3)), rows=rows)
+        self.anchor = np.ascontiguousarray(write_rows(self.anchor, R_q, rows))
+        self.quest_valid = write_rows(self.quest_valid, valid, rows)
+        return n
+
+    def _update(self, meas: dict[str, NDArray[np.float64]], thrust: NDArray[np.float64],
+                torque: NDArray[np.float64], dt: float) -> tuple[ObserverEstimate, Any]:
+        """One kernel call (:func:`_pdt_sta_rows`); the new state (anchor, x1, x2, t) is stored by :meth:`_commit`."""
+        core = self.core
+        n = core.n
+        sf, mag = self._vectors(meas)
+        state, out, valid = np.empty((n, 16)), np.empty((n, 30)), np.empty(n, bool)
+        _pdt_sta_rows(sf, mag, np.ascontiguousarray(torque), dt, self._k, self.anchor, core.x1, core.x2, core.t,
+                      state, out, valid)
+        # views of two buffers: the new state (no update writes into a stored state) and the estimate
+        anchor, x1, x2, t = state[:, 0:9].reshape(n, 3, 3), state[:, 9:12], state[:, 12:15], state[:, 15]
+        est = ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6], states={
+            "attitude": out[:, 6:15].reshape(n, 3, 3), "angular_velocity": out[:, 15:18],
+            "attitude_quest": out[:, 18:27].reshape(n, 3, 3), "gibbs": out[:, 27:30]})
+        return est, (anchor, x1, x2, t, valid)
+
+    def _commit(self, state: Any) -> None:
+        self.anchor, self.core.x1, self.core.x2, self.core.t, self.quest_valid = state
+
+    def params(self) -> dict[str, Any]:
+        c = self.core
+        return dict(t_c=c.t_c, eta=c.eta, kappa1=c.kappa1, kappa2=c.kappa2, t_switch=c.t_s, mode=c.mode)

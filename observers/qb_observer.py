@@ -6,7 +6,7 @@ in an ``.npz`` file TOGETHER WITH its design inputs (A, B, C, D, W1, W2, Q, E1, 
 vehicle mass/inertia the noise ellipsoid Q2 refers to, the volume and P).  Running the observer
 only loads that file.
 
-Mapping to the env (see ``/work/team/ENV_API.md``): at each control step, with the measurement
+Mapping to the env (``info["measurement"]`` and ``info["applied"]``): at each control step, with the measurement
 ``R`` (``attitude``), ``v`` (``velocity``), ``Omega`` (``angular_velocity``), ``a_sf``
 (``specific_force``) and the applied collective thrust ``f`` and rotor torque ``tau`` of
 ``info["applied"]``::
@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import os
 import warnings
 from collections.abc import Mapping, Sequence
@@ -48,15 +47,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import expm
 
 from fawtgym.core import measurement as M
 from fawtgym.core.rows import write_rows
 
-from ._obs_common import floats
 from .base import Observer, ObserverEstimate, register_observer
-from .qb_uav_model import momentum_input, momentum_output
+from .qb_uav_model import momentum_input_row, momentum_output, momentum_output_row
 
 GAIN_DIR = Path(__file__).resolve().parent
 DEFAULT_GAIN = "qb_gain_hummingbird_mu0p5"
@@ -163,6 +162,64 @@ def discretize(gain: QBGain, dt: float) -> tuple[NDArray[np.float64], ...]:
     return e[:n, :n], e[:n, n:n + m], e[:n, n + m:n + m + p], e[:n, n + m + p:]
 
 
+@njit(cache=True)
+def _estimate_row(x, R, mass, J_inv, force, torque, velocity, omega, derivs):  # type: ignore[no-untyped-def]
+    """The estimate of one row from its state x = (p_lin, p_ang, d_f, d_tau, d', ...) (eqs. 35, 42) and attitude R:
+    force d_f (world NED), torque R^T d_tau (body FRD), velocity p_lin / m, Omega = J^-1 R^T p_ang."""
+    for k in range(3):
+        force[k] = x[6 + k]
+        torque[k] = R[0, k] * x[9] + R[1, k] * x[10] + R[2, k] * x[11]
+        velocity[k] = x[k] / mass
+    b0 = R[0, 0] * x[3] + R[1, 0] * x[4] + R[2, 0] * x[5]
+    b1 = R[0, 1] * x[3] + R[1, 1] * x[4] + R[2, 1] * x[5]
+    b2 = R[0, 2] * x[3] + R[1, 2] * x[4] + R[2, 2] * x[5]
+    for k in range(3):
+        omega[k] = J_inv[k, 0] * b0 + J_inv[k, 1] * b1 + J_inv[k, 2] * b2
+    for k in range(derivs.shape[0]):
+        derivs[k] = x[12 + k]
+
+
+@njit(cache=True)
+def _estimate_rows(x, R, mass, J_inv, out):  # type: ignore[no-untyped-def]
+    """:func:`_estimate_row` of every row into ``out`` (N, 12 + n_d): force | torque | velocity | Omega | d', ..."""
+    for i in range(x.shape[0]):
+        o = out[i]
+        _estimate_row(x[i], R[i], mass, J_inv, o[0:3], o[3:6], o[6:9], o[9:12], o[12:])
+
+
+def _estimate_views(out: NDArray[np.float64]) -> ObserverEstimate:
+    """The estimate as views of the one buffer the kernels write (:func:`_estimate_rows`)."""
+    return ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6], states={
+        "velocity": out[:, 6:9], "angular_velocity": out[:, 9:12], "disturbance_derivatives": out[:, 12:]})
+
+
+@njit(cache=True)
+def _qb_rows(x, y_prev, R_prev, R, velocity, rate, specific_force, thrust, torque, mass, gravity, J, J_inv,
+             stacked, x_out, y_out, out):  # type: ignore[no-untyped-def]
+    """One update of every row: u_k (eq. 52) with Rbar = (R_prev + R) / 2, y_{k+1} (eq. 54), then
+    x_{k+1} = Phi x_k + Gu u_k + Gy0 y_k + Gy1 (y_{k+1} - y_k) as one product [x, u, y_prev, y] @ ``stacked``
+    (:func:`discretize`), and the estimate into ``out`` (:func:`_estimate_rows`)."""
+    n, nx = x.shape
+    z = np.empty((n, nx + 24))
+    Rbar = np.empty((3, 3))
+    for i in range(n):
+        zi = z[i]
+        zi[:nx] = x[i]
+        for j in range(3):
+            for k in range(3):
+                Rbar[j, k] = 0.5 * (R_prev[i, j, k] + R[i, j, k])
+        momentum_input_row(mass, gravity, Rbar, thrust[i], torque[i], zi[nx:nx + 6])
+        zi[nx + 6:nx + 15] = y_prev[i]
+        momentum_output_row(mass, J, R[i], velocity[i], rate[i], specific_force[i], thrust[i], y_out[i])
+        zi[nx + 15:] = y_out[i]
+    x_out[:, :] = np.dot(z, stacked)
+    _estimate_rows(x_out, R, mass, J_inv, out)
+
+
+#: distinct step lengths whose discretization (one matrix exponential each) is kept
+_DISC_CACHE = 8
+
+
 @register_observer("qb")
 class QBObserver(Observer):
     """Quadratic-boundedness optimal disturbance observer on the momentum model (Cayero et al. (2019) Secs. 2-4).
@@ -174,6 +231,11 @@ class QBObserver(Observer):
     """
 
     channels = frozenset({"force", "torque"})
+    required_keys = (M.ATTITUDE, M.VELOCITY, M.ANGULAR_VELOCITY, M.SPECIFIC_FORCE)
+    #: the discretization is exact (stable at any step), but u is held over the step with the attitude averaged,
+    #: Rbar = (R_prev + R) / 2, which is second-order accurate only while the vehicle turns little over dt:
+    #: 0.1 s at 1 rad/s is 0.1 rad (the paper's simulation is continuous-time)
+    max_dt = 0.1
 
     def __init__(self, mass: float, inertia: ArrayLike, gain_file: str | os.PathLike[str] | None = None,
                  gravity: float = 9.80665) -> None:
@@ -190,48 +252,45 @@ class QBObserver(Observer):
                           f"m = {m_d} kg, used here with m = {self.mass} kg; for guarantees design for this "
                           f"vehicle (fawtgym reproduce qb --design-for <preset>)", stacklevel=2)
         self._disc: dict[float, NDArray[np.float64]] = {}
-        self._x: NDArray[np.float64] | None = None
-        self._y: NDArray[np.float64] | None = None
-        self._R: NDArray[np.float64] | None = None
-        self._single: tuple | None = None    # (x, x as floats, y as floats, R as floats) of the last N = 1 step
-        self._synced = True                  # self._y, self._R up to date with self._single
-        self._jl = self.inertia.tolist()
-        self._jil = self.inertia_inv.tolist()
+        self._J = np.ascontiguousarray(self.inertia)
+        self._J_inv = np.ascontiguousarray(self.inertia_inv)
+        #: state: x (N, n_x), the previous output y (N, 9) and attitude R (N, 3, 3)
+        self._x: NDArray[np.float64] = np.empty((0, 0))
+        self._y: NDArray[np.float64] = np.empty((0, 9))
+        self._R: NDArray[np.float64] = np.empty((0, 3, 3))
 
     # -------------------------------------------------------------------------------
-    def _y_of(self, meas: Mapping[str, NDArray[np.float64]], thrust: NDArray[np.float64]) -> NDArray[np.float64]:
-        for key in (M.ATTITUDE, M.VELOCITY, M.ANGULAR_VELOCITY, M.SPECIFIC_FORCE):
-            if key not in meas:
-                raise ValueError(f"QB observer needs measurement[{key!r}]; got keys {sorted(meas)}")
-            if not np.all(np.isfinite(meas[key])):
-                raise ValueError(f"measurement[{key!r}] contains non-finite values")
-        return momentum_output(self.mass, self.inertia, meas[M.ATTITUDE], meas[M.VELOCITY],
-                               meas[M.ANGULAR_VELOCITY], meas[M.SPECIFIC_FORCE], thrust)
-
     def reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None = None,
               torque: ArrayLike | None = None, thrust: ArrayLike | None = None, *,
-              rows: ArrayLike | None = None) -> None:
+              rows: ArrayLike | None = None, **options: Any) -> None:
         """Start from the measured momenta; d from ``force``/``torque`` if given, else force from the
         accelerometer (needs ``thrust``, default m g) and zero torque; derivatives zero.
 
         ``thrust``: the collective thrust [N] the accelerometer term of y uses, a number or one per row (N,);
         ``rows``: as :meth:`Observer.reset` (with a mask, a (N,) ``thrust`` still gives all N rows)."""
-        super().reset(measurement, force, torque, rows=rows, thrust=thrust)
+        super().reset(measurement, force, torque, rows=rows, thrust=thrust, **options)
 
     def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
-               rows: NDArray[np.bool_] | None, thrust: ArrayLike | None = None) -> int:
-        """State: ``_x`` (N, n_x), the previous output ``_y`` (N, 9) and attitude ``_R`` (N, 3, 3), behind the
-        N = 1 float state ``_single`` when not ``_synced`` (synced before a masked write)."""
+               rows: NDArray[np.bool_] | None, **options: Any) -> int:
+        """State: ``_x`` (N, n_x), the previous output ``_y`` (N, 9) and attitude ``_R`` (N, 3, 3)."""
+        thrust = options.pop("thrust", None)
+        if options:
+            raise TypeError(f"qb: unknown reset options {sorted(options)}; allowed: thrust")
         if rows is not None and thrust is not None and np.shape(thrust) == rows.shape:
             thrust = np.asarray(thrust, dtype=float)[rows]
         meas = M.batch_measurement(measurement)
-        R = meas.get(M.ATTITUDE)
-        if R is None:
-            raise ValueError("QB observer reset needs measurement['attitude']")
+        R = meas[M.ATTITUDE]
         n_b = R.shape[0]
-        f = np.broadcast_to(np.asarray(self.mass * self.gravity if thrust is None else thrust, dtype=float),
-                            (n_b,)).copy()
-        y = self._y_of(meas, f)
+        try:
+            f = np.broadcast_to(np.asarray(self.mass * self.gravity if thrust is None else thrust, dtype=float),
+                                (n_b,)).copy()
+        except ValueError:
+            raise ValueError(f"qb: reset thrust must be a number or one per row ({n_b},), got shape "
+                             f"{np.shape(thrust)}") from None
+        if not np.isfinite(f).all():
+            raise ValueError(f"qb: reset thrust must be finite, got {thrust!r}")
+        y = momentum_output(self.mass, self._J, R, meas[M.VELOCITY], meas[M.ANGULAR_VELOCITY],
+                            meas[M.SPECIFIC_FORCE], f)
         x = np.zeros((n_b, self.gain.A.shape[0]))
         x[:, :9] = y
         if force is not None:
@@ -239,132 +298,45 @@ class QBObserver(Observer):
         if torque is not None:
             x[:, 9:12] = np.einsum("nij,nj->ni", R, np.broadcast_to(np.asarray(torque, dtype=float), (n_b, 3)))
         if not np.all(np.isfinite(x)):
-            raise ValueError("QB observer reset: non-finite initial force/torque")
-        self._sync_single()
-        self._x, self._y, self._R = write_rows((self._x, self._y, self._R), (x, y, R.copy()), rows)
-        self._single, self._synced = None, True
+            raise ValueError("qb: reset: non-finite initial force/torque")
+        self._x, self._y, self._R = write_rows((self._x, self._y, self._R), (x, y, np.ascontiguousarray(R)), rows)
         return n_b
 
-    def update(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
-               dt: float) -> ObserverEstimate:
-        if self._x is not None and self._x.shape[0] == 1:
-            est = self._update_single(measurement, thrust, torque, dt)
-            if est is not None:
-                return est
-        self._sync_single()
-        meas, f, tau = self._inputs(measurement, thrust, torque, dt)
-        if self._x is None or self._y is None or self._R is None:
-            raise RuntimeError("QB observer: call reset(measurement) before update()")
-        R = meas[M.ATTITUDE]
-        n_b = self._x.shape[0]
-        if R.shape[0] != n_b:
-            raise ValueError(f"batch size changed from {n_b} (reset) to {R.shape[0]}; reset again")
-        if f.shape != (n_b,):
-            f = np.broadcast_to(f, (n_b,))
-        if tau.shape != (n_b, 3):
-            tau = np.broadcast_to(tau, (n_b, 3))
+    def _update(self, meas: dict[str, NDArray[np.float64]], thrust: NDArray[np.float64],
+                torque: NDArray[np.float64], dt: float) -> tuple[ObserverEstimate, Any]:
+        """One kernel call (:func:`_qb_rows`); the new state (x, y, R) is stored by :meth:`_commit`."""
+        n, nx = self._x.shape
         stacked = self._stacked(dt)
-        u = momentum_input(self.mass, self.gravity, 0.5 * (self._R + R), f, tau)
-        y = self._y_of(meas, f)
-        x = np.concatenate([self._x, u, self._y, y], axis=1) @ stacked
-        if not np.all(np.isfinite(x)):
-            raise FloatingPointError("QB observer state became non-finite")
-        self._x, self._y, self._R = x, y, R.copy()
-        return self.estimate()
+        c = np.ascontiguousarray
+        R = c(meas[M.ATTITUDE])
+        x, y, out = np.empty((n, nx)), np.empty((n, 9)), np.empty((n, nx))
+        _qb_rows(self._x, self._y, self._R, R, c(meas[M.VELOCITY]), c(meas[M.ANGULAR_VELOCITY]),
+                 c(meas[M.SPECIFIC_FORCE]), c(thrust), c(torque), self.mass, self.gravity, self._J, self._J_inv,
+                 stacked, x, y, out)
+        return _estimate_views(out), (x, y, R.copy())
+
+    def _commit(self, state: Any) -> None:
+        self._x, self._y, self._R = state
 
     def _stacked(self, dt: float) -> NDArray[np.float64]:
-        """The discrete step for ``dt`` as one matrix (cached per dt)."""
-        key = float(dt)
-        stacked = self._disc.get(key)
+        """The discrete step for ``dt`` as one matrix (cached for the last few distinct dt)."""
+        stacked = self._disc.get(dt)
         if stacked is None:
-            phi, gu, gy0, gy1 = discretize(self.gain, key)
+            phi, gu, gy0, gy1 = discretize(self.gain, dt)
             # x+ = Phi x + Gu u + Gy0 y_prev + Gy1 (y - y_prev), as one product with [x, u, y_prev, y]
-            stacked = np.vstack([phi.T, gu.T, (gy0 - gy1).T, gy1.T])
-            self._disc[key] = stacked
+            stacked = np.ascontiguousarray(np.vstack([phi.T, gu.T, (gy0 - gy1).T, gy1.T]))
+            if len(self._disc) >= _DISC_CACHE:
+                self._disc.pop(next(iter(self._disc)))
+            self._disc[dt] = stacked
         return stacked
-
-    def _sync_single(self) -> None:
-        """Write y and R of the last N = 1 fast step into the numpy state (self._y, self._R)."""
-        if not self._synced and self._single is not None:
-            _, _, y, rm = self._single
-            self._y, self._R = np.array([y]), np.array(rm).reshape(1, 3, 3)
-        self._synced = True
-
-    def _update_single(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
-                       dt: float) -> ObserverEstimate | None:
-        """N = 1 fast path: :meth:`update`'s u, y (eqs. 52, 54) and estimate in Python floats, one matrix product.
-
-        Returns None, touching nothing, unless the step is a well-formed, finite N = 1 step; :meth:`update`'s
-        general path then runs and raises its usual errors.
-        """
-        try:
-            rm = floats(measurement[M.ATTITUDE])
-            vm = floats(measurement[M.VELOCITY])
-            om = floats(measurement[M.ANGULAR_VELOCITY])
-            am = floats(measurement[M.SPECIFIC_FORCE])
-            fl = floats(thrust)
-            tq = floats(torque)
-        except (KeyError, ValueError, TypeError):
-            return None
-        if (len(rm) != 9 or len(vm) != 3 or len(om) != 3 or len(am) != 3 or len(fl) != 1 or len(tq) != 3
-                or not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0)
-                or not math.isfinite(sum(rm) + sum(vm) + sum(om) + sum(am) + fl[0] + sum(tq))):
-            return None
-        stacked = self._stacked(dt)
-        cache = self._single
-        if cache is not None and cache[0] is self._x:
-            xl, yp, rp = cache[1:]
-        else:
-            self._sync_single()
-            xl, yp, rp = self._x[0].tolist(), self._y[0].tolist(), self._R[0].ravel().tolist()
-        mass, f = self.mass, fl[0]
-        t0, t1, t2 = tq
-        # u (eq. 52) with Rbar = (R_prev + R) / 2
-        b00, b01, b02, b10, b11, b12, b20, b21, b22 = (0.5 * (rp[k] + rm[k]) for k in range(9))
-        u = [-f * b02, -f * b12, -f * b22 + mass * self.gravity,
-             b00 * t0 + b01 * t1 + b02 * t2, b10 * t0 + b11 * t1 + b12 * t2, b20 * t0 + b21 * t1 + b22 * t2]
-        # y (eq. 54): (m v, R J Omega, R (m a_sf + f e3))
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = rm
-        (j00, j01, j02), (j10, j11, j12), (j20, j21, j22) = self._jl
-        w0, w1, w2 = om
-        s0, s1, s2 = w0 * j00 + w1 * j01 + w2 * j02, w0 * j10 + w1 * j11 + w2 * j12, w0 * j20 + w1 * j21 + w2 * j22
-        a0, a1, a2 = mass * am[0], mass * am[1], mass * am[2] + f
-        y = [mass * vm[0], mass * vm[1], mass * vm[2],
-             r00 * s0 + r01 * s1 + r02 * s2, r10 * s0 + r11 * s1 + r12 * s2, r20 * s0 + r21 * s1 + r22 * s2,
-             r00 * a0 + r01 * a1 + r02 * a2, r10 * a0 + r11 * a1 + r12 * a2, r20 * a0 + r21 * a1 + r22 * a2]
-        z = xl + u + yp + y
-        x = np.fromiter(z, float, len(z)).reshape(1, -1) @ stacked
-        xl = x[0].tolist()
-        if not math.isfinite(sum(xl)):
-            raise FloatingPointError("QB observer state became non-finite")
-        self._x = x
-        self._single = (x, xl, y, rm)     # self._y, self._R are written from it when needed (_sync_single)
-        self._synced = False
-        # estimate: torque = R^T d_tau, Omega = J^-1 R^T p_ang, velocity = p_lin / m
-        d0, d1, d2 = xl[9:12]
-        p0, p1, p2 = xl[3:6]
-        q0, q1, q2 = r00 * p0 + r10 * p1 + r20 * p2, r01 * p0 + r11 * p1 + r21 * p2, r02 * p0 + r12 * p1 + r22 * p2
-        (i00, i01, i02), (i10, i11, i12), (i20, i21, i22) = self._jil
-        out = np.array(xl[6:9] + [r00 * d0 + r10 * d1 + r20 * d2, r01 * d0 + r11 * d1 + r21 * d2,
-                                  r02 * d0 + r12 * d1 + r22 * d2,
-                                  xl[0] / mass, xl[1] / mass, xl[2] / mass,
-                                  q0 * i00 + q1 * i01 + q2 * i02, q0 * i10 + q1 * i11 + q2 * i12,
-                                  q0 * i20 + q1 * i21 + q2 * i22] + xl[12:])
-        return ObserverEstimate(force=out[None, 0:3], torque=out[None, 3:6], states={
-            "velocity": out[None, 6:9], "angular_velocity": out[None, 9:12], "disturbance_derivatives": out[None, 12:]})
 
     def estimate(self) -> ObserverEstimate:
         """The current estimate (after reset/update)."""
-        self._sync_single()
-        if self._x is None or self._R is None:
-            raise RuntimeError("QB observer: call reset(measurement) first")
-        x, R = self._x, self._R
-        RT = np.swapaxes(R, 1, 2)
-        torque = np.einsum("nij,nj->ni", RT, x[:, 9:12])
-        omega = np.einsum("nij,nj->ni", RT, x[:, 3:6]) @ self.inertia_inv.T
-        return ObserverEstimate(force=x[:, 6:9].copy(), torque=torque, states={
-            "velocity": x[:, 0:3] / self.mass, "angular_velocity": omega,
-            "disturbance_derivatives": x[:, 12:].copy()})
+        if self._n_rows is None:
+            raise RuntimeError("qb: estimate() before reset(); call reset(measurement) first")
+        out = np.empty(self._x.shape)
+        _estimate_rows(self._x, self._R, self.mass, self._J_inv, out)
+        return _estimate_views(out)
 
 
 # ------------------------------------------------------------------ design (needs cvxpy) ----

@@ -25,6 +25,7 @@ sensors) does.  :func:`scaled_q2` rescales Q2 to another vehicle's mass and iner
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from .qb_design import QBProblem
@@ -118,27 +119,63 @@ def uav_model(r: int = PAPER_ORDER, q1_scale: float = Q1_SCALE, q2: ArrayLike | 
 
 
 # ------------------------------------------------- mapping to the env's signals (batch-first) ----
+@njit(cache=True)
+def momentum_input_row(mass, gravity, R, thrust, torque, u):  # type: ignore[no-untyped-def]
+    """u = m g' + R' w_a (eq. 52) of one row into ``u`` (6,): world force m g e3 - f R e3, world torque R tau_a."""
+    for k in range(3):
+        u[k] = -thrust * R[k, 2]
+        u[3 + k] = R[k, 0] * torque[0] + R[k, 1] * torque[1] + R[k, 2] * torque[2]
+    u[2] += mass * gravity
+
+
+@njit(cache=True)
+def momentum_output_row(mass, J, R, velocity, omega, specific_force, thrust, y):  # type: ignore[no-untyped-def]
+    """y of eq. 54 (typos corrected) of one row into ``y`` (9,): (m v, R J Omega, f_ext = R (m a_sf + f e3)).
+
+    The accelerometer measures ``a_sf = (f_a + R^T f_ext) / m`` (eq. 53) with ``f_a = -f e3``."""
+    s0 = J[0, 0] * omega[0] + J[0, 1] * omega[1] + J[0, 2] * omega[2]
+    s1 = J[1, 0] * omega[0] + J[1, 1] * omega[1] + J[1, 2] * omega[2]
+    s2 = J[2, 0] * omega[0] + J[2, 1] * omega[1] + J[2, 2] * omega[2]
+    b0, b1, b2 = mass * specific_force[0], mass * specific_force[1], mass * specific_force[2] + thrust
+    for k in range(3):
+        y[k] = mass * velocity[k]
+        y[3 + k] = R[k, 0] * s0 + R[k, 1] * s1 + R[k, 2] * s2
+        y[6 + k] = R[k, 0] * b0 + R[k, 1] * b1 + R[k, 2] * b2
+
+
+@njit(cache=True)
+def _momentum_input_rows(mass, gravity, R, thrust, torque, u):  # type: ignore[no-untyped-def]
+    for i in range(R.shape[0]):
+        momentum_input_row(mass, gravity, R[i], thrust[i], torque[i], u[i])
+
+
+@njit(cache=True)
+def _momentum_output_rows(mass, J, R, velocity, omega, specific_force, thrust, y):  # type: ignore[no-untyped-def]
+    for i in range(R.shape[0]):
+        momentum_output_row(mass, J, R[i], velocity[i], omega[i], specific_force[i], thrust[i], y[i])
+
+
+def _c(a: ArrayLike) -> NDArray[np.float64]:
+    return np.ascontiguousarray(a, dtype=float)
+
+
 def momentum_input(mass: float, gravity: float, R: NDArray[np.float64], thrust: NDArray[np.float64],
                    torque: NDArray[np.float64]) -> NDArray[np.float64]:
-    """u = m g' + R' w_a (eq. 52), (N, 6): world force m g e3 - f R e3 and world torque R tau_a.
+    """u of eq. 52 (:func:`momentum_input_row` over the rows), (N, 6).
 
     ``R`` (N,3,3) body FRD -> world NED, ``thrust`` (N,) collective [N] along -e3 body, ``torque`` (N,3)
     body FRD rotor torque.
     """
-    force = -thrust[:, None] * R[:, :, 2]
-    force[:, 2] += mass * gravity
-    return np.concatenate([force, np.einsum("nij,nj->ni", R, torque)], axis=1)
+    u = np.empty((R.shape[0], 6))
+    _momentum_input_rows(float(mass), float(gravity), _c(R), _c(thrust), _c(torque), u)
+    return u
 
 
 def momentum_output(mass: float, inertia: NDArray[np.float64], R: NDArray[np.float64],
                     velocity: NDArray[np.float64], omega: NDArray[np.float64],
                     specific_force: NDArray[np.float64], thrust: NDArray[np.float64]) -> NDArray[np.float64]:
-    """y of eq. 54 (typos corrected), (N, 9): (m v, R J Omega, f_ext = R (m a_sf + f e3)).
-
-    The accelerometer measures ``a_sf = (f_a + R^T f_ext) / m`` (eq. 53) with ``f_a = -f e3``.
-    """
-    spin = np.einsum("nij,nj->ni", R, omega @ inertia.T)
-    fb = mass * specific_force
-    fb[:, 2] += thrust
-    f_ext = np.einsum("nij,nj->ni", R, fb)
-    return np.concatenate([mass * velocity, spin, f_ext], axis=1)
+    """y of eq. 54 (:func:`momentum_output_row` over the rows), (N, 9)."""
+    y = np.empty((R.shape[0], 9))
+    _momentum_output_rows(float(mass), _c(inertia), _c(R), _c(velocity), _c(omega), _c(specific_force), _c(thrust),
+                          y)
+    return y

@@ -12,15 +12,21 @@ Its gradient terms used by the HC-ESO are ``s_K(Q)`` (eq. 21), ``s_L(R_hat)`` wi
 
 For a vehicle with an accelerometer and a magnetometer (the env's IMU) :func:`imu_vector_set`
 builds three inertial directions: gravity (down, from the specific force, valid when the
-vehicle's own acceleration is small compared with g), the Earth field, and their cross product.
+vehicle's own acceleration is small compared with g), the Earth field, and their cross product
+(:func:`imu_body_vectors_row`, the row function the HC-ESO's kernel calls).
+
+The batch functions of eqs. 21-28 here are the paper's definitions, used by the tests and the reproduction; the
+HC-ESO's kernel evaluates s_L, w_L, z_L and H(s_L) w_L in closed form per row
+(:func:`fawtgym.observers.hc_eso_so3.hc_eso_rates_row`), and tests/test_obs2_hceso_observer.py checks its
+rates against these definitions through the error dynamics of eq. 31.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.measurement import EARTH_FIELD_NED
@@ -84,37 +90,11 @@ def s_k(q: ArrayLike, k: ArrayLike) -> NDArray[np.float64]:
 
 
 _EYE = np.eye(3)
-_VEE_P = np.array([7, 2, 3])  # flat indices of (X21, X02, X10)
-_VEE_M = np.array([5, 6, 1])  # flat indices of (X12, X20, X01)
-# hat(w) flattened row-major = w @ _HAT_FLAT (entries 0, +-1: exact)
-_HAT_FLAT = np.zeros((3, 9))
-_HAT_FLAT[[2, 1, 2, 0, 1, 0], [1, 2, 3, 5, 6, 7]] = [-1.0, 1.0, 1.0, -1.0, -1.0, 1.0]
-
-
-def _skew_diff(x: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(X21 - X12, X02 - X20, X10 - X01) = 2 vee(X) = vee(X - X^T) for (..., 3, 3)."""
-    xf = x.reshape(x.shape[:-2] + (9,))
-    return xf.take(_VEE_P, -1) - xf.take(_VEE_M, -1)
-
-
-def _hat(w: NDArray[np.float64]) -> NDArray[np.float64]:
-    return (w @ _HAT_FLAT).reshape(w.shape[:-1] + (3, 3))
 
 
 def s_l(l: ArrayLike, r_hat: ArrayLike) -> NDArray[np.float64]:
     """``s_L(R_hat) = vex(L^T R_hat - R_hat^T L)``, eq. 22, (N, 3)."""
     return 2.0 * vee(np.swapaxes(np.asarray(l, float), -1, -2) @ np.asarray(r_hat, float))
-
-
-def s_l_w_l(l: NDArray[np.float64], r_hat: NDArray[np.float64], omega_hat: NDArray[np.float64],
-            omega_m: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(:func:`s_l`, :func:`w_l`) sharing A = L^T R_hat (same numbers, fewer operations).
-
-    With W^T = -W, W A^T = -(A W)^T, so vex(A W + W A^T) = vex(A W - (A W)^T) is the skew difference of A W.
-    """
-    a = np.swapaxes(l, -1, -2) @ r_hat
-    return 2.0 * (0.5 * _skew_diff(a)), _skew_diff(a @ _hat(omega_hat)) - _skew_diff(np.swapaxes(a, -1, -2)
-                                                                                       @ _hat(omega_m))
 
 
 def _pow_s2(s: NDArray[np.float64], expo: float) -> NDArray[np.float64]:
@@ -184,50 +164,50 @@ def imu_vector_set(specific_force: ArrayLike, magnetometer: ArrayLike,
     return e, imu_body_vectors(f, m)
 
 
-def _unit(v: NDArray[np.float64], what: str) -> NDArray[np.float64]:
-    n = np.sqrt((v * v).sum(axis=-1, keepdims=True))
-    if (n < 1e-9).any():
-        raise ValueError(f"{what} has (near) zero length in the batch; cannot use it as a direction")
-    return v / n
+#: the messages of :func:`imu_body_vectors_row`'s status codes 1, 2, 3
+IMU_VECTOR_ERRORS = ("specific force has (near) zero length; cannot use it as a direction (free fall?)",
+                     "magnetometer has (near) zero length; cannot use it as a direction",
+                     "gravity x field has (near) zero length; cannot use it as a direction (vectors collinear)")
+
+
+@njit(cache=True)
+def imu_body_vectors_row(f, m, U):  # type: ignore[no-untyped-def]
+    """U^m (3, 3) of one row into ``U``: columns -f/|f| (the gravity direction), m/|m| and their normalized cross
+    product.  Returns 0, or 1, 2, 3 (:data:`IMU_VECTOR_ERRORS`) where a direction has length < 1e-9."""
+    n = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+    if n < 1e-9:
+        return 1
+    g0, g1, g2 = -f[0] / n, -f[1] / n, -f[2] / n
+    n = math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
+    if n < 1e-9:
+        return 2
+    m0, m1, m2 = m[0] / n, m[1] / n, m[2] / n
+    c0, c1, c2 = g1 * m2 - g2 * m1, g2 * m0 - g0 * m2, g0 * m1 - g1 * m0  # g_b x m_b
+    n = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+    if n < 1e-9:
+        return 3
+    U[0, 0], U[0, 1], U[0, 2] = g0, m0, c0 / n
+    U[1, 0], U[1, 1], U[1, 2] = g1, m1, c1 / n
+    U[2, 0], U[2, 1], U[2, 2] = g2, m2, c2 / n
+    return 0
+
+
+@njit(cache=True)
+def _imu_body_vectors_rows(f, m, U):  # type: ignore[no-untyped-def]
+    for i in range(f.shape[0]):
+        code = imu_body_vectors_row(f[i], m[i], U[i])
+        if code:
+            return code
+    return 0
 
 
 def imu_body_vectors(f: NDArray[np.float64], m: NDArray[np.float64]) -> NDArray[np.float64]:
     """U^m (N, 3, 3) of :func:`imu_vector_set` for finite (N, 3) arrays (columns -f/|f|, m/|m|, their
-    normalized cross product)."""
-    g_b = _unit(-f, "specific force (free fall?)")
-    m_b = _unit(m, "magnetometer")
-    c = g_b.take(_I1, -1) * m_b.take(_I2, -1) - g_b.take(_I2, -1) * m_b.take(_I1, -1)  # g_b x m_b
-    u = np.empty(g_b.shape + (3,))
-    u[..., 0] = g_b
-    u[..., 1] = m_b
-    u[..., 2] = _unit(c, "gravity x field (vectors collinear)")
-    return u
-
-
-_I1 = np.array([1, 2, 0])
-_I2 = np.array([2, 0, 1])
-
-
-def imu_body_vectors_single(f: Sequence[float], m: Sequence[float]) -> list[float] | None:
-    """:func:`imu_body_vectors` for one vehicle in Python floats (the HC-ESO's N = 1 fast path).
-
-    ``f``, ``m``: the 3 finite components of the specific force and the magnetometer.  Returns U^m
-    (3 x 3, columns -f/|f|, m/|m|, their normalized cross product) row-major as 9 floats, with the
-    same operations as the batched function, or None where that function raises (a direction of
-    length < 1e-9); the caller then takes the batched path, which raises the error.
-    """
-    f0, f1, f2 = f
-    n = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
-    if n < 1e-9:
-        return None
-    g0, g1, g2 = -f0 / n, -f1 / n, -f2 / n
-    m0, m1, m2 = m
-    n = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-    if n < 1e-9:
-        return None
-    m0, m1, m2 = m0 / n, m1 / n, m2 / n
-    c0, c1, c2 = g1 * m2 - g2 * m1, g2 * m0 - g0 * m2, g0 * m1 - g1 * m0  # g_b x m_b
-    n = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
-    if n < 1e-9:
-        return None
-    return [g0, m0, c0 / n, g1, m1, c1 / n, g2, m2, c2 / n]
+    normalized cross product, :func:`imu_body_vectors_row`); ValueError where a direction has (near) zero length."""
+    f = np.ascontiguousarray(f, dtype=float)
+    m = np.ascontiguousarray(np.broadcast_to(np.asarray(m, dtype=float), f.shape))
+    U = np.empty(f.shape + (3,))
+    code = _imu_body_vectors_rows(f, m, U)
+    if code:
+        raise ValueError(IMU_VECTOR_ERRORS[code - 1])
+    return U

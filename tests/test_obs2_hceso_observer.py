@@ -144,7 +144,7 @@ def test_batch_equals_separate_runs():
 def test_update_errors_are_clear():
     obs = make_observer("hc_eso", 1.0, J_QUAD)
     m = _meas(np.eye(3)[None], np.zeros((1, 3)))
-    with pytest.raises(ValueError, match="before reset"):
+    with pytest.raises(RuntimeError, match="before reset"):  # the same type and text as every observer
         obs.update(m, 0.0, np.zeros(3), 0.01)
     with pytest.raises(ValueError, match="magnetometer"):
         obs.reset({k: v for k, v in m.items() if k != "magnetometer"})

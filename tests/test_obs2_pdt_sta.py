@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from fawtgym.observers import pdt_sta as P
+from fawtgym.observers import predefined_sta as P
 
 TC, X0, ETA, K1, K2 = 0.5, (-2.0, 1.0), 5.0, 1.0, 8.0
 

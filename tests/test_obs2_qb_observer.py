@@ -283,3 +283,20 @@ def test_design_for_another_preset(tmp_path):
         obs = make_observer("qb", 1.0, [0.03, 0.03, 0.06], gain_file=path)
     obs.reset(_hover_meas(2, np.random.default_rng(0)))
     assert obs.update(_hover_meas(2, np.random.default_rng(1)), 9.8, np.zeros(3), 0.01).force.shape == (2, 3)
+
+
+@pytest.mark.parametrize("n", [1, 3])
+def test_reset_thrust_of_the_wrong_shape_is_a_clear_error(n):
+    """A reset thrust of the wrong shape names the shape (it used to be a numpy broadcast error); the same
+    exception type and text, sizes apart, at every N."""
+    from fawtgym.eval.bench.observers import hover_measurement
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        obs = make_observer("qb", 1.5, [0.03, 0.03, 0.05])
+    meas = hover_measurement(n, np.random.default_rng(0))
+    with pytest.raises(ValueError, match=rf"^qb: reset thrust must be a number or one per row \({n},\), got shape "
+                                         rf"\({n + 1},\)$"):
+        obs.reset(meas, thrust=np.ones(n + 1))
+    with pytest.raises(TypeError, match="unknown reset options"):
+        obs.reset(meas, thrust_typo=1.0)

@@ -31,6 +31,11 @@ def _layered(name: str) -> bool:
 
 
 NAMES = observer_names()
+#: hc_eso integrates each update with the previous sample held (its new sample is read by the next update), so an
+#: absurd sample diverges one update later; tests/test_obs2_hceso_fastpath.py checks that case
+#: pdt_sta is gyroless: it reads only the accelerometer and the magnetometer, as directions (normalized)
+NO_RATE_DIVERGENCE = {"hc_eso": "hc_eso holds the previous sample over the step: tested in test_obs2_hceso_fastpath.py",
+                      "pdt_sta": "pdt_sta reads no rate and normalizes its vectors: an absurd sample cannot diverge it"}
 LAYERED = [n for n in NAMES if _layered(n)]
 
 
@@ -156,6 +161,8 @@ def test_max_dt_is_accepted_and_bounds_the_step(name: str) -> None:
 @pytest.mark.parametrize("n", [1, 3])
 def test_diverging_estimate_raises_and_keeps_the_state(name: str, n: int) -> None:
     """A finite but absurd measurement (rates of 1e200) makes every law's estimate leave the bound in one step."""
+    if name in NO_RATE_DIVERGENCE:
+        pytest.skip(NO_RATE_DIVERGENCE[name])
     obs, meas, f, tau = _setup(name, n)
     twin, _, _, _ = _setup(name, n)
     bad = dict(meas)
@@ -177,6 +184,8 @@ def test_diverging_estimate_raises_and_keeps_the_state(name: str, n: int) -> Non
 
 @pytest.mark.parametrize("name", LAYERED)
 def test_state_unchanged_after_failed_update(name: str) -> None:
+    if name in NO_RATE_DIVERGENCE:
+        pytest.skip(NO_RATE_DIVERGENCE[name])
     obs, meas, f, tau = _setup(name, 3)
     twin, _, _, _ = _setup(name, 3)
     bad = dict(meas)

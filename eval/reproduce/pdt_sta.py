@@ -42,15 +42,10 @@ from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
 from fawtgym.cli_parser import seed as seed_arg
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce.progress import Progress, add_flag, bar, tick
-from fawtgym.observers import pdt_sta as P
-from fawtgym.observers.gyroless_attitude import (
-    GibbsSTSMO,
-    gibbs_matrix,
-    gibbs_rate,
-    omega_from_gibbs,
-    rigid_body_rhs,
-)
+from fawtgym.observers import predefined_sta as P
+from fawtgym.observers.gibbs import gibbs_matrix, gibbs_rate, omega_from_gibbs, rigid_body_rhs
 from fawtgym.observers.quest import quest
+from fawtgym.observers.stsmo import GibbsSTSMO
 
 # ---- Example 1 and Table 1 inputs (the paper's numbers) -------------------------------------------
 EX1 = dict(t_c=0.5, x0=(-2.0, 1.0), kappa1=1.0, eta=5.0, kappa2=8.0)
