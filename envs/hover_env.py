@@ -447,9 +447,11 @@ class HoverEnv(gym.Env):
         for px, py, pz in self._rotor_offsets:  # hub positions b + R r_i
             points += (bx + r[0] * px + r[1] * py + r[2] * pz, by + r[3] * px + r[4] * py + r[5] * pz,
                        bz + r[6] * px + r[7] * py + r[8] * pz)
-        wind = self.wind.step_floats(self.time, self.dt, points, self._v)
-        force, torque = self.aero.wrench_floats(r, self._v, self._w, self._speeds, wind)
-        return force, torque, wind[0:3]
+        v = np.array([self._v])
+        wind = self.wind.step(self.time, self.dt, np.array(points).reshape(1, -1, 3), v)
+        force, torque = self.aero.wrench(np.array(r).reshape(1, 3, 3), v, np.array([self._w]),
+                                         np.array([self._speeds]), wind)
+        return force[0].tolist(), torque[0].tolist(), wind[0, 0].tolist()
 
     def step(self, action: ArrayLike) -> tuple[NDArray[np.float32], float, bool, bool, dict]:
         if type(action) is np.ndarray and action.shape == (4,) and action.dtype.kind == "f":

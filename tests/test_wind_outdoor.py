@@ -7,7 +7,8 @@ import pytest
 from _tolerance import assert_same_law
 
 from fawtgym.envs.wind import make_wind
-from fawtgym.envs.wind.dryden import DrydenProcess, dryden_psd
+from fawtgym.envs.wind.dryden import dryden_psd
+from fawtgym.envs.wind.dryden_process import DrydenProcess
 from fawtgym.envs.wind.outdoor import DrydenWind, OneCosineGust, low_altitude_params
 
 

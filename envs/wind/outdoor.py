@@ -35,9 +35,9 @@ from numpy.typing import NDArray
 
 from fawtgym.core.checks import check_flag
 
-from .base import WindModel
-from .dryden import FORMS, V_FLOOR, DrydenParams, DrydenProcess
-from .fawt import check_points
+from .base import WindModel, check_n, check_points, check_step
+from .dryden import FORMS, V_FLOOR, DrydenParams
+from .dryden_process import DrydenProcess, Seed
 
 FT = 0.3048  #: [m] per foot
 KNOT = 0.514444  #: [m/s] per knot
@@ -121,18 +121,17 @@ class DrydenWind(WindModel):
         self.process = DrydenProcess(params, rates=self.rates, discretization=discretization)
         self.n = 0
 
-    def reset(self, n: int, seed: int | np.random.SeedSequence | None = None) -> None:
-        self.process.reset(n, seed)
+    def reset(self, n: int, seed: Seed = None) -> None:
+        self.process.reset(check_n(n), seed)
         self.n = int(n)
 
     def step(self, t: float, dt: float, points_ned: NDArray[np.float64],
              vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
-        if not (dt > 0 and math.isfinite(dt)):
-            raise ValueError(f"dt must be a finite positive step [s], got {dt!r}")
-        check_points(points_ned, vehicle_velocity_ned, self.n)
+        check_step(t, dt)
+        points_ned, vehicle_velocity_ned = check_points(points_ned, vehicle_velocity_ned, self.n)
         rel = self.advection - vehicle_velocity_ned
         speed = np.sqrt((rel * rel).sum(axis=1))
-        y = self.process.step(dt, float(speed[0]) if self.n == 1 else speed)
+        y = self.process.step(dt, speed)
         if self.rates:
             d = (points_ned - points_ned[:, :1, :]) @ self.axes.T  # offsets along (u, v, w) axes
             gv = y[:, None, 1] - d[..., 0] * y[:, None, 5]
@@ -176,8 +175,8 @@ class OneCosineGust(WindModel):
         self.shape = shape
         self.n = 0
 
-    def reset(self, n: int, seed: int | np.random.SeedSequence | None = None) -> None:
-        self.n = int(n)
+    def reset(self, n: int, seed: Seed = None) -> None:
+        self.n = check_n(n)
         self.x = np.zeros(self.n)  # distance the front has moved past the CoM
 
     def profile(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -187,9 +186,8 @@ class OneCosineGust(WindModel):
 
     def step(self, t: float, dt: float, points_ned: NDArray[np.float64],
              vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
-        if not (dt > 0 and math.isfinite(dt)):
-            raise ValueError(f"dt must be a finite positive step [s], got {dt!r}")
-        check_points(points_ned, vehicle_velocity_ned, self.n)
+        check_step(t, dt)
+        points_ned, vehicle_velocity_ned = check_points(points_ned, vehicle_velocity_ned, self.n)
         active = min(max(t - self.start_time, 0.0), dt)  # part of this step after the gust started
         if active > 0:
             rel = self.speed * self.direction - vehicle_velocity_ned
