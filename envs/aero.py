@@ -35,8 +35,9 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from fawtgym.core.arrays import as_f64
+
 from .vehicles import GRAVITY, VehiclePreset
-from .wind.base import as_f64
 
 #: Linear (rotor) drag per unit vehicle mass at hover [N/(m/s)/kg] used to calibrate ``rotor_drag``: rotorpy's
 #: Hummingbird gives 0.31, the linear part of a fit F = a V + b V^2 to Neural-Fly's mid-values gives 0.37; rounded

@@ -574,7 +574,10 @@ class HoverEnv(gym.Env):
         """Measurement -> observation (with ``action``, the action just applied), reward (kept in ``self._reward``)
         and info, in float arithmetic (numpy only for the arrays handed out)."""
         b, v, r, w = self._b, self._v, self._r, self._w
-        lists = self.sensor.measure_floats(b, v, r, w, self._accel)
+        meas = self.sensor.measure(self.time, np.array(b), np.array(v), np.array(r).reshape(3, 3), np.array(w),
+                                   np.array(self._accel))
+        lists = tuple(meas[key].ravel().tolist() for key in (M.POSITION, M.VELOCITY, M.ATTITUDE, M.ANGULAR_VELOCITY,
+                                                              M.SPECIFIC_FORCE, M.GYRO, M.MAGNETOMETER))
         pos, vel, att, rate = lists[0], lists[1], lists[2], lists[3]
         sp = self.setpoint.tolist()
         e = [pos[0] - sp[0], pos[1] - sp[1], pos[2] - sp[2], *vel, *rate]

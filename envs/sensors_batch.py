@@ -1,48 +1,133 @@
-"""Batched sensor model: :class:`fawtgym.envs.sensors.SensorModel` for N vehicles at once.
+"""The sensor law: N vehicles' measurements at the control rate, one compiled kernel over rows.
 
-Same noise model, presets and rates as the single-vehicle model (the per-sample sigmas are taken
-from a :class:`~fawtgym.envs.sensors.SensorModel` built with the same spec, so the two can never
-disagree): pose group sample-and-hold every ``pose_every`` control steps (per vehicle, counted from
-that vehicle's own episode start), IMU group every step, constant turn-on biases drawn per vehicle
-at its reset, attitude noise ``R exp(Delta^x)`` (Wang et al. (2024) eq. 39).
+Noise model and presets: :mod:`fawtgym.envs.sensors`.  Per row: the pose group (position, velocity,
+attitude) is sampled and held every ``pose_every`` control steps (counted from that vehicle's own
+episode start), the IMU group every step, with constant turn-on biases drawn per vehicle at its reset::
 
-Random streams.  Per-step noise for all N rows comes from one generator in fixed-size blocks
-(N, 21) per step, so one row's trajectory never changes how many numbers another row consumes
-(rows stay independent).  The turn-on biases of a row are drawn from that row's own generator
-(passed to :meth:`BatchSensorModel.reset_rows`), exactly as :meth:`SensorModel.reset` draws them,
-so a row's biases equal a single env's for the same sensor seed.  With N = 1 the caller may pass
-the row's generator as the noise generator too; the draws then equal the single model's
-(``normal(size=18)`` then ``normal(size=3)`` per step = ``standard_normal((1, 21))``).
+    position = b + sigma_p n_p,  velocity = v + sigma_v n_v,  attitude = R exp((sigma_R n_R)^x)   (Wang 2024, eq. 39)
+    angular_velocity = Omega + sigma_Omega n_Omega             (estimator grade: bias removed)
+    specific_force   = R^T (a - g e3) + b_a + sigma_a n_a
+    gyro             = Omega + b_g + sigma_g n_g
+    magnetometer     = R^T m_E + sigma_m n_m
+
+Random streams.  Per-step noise for all N rows comes from one generator, ``standard_normal((N, 21))`` per step
+(columns: n_p, n_v, n_R, n_Omega, n_a, n_g, n_m), so one row's trajectory never changes how many numbers another
+row consumes (rows stay independent).  The turn-on biases of a row are drawn from that row's own generator
+(passed to :meth:`BatchSensorModel.reset_rows`).  With N = 1 and the row's generator as the noise generator,
+this is the single-vehicle model (:class:`fawtgym.envs.sensors.SensorModel`).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.so3 import exp_so3
+from fawtgym.core.arrays import as_f64
 
-from .sensors import SensorModel, SensorSpec, make_sensor_spec
+from .sensors import SensorSpec, make_sensor_spec, pose_rate_error
 from .vehicles import GRAVITY
 
-_GRAVITY_NED = np.array([0.0, 0.0, GRAVITY])
+_FIELD = np.ascontiguousarray(M.EARTH_FIELD_NED, dtype=float)
+_SMALL = 1e-8  # below this squared angle exp(w^) uses its Taylor series (as fawtgym.core.so3.exp_so3)
+#: layout of the measurement buffer: key -> (first column of the row block, values per row)
+_LAYOUT = ((M.POSITION, 0, 3), (M.VELOCITY, 3, 3), (M.ATTITUDE, 6, 9), (M.ANGULAR_VELOCITY, 15, 3),
+           (M.SPECIFIC_FORCE, 18, 3), (M.GYRO, 21, 3), (M.MAGNETOMETER, 24, 3))
+_WIDTH = 27
+
+
+@njit(cache=True)
+def exp_so3_row(x0: float, x1: float, x2: float) -> tuple[float, float, float, float, float, float, float, float,
+                                                           float]:
+    """Rodrigues ``exp(x^) = I + a x^ + b x^ x^`` of one rotation vector, row-major (the formulas and threshold of
+    :func:`fawtgym.core.so3.exp_so3`; ``x^ x^ = x x^T - |x|^2 I``)."""
+    t2 = x0 * x0 + x1 * x1 + x2 * x2
+    if t2 < _SMALL:
+        a, b = 1.0 - t2 / 6.0 + t2 * t2 / 120.0, 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+    else:
+        t = math.sqrt(t2)
+        a, b = math.sin(t) / t, (1.0 - math.cos(t)) / (t * t)
+    b01, b02, b12 = b * (x0 * x1), b * (x0 * x2), b * (x1 * x2)
+    return (1.0 + b * (-(x2 * x2) - x1 * x1), -a * x2 + b01, a * x1 + b02,
+            a * x2 + b01, 1.0 + b * (-(x2 * x2) - x0 * x0), -a * x0 + b12,
+            -a * x1 + b02, a * x0 + b12, 1.0 + b * (-(x1 * x1) - x0 * x0))
+
+
+@njit(cache=True)
+def measure_rows(position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
+                 rate: NDArray[np.float64], accel: NDArray[np.float64], z: NDArray[np.float64],
+                 sigma: NDArray[np.float64], field: NDArray[np.float64], gyro_bias: NDArray[np.float64],
+                 accel_bias: NDArray[np.float64], count: NDArray[np.int64], pose_every: int,
+                 pose_pos: NDArray[np.float64], pose_vel: NDArray[np.float64], pose_att: NDArray[np.float64],
+                 out: NDArray[np.float64]) -> None:
+    """Every row's measurement (module docstring) into the flat buffer ``out`` (27 N: key blocks of ``_LAYOUT``).
+
+    ``sigma`` = (position, velocity, attitude, angular_velocity, accelerometer, gyro, magnetometer) per-sample
+    sigmas; ``z`` (N, 21) the step's normals; the pose hold ``pose_*`` and ``count`` are updated in place.
+    """
+    n = position.shape[0]
+    s_pos, s_vel, s_att, s_rate, s_acc, s_gyro, s_mag = (sigma[0], sigma[1], sigma[2], sigma[3], sigma[4],
+                                                         sigma[5], sigma[6])
+    o_vel, o_att, o_rate, o_fsp, o_gyro, o_mag = 3 * n, 6 * n, 15 * n, 18 * n, 21 * n, 24 * n
+    for i in range(n):
+        r = rotation[i]
+        if count[i] % pose_every == 0:  # pose group: a new sample, held until the next one
+            e = exp_so3_row(s_att * z[i, 6], s_att * z[i, 7], s_att * z[i, 8])  # attitude noise R exp(Delta^x)
+            for c in range(3):
+                pose_pos[i, c] = position[i, c] + s_pos * z[i, c]
+                pose_vel[i, c] = velocity[i, c] + s_vel * z[i, 3 + c]
+                for k in range(3):
+                    pose_att[i, c, k] = r[c, 0] * e[k] + r[c, 1] * e[3 + k] + r[c, 2] * e[6 + k]
+        count[i] += 1
+        ax, ay, az = accel[i, 0], accel[i, 1], accel[i, 2] - GRAVITY  # a - g e3 (NED)
+        for c in range(3):
+            f_sp = r[0, c] * ax + r[1, c] * ay + r[2, c] * az  # R^T (a - g e3)
+            mag = r[0, c] * field[0] + r[1, c] * field[1] + r[2, c] * field[2]  # R^T m_E
+            out[3 * i + c] = pose_pos[i, c]
+            out[o_vel + 3 * i + c] = pose_vel[i, c]
+            out[o_rate + 3 * i + c] = rate[i, c] + s_rate * z[i, 9 + c]
+            out[o_fsp + 3 * i + c] = f_sp + accel_bias[i, c] + s_acc * z[i, 12 + c]
+            out[o_gyro + 3 * i + c] = rate[i, c] + gyro_bias[i, c] + s_gyro * z[i, 15 + c]
+            out[o_mag + 3 * i + c] = mag + s_mag * z[i, 18 + c]
+            for k in range(3):
+                out[o_att + 9 * i + 3 * c + k] = pose_att[i, c, k]
 
 
 class BatchSensorModel:
-    """Measurements of N vehicles (batch-first) at the control rate; see the module docstring."""
+    """Measurements of N vehicles (batch-first) at the control rate; see the module docstring.
+
+    ``physics_dt`` (optional) is only used to list the allowed control rates when the pose rate does not divide
+    the control rate.
+    """
 
     def __init__(self, spec: SensorSpec | str, control_dt: float, n: int, physics_dt: float | None = None) -> None:
-        if not (isinstance(n, (int, np.integer)) and n >= 1):
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ValueError(f"number of vehicles n must be a positive int, got {n!r}")
-        single = SensorModel(make_sensor_spec(spec), control_dt, physics_dt)
-        self.spec = single.spec
+        self.spec = spec = make_sensor_spec(spec)
         self.dt = control_dt
         self.n = int(n)
-        self.pose_every = single.pose_every
-        self.sig_pos, self.sig_vel, self.sig_att = single.sig_pos, single.sig_vel, single.sig_att
-        self.sig_rate, self.sig_gyro, self.sig_acc = single.sig_rate, single.sig_gyro, single.sig_acc
-        self.noisy = single.noisy
+        if spec.pose_rate is None:
+            self.pose_every = 1
+        else:
+            ratio = 1.0 / (spec.pose_rate * control_dt)
+            if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
+                raise ValueError(pose_rate_error(spec, 1.0 / control_dt,
+                                                 None if physics_dt is None else 1.0 / physics_dt))
+            self.pose_every = int(round(ratio))
+        # white noise of density d sampled every dt has sigma d / sqrt(dt) (sensors module docstring)
+        root_dt, root_pose = math.sqrt(control_dt), math.sqrt(self.pose_every * control_dt)
+        self.sig_pos = math.hypot(spec.position_density / root_pose, spec.position_sigma)
+        self.sig_vel = math.hypot(spec.velocity_density / root_pose, spec.velocity_sigma)
+        self.sig_att = math.hypot(spec.attitude_density / root_pose, spec.attitude_sigma)
+        self.sig_rate = spec.angular_velocity_density / root_dt
+        self.sig_gyro = spec.gyro_density / root_dt
+        self.sig_acc = spec.accel_density / root_dt
+        self._sigma = np.array([self.sig_pos, self.sig_vel, self.sig_att, self.sig_rate, self.sig_acc,
+                                self.sig_gyro, spec.mag_sigma])
+        self.noisy = bool(np.any(self._sigma > 0) or spec.gyro_bias_sigma > 0 or spec.accel_bias_sigma > 0)
         self.gyro_bias = np.zeros((self.n, 3))
         self.accel_bias = np.zeros((self.n, 3))
         self._count = np.zeros(self.n, dtype=np.int64)
@@ -68,31 +153,29 @@ class BatchSensorModel:
     def measure(self, t: NDArray[np.float64], position: NDArray[np.float64], velocity: NDArray[np.float64],
                 rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],
                 acceleration: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
-        """Measurements (N, ...) at times ``t`` (N,) from true states (N, 3) / (N, 3, 3) and NED accelerations."""
-        # R^T (a - g e3) and R^T m_E, row by row
-        f_sp = np.einsum("nj,nji->ni", acceleration - _GRAVITY_NED, rotation)
-        mag = M.EARTH_FIELD_NED @ rotation
-        time = np.array(t, dtype=float)
-        if not self.noisy:
-            return {M.POSITION: position.copy(), M.VELOCITY: velocity.copy(), M.ATTITUDE: rotation.copy(),
-                    M.ANGULAR_VELOCITY: angular_velocity.copy(), M.SPECIFIC_FORCE: f_sp,
-                    M.GYRO: angular_velocity.copy(), M.MAGNETOMETER: mag, M.TIME: time}
-        z = self.rng.standard_normal((self.n, 21))
-        take = self._count % self.pose_every == 0
+        """Measurements (N, ...) at times ``t`` (N,) from true states (N, 3) / (N, 3, 3) and NED accelerations.
+
+        Every array handed out is a fresh C-contiguous block of one new buffer.
+        """
+        n = self.n
+        position, velocity = as_f64(position, "position"), as_f64(velocity, "velocity")
+        rotation, angular_velocity = as_f64(rotation, "rotation"), as_f64(angular_velocity, "angular_velocity")
+        acceleration = as_f64(acceleration, "acceleration")
+        if position.shape != (n, 3) or velocity.shape != (n, 3) or rotation.shape != (n, 3, 3) \
+                or angular_velocity.shape != (n, 3) or acceleration.shape != (n, 3):
+            raise ValueError(f"sensor inputs must be position, velocity, angular_velocity, acceleration (N, 3) and "
+                             f"rotation (N, 3, 3) with N = {n}; got {position.shape}, {velocity.shape}, "
+                             f"{angular_velocity.shape}, {acceleration.shape}, {rotation.shape}")
+        if self.noisy:
+            z, pose_every = self.rng.standard_normal((n, 21)), self.pose_every
+        else:  # exact measurements every step (no hold without noise)
+            z, pose_every = np.zeros((n, 21)), 1
         pose = self._pose
-        if take.all():
-            pose[M.POSITION] = position + self.sig_pos * z[:, 0:3]
-            pose[M.VELOCITY] = velocity + self.sig_vel * z[:, 3:6]
-            pose[M.ATTITUDE] = rotation @ exp_so3(self.sig_att * z[:, 6:9])
-        elif take.any():
-            pose[M.POSITION][take] = position[take] + self.sig_pos * z[take, 0:3]
-            pose[M.VELOCITY][take] = velocity[take] + self.sig_vel * z[take, 3:6]
-            pose[M.ATTITUDE][take] = rotation[take] @ exp_so3(self.sig_att * z[take, 6:9])
-        self._count += 1
-        return {M.POSITION: pose[M.POSITION].copy(), M.VELOCITY: pose[M.VELOCITY].copy(),
-                M.ATTITUDE: pose[M.ATTITUDE].copy(),
-                M.ANGULAR_VELOCITY: angular_velocity + self.sig_rate * z[:, 9:12],
-                M.SPECIFIC_FORCE: f_sp + self.accel_bias + self.sig_acc * z[:, 12:15],
-                M.GYRO: angular_velocity + self.gyro_bias + self.sig_gyro * z[:, 15:18],
-                M.MAGNETOMETER: mag + self.spec.mag_sigma * z[:, 18:21],
-                M.TIME: time}
+        buf = np.empty(_WIDTH * n)
+        measure_rows(position, velocity, rotation, angular_velocity, acceleration, z, self._sigma, _FIELD,
+                     self.gyro_bias, self.accel_bias, self._count, pose_every, pose[M.POSITION], pose[M.VELOCITY],
+                     pose[M.ATTITUDE], buf)
+        out = {key: buf[start * n:(start + width) * n].reshape((n, 3, 3) if width == 9 else (n, 3))
+               for key, start, width in _LAYOUT}
+        out[M.TIME] = np.array(t, dtype=float)
+        return out

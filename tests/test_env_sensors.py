@@ -83,6 +83,54 @@ def test_unknown_sensor_preset_and_bad_field():
         make_sensor_spec("lidar")
     with pytest.raises(ValueError, match="position_sigma"):
         make_sensor_spec({"base": "none", "position_sigma": -1.0})
+    with pytest.raises(ValueError, match=r"'gyro_density' must be a finite number >= 0, got 'a'"):
+        make_sensor_spec({"base": "mocap_imu", "gyro_density": "a"})
+    with pytest.raises(ValueError, match=r"unknown sensor field\(s\) \['lidar_rate'\]; valid: \['base', 'name'"):
+        make_sensor_spec({"base": "none", "lidar_rate": 10.0})
+    with pytest.raises(ValueError, match="pose_rate"):
+        make_sensor_spec({"base": "none", "pose_rate": True})
+
+
+def _measure_errors(n):
+    from fawtgym.envs.sensors_batch import BatchSensorModel
+
+    model = BatchSensorModel("mocap_imu", 0.01, n)
+    good = [np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)), np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3)),
+            np.zeros((n, 3))]
+    out = []
+    for k, bad in ((1, np.zeros((n, 2))), (3, np.zeros((n, 3))), (5, np.full((n, 3), "a")), (2, np.ones((n, 3)) * 1j)):
+        args = list(good)
+        args[k] = bad
+        with pytest.raises(ValueError) as err:
+            model.measure(*args)
+        out.append(str(err.value).replace(f"N = {n}", "N").replace(f"({n}, ", "(N, "))
+    return out
+
+
+def test_bad_sensor_input_gives_the_same_error_at_every_n():
+    one = _measure_errors(1)
+    assert one == _measure_errors(3)
+    assert "rotation (N, 3, 3)" in one[0] and "acceleration must be an array of real numbers" in one[2]
+
+
+def test_batch_row_equals_the_single_model():
+    """The single model is the batch law at N = 1: same generator, same numbers, bit for bit."""
+    from fawtgym.envs.sensors_batch import BatchSensorModel
+
+    single, batch = SensorModel(make_sensor_spec("mocap_imu"), 0.002), BatchSensorModel("mocap_imu", 0.002, 1)
+    single.reset(np.random.default_rng(4))
+    rng = np.random.default_rng(4)
+    batch.set_noise_rng(rng)
+    batch.reset_rows(np.zeros(1, dtype=np.intp), [rng])
+    state = np.random.default_rng(0)
+    for k in range(12):
+        b, v, w, a = (state.normal(size=3) for _ in range(4))
+        r = np.eye(3)
+        m1 = single.measure(k * 0.002, b, v, r, w, a)
+        mb = batch.measure(np.array([k * 0.002]), b[None], v[None], r[None], w[None], a[None])
+        for key in m1:
+            if key != "time":
+                np.testing.assert_array_equal(m1[key], mb[key][0])
 
 
 def test_reward_bounded_and_decreasing_with_error():
@@ -96,8 +144,8 @@ def test_reward_bounded_and_decreasing_with_error():
 
 
 @pytest.mark.parametrize("preset", ["none", "seed000", "mocap_imu"])
-def test_float_measurement_equals_numpy_formulas(preset):
-    """measure() (float arithmetic) against the sensor equations written with numpy, same random draws."""
+def test_measurement_equals_the_sensor_equations(preset):
+    """measure() (the compiled law at N = 1) against the sensor equations written with numpy, same random draws."""
     from fawtgym.core.measurement import EARTH_FIELD_NED
     from fawtgym.core.so3 import exp_so3
 

@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from fawtgym.core.arrays import as_f64
+
 #: Longest wind step [s].  The gust filters are exact at any step, but their step-matrix table holds air
 #: travel ``V dt`` up to 200 m (:mod:`.dryden_discrete`): 1 s covers airspeeds up to 200 m/s.  A step of
 #: seconds is no simulation step (the env's control step is 1-50 ms).
@@ -27,16 +29,6 @@ def check_step(t: float, dt: float) -> None:
         raise ValueError(f"dt must be a wind step in (0, {DT_MAX:g}] s, got {dt!r}")
     if isinstance(t, bool) or not isinstance(t, (float, int, np.floating, np.integer)) or not math.isfinite(t):
         raise ValueError(f"t must be a finite time [s], got {t!r}")
-
-
-def as_f64(value: Any, name: str) -> NDArray[np.float64]:
-    """``value`` as a float64 array (no copy if it is one); ValueError for anything but real numbers."""
-    if type(value) is np.ndarray and value.dtype == np.float64:
-        return value
-    raw = np.asarray(value)
-    if raw.dtype.kind not in "fiu":
-        raise ValueError(f"{name} must be an array of real numbers, got dtype {raw.dtype}")
-    return raw.astype(np.float64, copy=False)
 
 
 def check_points(points_ned: Any, velocity_ned: Any, n: int, finite: bool = True
