@@ -122,7 +122,7 @@ from fawtgym.core.so3 import exp_so3
 from .ctbr import MAX_RATES, RateLoop
 from .hover_env import INIT_SPREAD, HoverEnv, check_init_noise
 from .mjcf import hull_points
-from .motors import allocation_matrix
+from .motors import allocation_matrix, decay_factors, lag_thrusts, substep_times
 from .observation import hover_observation
 from .sensors_batch import BatchSensorModel
 from .wind import WindModel
@@ -434,19 +434,15 @@ class HoverBatchEnv(VectorEnv):
         self._rotor_pos_t = np.ascontiguousarray(p.rotor_positions.T)
         self._hover = single.hover_action().astype(np.float32)
         self._rate_loop = BatchRateLoop(RateLoop(p, self.physics_dt), n) if action_type == "ctbr" else None
-        sub_times = np.array([[0.5 * self.physics_dt], [self.physics_dt]])
-        self._sub_decay_up, self._sub_decay_down = np.exp(-sub_times / p.tau_up), np.exp(-sub_times / p.tau_down)
+        self._sub_decay_up, self._sub_decay_down = decay_factors(p, substep_times(self.physics_dt, 1))
         self._max_thrust = 4.0 * p.max_thrust_per_rotor
         self._act_low = self.single_action_space.low.astype(float)
         self._act_high = self.single_action_space.high.astype(float)
         self._obs_low = self.single_observation_space.low.astype(float)
         self._obs_high = self.single_observation_space.high.astype(float)
         k = self.n_substeps
-        step_times = np.append((np.arange(k) + 0.5) * self.physics_dt, self.dt)[:, None]
-        self._decay_up = np.exp(-step_times / p.tau_up)  # (K + 1, 1), as HoverEnv
-        self._decay_down = np.exp(-step_times / p.tau_down)
+        self._decay_up, self._decay_down = decay_factors(p, substep_times(self.dt, k))  # (K + 1,), as HoverEnv
         self._omega_min, self._omega_span = p.omega_min, p.omega_max - p.omega_min
-        self._inv_substeps = 1.0 / k
         self._ctrl = np.zeros((n, k, mujoco.mj_stateSize(self.model, _CONTROL_SPEC)))
         self._mj_state = np.zeros((n, mujoco.mj_stateSize(self.model, _STATE_SPEC)))
         self._out = np.zeros((n, k, self._mj_state.shape[1]))
@@ -770,15 +766,13 @@ class HoverBatchEnv(VectorEnv):
 
     def _run_motors(self, u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         """HoverEnv._run_motors for every row: exact lag, mid-substep thrusts, one rollout of the control step."""
-        ref = (u * self._omega_span + self._omega_min)[:, None, :]
-        w0 = self.rotor_speeds[:, None, :]
-        speeds = ref + (w0 - ref) * np.where(ref > w0, self._decay_up, self._decay_down)  # (N, K + 1, 4)
-        thrusts = speeds[:, :-1] ** 2 * self.preset.k_thrust
-        self._ctrl[:, :, 0:4] = thrusts
+        ref = u * self._omega_span + self._omega_min
+        speeds, self._applied = np.empty(ref.shape), np.empty(ref.shape)
+        lag_thrusts(ref, self.rotor_speeds, self._decay_up, self._decay_down, self.preset.k_thrust, self._ctrl,
+                    speeds, self._applied)
         self._held_wrench(self._ctrl)
         final, diverged = self._rollout_rows(self._mj_state, self._ctrl, self._out)
-        self.rotor_speeds = speeds[:, -1].copy()
-        self._applied = thrusts.sum(axis=1) * self._inv_substeps
+        self.rotor_speeds = speeds
         return final, diverged
 
     def _run_ctbr(self, a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
@@ -793,15 +787,13 @@ class HoverBatchEnv(VectorEnv):
         speeds = self.rotor_speeds
         for _ in range(self.n_substeps):  # substeps (the rate loop closes the loop at the physics rate)
             t_cmd = self._rate_loop.rotor_thrusts(collective, rate_sp, state[:, 11:14] * _SIGN)
-            ref = np.sqrt(t_cmd / k_t)[:, None, :]
-            w0 = speeds[:, None, :]
-            mid_end = ref + (w0 - ref) * np.where(ref > w0, self._sub_decay_up, self._sub_decay_down)  # (N, 2, 4)
-            thrust = k_t * mid_end[:, 0] ** 2
-            self._ctrl1[:, 0, 0:4] = thrust
+            ref = np.sqrt(t_cmd / k_t)
+            end, thrust = np.empty(ref.shape), np.empty(ref.shape)
+            lag_thrusts(ref, speeds, self._sub_decay_up, self._sub_decay_down, k_t, self._ctrl1, end, thrust)
             final, bad = self._rollout_rows(state, self._ctrl1, self._out1)
             diverged |= bad
             state = final.copy()
-            speeds = mid_end[:, 1]
+            speeds = end
             total += thrust
         self.rotor_speeds = speeds.copy()
         self._applied = total / self.n_substeps

@@ -33,10 +33,6 @@ from .vehicles import GRAVITY
 
 _FIELD = np.ascontiguousarray(M.EARTH_FIELD_NED, dtype=float)
 _SMALL = 1e-8  # below this squared angle exp(w^) uses its Taylor series (as fawtgym.core.so3.exp_so3)
-#: layout of the measurement buffer: key -> (first column of the row block, values per row)
-_LAYOUT = ((M.POSITION, 0, 3), (M.VELOCITY, 3, 3), (M.ATTITUDE, 6, 9), (M.ANGULAR_VELOCITY, 15, 3),
-           (M.SPECIFIC_FORCE, 18, 3), (M.GYRO, 21, 3), (M.MAGNETOMETER, 24, 3))
-_WIDTH = 27
 
 
 @njit(cache=True)
@@ -62,17 +58,17 @@ def measure_rows(position: NDArray[np.float64], velocity: NDArray[np.float64], r
                  sigma: NDArray[np.float64], field: NDArray[np.float64], gyro_bias: NDArray[np.float64],
                  accel_bias: NDArray[np.float64], count: NDArray[np.int64], pose_every: int,
                  pose_pos: NDArray[np.float64], pose_vel: NDArray[np.float64], pose_att: NDArray[np.float64],
-                 out: NDArray[np.float64]) -> None:
-    """Every row's measurement (module docstring) into the flat buffer ``out`` (27 N: key blocks of ``_LAYOUT``).
+                 out_pos: NDArray[np.float64], out_vel: NDArray[np.float64], out_att: NDArray[np.float64],
+                 out_rate: NDArray[np.float64], out_fsp: NDArray[np.float64], out_gyro: NDArray[np.float64],
+                 out_mag: NDArray[np.float64]) -> None:
+    """Every row's measurement (module docstring) into the ``out_*`` arrays.
 
     ``sigma`` = (position, velocity, attitude, angular_velocity, accelerometer, gyro, magnetometer) per-sample
     sigmas; ``z`` (N, 21) the step's normals; the pose hold ``pose_*`` and ``count`` are updated in place.
     """
-    n = position.shape[0]
     s_pos, s_vel, s_att, s_rate, s_acc, s_gyro, s_mag = (sigma[0], sigma[1], sigma[2], sigma[3], sigma[4],
                                                          sigma[5], sigma[6])
-    o_vel, o_att, o_rate, o_fsp, o_gyro, o_mag = 3 * n, 6 * n, 15 * n, 18 * n, 21 * n, 24 * n
-    for i in range(n):
+    for i in range(position.shape[0]):
         r = rotation[i]
         if count[i] % pose_every == 0:  # pose group: a new sample, held until the next one
             e = exp_so3_row(s_att * z[i, 6], s_att * z[i, 7], s_att * z[i, 8])  # attitude noise R exp(Delta^x)
@@ -86,14 +82,14 @@ def measure_rows(position: NDArray[np.float64], velocity: NDArray[np.float64], r
         for c in range(3):
             f_sp = r[0, c] * ax + r[1, c] * ay + r[2, c] * az  # R^T (a - g e3)
             mag = r[0, c] * field[0] + r[1, c] * field[1] + r[2, c] * field[2]  # R^T m_E
-            out[3 * i + c] = pose_pos[i, c]
-            out[o_vel + 3 * i + c] = pose_vel[i, c]
-            out[o_rate + 3 * i + c] = rate[i, c] + s_rate * z[i, 9 + c]
-            out[o_fsp + 3 * i + c] = f_sp + accel_bias[i, c] + s_acc * z[i, 12 + c]
-            out[o_gyro + 3 * i + c] = rate[i, c] + gyro_bias[i, c] + s_gyro * z[i, 15 + c]
-            out[o_mag + 3 * i + c] = mag + s_mag * z[i, 18 + c]
+            out_pos[i, c] = pose_pos[i, c]
+            out_vel[i, c] = pose_vel[i, c]
+            out_rate[i, c] = rate[i, c] + s_rate * z[i, 9 + c]
+            out_fsp[i, c] = f_sp + accel_bias[i, c] + s_acc * z[i, 12 + c]
+            out_gyro[i, c] = rate[i, c] + gyro_bias[i, c] + s_gyro * z[i, 15 + c]
+            out_mag[i, c] = mag + s_mag * z[i, 18 + c]
             for k in range(3):
-                out[o_att + 9 * i + 3 * c + k] = pose_att[i, c, k]
+                out_att[i, c, k] = pose_att[i, c, k]
 
 
 class BatchSensorModel:
@@ -155,7 +151,7 @@ class BatchSensorModel:
                 acceleration: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
         """Measurements (N, ...) at times ``t`` (N,) from true states (N, 3) / (N, 3, 3) and NED accelerations.
 
-        Every array handed out is a fresh C-contiguous block of one new buffer.
+        Every array handed out is a fresh C-contiguous array.
         """
         n = self.n
         position, velocity = as_f64(position, "position"), as_f64(velocity, "velocity")
@@ -171,11 +167,12 @@ class BatchSensorModel:
         else:  # exact measurements every step (no hold without noise)
             z, pose_every = np.zeros((n, 21)), 1
         pose = self._pose
-        buf = np.empty(_WIDTH * n)
+        e = np.empty
+        out = {M.POSITION: e((n, 3)), M.VELOCITY: e((n, 3)), M.ATTITUDE: e((n, 3, 3)), M.ANGULAR_VELOCITY: e((n, 3)),
+               M.SPECIFIC_FORCE: e((n, 3)), M.GYRO: e((n, 3)), M.MAGNETOMETER: e((n, 3)),
+               M.TIME: np.array(t, dtype=float)}
         measure_rows(position, velocity, rotation, angular_velocity, acceleration, z, self._sigma, _FIELD,
                      self.gyro_bias, self.accel_bias, self._count, pose_every, pose[M.POSITION], pose[M.VELOCITY],
-                     pose[M.ATTITUDE], buf)
-        out = {key: buf[start * n:(start + width) * n].reshape((n, 3, 3) if width == 9 else (n, 3))
-               for key, start, width in _LAYOUT}
-        out[M.TIME] = np.array(t, dtype=float)
+                     pose[M.ATTITUDE], out[M.POSITION], out[M.VELOCITY], out[M.ATTITUDE], out[M.ANGULAR_VELOCITY],
+                     out[M.SPECIFIC_FORCE], out[M.GYRO], out[M.MAGNETOMETER])
         return out
