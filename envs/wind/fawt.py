@@ -136,6 +136,16 @@ _F_REF, _CORE_REF = _reference(HOTWIRE_X)
 
 
 @njit(cache=True)
+def _goertler(eta: float) -> float:
+    """``(1 + erf(eta)) / 2``; exactly 0 or 1 beyond |eta| = 6, where ``erf`` rounds to -1 or 1 (saves the call)."""
+    if eta >= 6.0:
+        return 1.0
+    if eta <= -6.0:
+        return 0.0
+    return 0.5 + 0.5 * math.erf(eta)
+
+
+@njit(cache=True)
 def profile_point(xf: float, yf: float, zf: float, f_ref: float, core_ref: float) -> tuple[float, float]:
     """Mean-speed factor ``F / F_ref`` and shear-layer variance weight at one FAWT-frame point (module docstring).
 
@@ -150,12 +160,18 @@ def profile_point(xf: float, yf: float, zf: float, f_ref: float, core_ref: float
     s = GOERTLER_SIGMA / xs
     eta_y = (HALF_SPAN - abs(yf)) * s
     eta_z = (HALF_HEIGHT - abs(zf)) * s
-    f_y = 0.5 + 0.5 * math.erf(eta_y)
-    f_z = 0.5 + 0.5 * math.erf(eta_z)
+    f_y = _goertler(eta_y)
+    f_z = _goertler(eta_z)
     core = core_ref / (1.0 + DECAY_KAPPA * xs)  # U_c(x) / U_c(x_ref): slow stream-wise decay of the core
-    g_y = math.exp(-eta_y * eta_y) * f_z
-    g_z = math.exp(-eta_z * eta_z) * f_y
-    return f_y * f_z * core / f_ref, (g_y if g_y > g_z else g_z) * (core * core)
+    # max(exp(-eta_y^2) f_z, exp(-eta_z^2) f_y): where 0 <= eta_a <= eta_b, term a is the larger in both factors
+    if 0.0 <= eta_y <= eta_z:
+        g = math.exp(-eta_y * eta_y) * f_z
+    elif 0.0 <= eta_z <= eta_y:
+        g = math.exp(-eta_z * eta_z) * f_y
+    else:
+        g_y, g_z = math.exp(-eta_y * eta_y) * f_z, math.exp(-eta_z * eta_z) * f_y
+        g = g_y if g_y > g_z else g_z
+    return f_y * f_z * core / f_ref, g * (core * core)
 
 
 @njit(cache=True)
