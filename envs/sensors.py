@@ -115,6 +115,8 @@ def pose_rate_error(spec: SensorSpec, control_rate: float, physics_rate: float |
     """The one-line message for a control rate that the pose rate of ``spec`` does not divide: names the preset
     and the control rates allowed with it (given the physics rate when known)."""
     pose = spec.pose_rate
+    if pose is None:
+        raise ValueError(f"sensor preset {spec.name!r} has no pose_rate: every control rate is allowed")
     head = (f"sensor preset {spec.name!r}: sensor pose_rate {pose} Hz must divide the control rate "
             f"{control_rate:g} Hz; allowed: ")
     if physics_rate is None:

@@ -56,11 +56,11 @@ def psd_sqrt(q: NDArray[np.float64]) -> NDArray[np.float64]:
     """S with S S^T = q for a symmetric positive semi-definite q (Cholesky, else clipped eigen-decomposition)."""
     q = 0.5 * (q + q.T)
     try:
-        return np.linalg.cholesky(q)
+        return np.asarray(np.linalg.cholesky(q), dtype=np.float64)
     except np.linalg.LinAlgError:
         pass
     w, v = np.linalg.eigh(q)
-    return v * np.sqrt(np.clip(w, 0.0, None))
+    return np.asarray(v * np.sqrt(np.clip(w, 0.0, None)), dtype=np.float64)
 
 
 class StepTable:

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -59,7 +60,7 @@ def wind_aero_costs(n: int, calls: int, preset: str = "fawt-50", vehicle: str = 
     rot = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
     rate = np.zeros((n, 3))
     omega = np.full((n, 4), p.hover_omega)
-    state = {"t": 0.0, "w": wind.step(0.01, 0.01, pts, vel)}
+    state: dict[str, Any] = {"t": 0.0, "w": wind.step(0.01, 0.01, pts, vel)}
     sensor = BatchSensorModel("mocap_imu", 0.005, n)
     sensor.reset_rows(np.arange(n), [np.random.default_rng(i) for i in range(n)])
     times = np.zeros(n)
