@@ -269,3 +269,31 @@ def test_fawt_variance_independent_of_time_step():
         out.append(_run(wind, 64, 2000, dt, HOTWIRE)[..., 0].var())
     assert out[0] / out[1] == pytest.approx(1.0, abs=0.05)
     assert out[0] == pytest.approx(PAPER[50][1], rel=0.05)
+
+
+_NUMERIC_OPTIONS = {"fawt": ["duty", "on_time", "off_time", "spin_tau", "spin_down_tau", "length_scale", "span"],
+                    "dryden-light": ["altitude", "direction_deg", "length_scale", "span", "mean_wind"],
+                    "gust-1cos": ["amplitude", "length", "speed", "start_time", "direction_deg"]}
+
+
+@pytest.mark.parametrize("name, option", [(n, o) for n, opts in _NUMERIC_OPTIONS.items() for o in opts])
+@pytest.mark.parametrize("bad", ["a", True, float("nan"), float("inf"), [1.0, 2.0], {}])
+def test_numeric_wind_options_refuse_non_numbers_in_one_line(name, option, bad):
+    """A numeric option given a string, a boolean, NaN/inf, a list or a dict: one ValueError naming the option (a
+    boolean is not a number here: True would silently be 1)."""
+    if option == "amplitude" and isinstance(bad, list):
+        pytest.skip("an amplitude may be a vector (a 2-vector is still refused below)")
+    if option == "mean_wind" and bad is True:
+        pytest.skip("mean_wind=True is the log-profile wind")
+    with pytest.raises(ValueError, match=option) as err:
+        make_wind({"name": name, option: bad})
+    assert "\n" not in str(err.value)
+
+
+def test_numpy_scalars_are_numbers():
+    w = make_wind({"name": "fawt", "duty": np.float32(0.5), "length_scale": np.float64(0.02), "spin_tau": np.int64(2)})
+    assert w.duty == pytest.approx(0.5) and w.length_scale == 0.02
+    with pytest.raises(ValueError, match="amplitude"):
+        make_wind({"name": "gust-1cos", "amplitude": [1.0, 2.0]})
+    with pytest.raises(ValueError, match="spin_tau"):
+        make_wind({"name": "fawt", "spin_tau": None})

@@ -23,11 +23,17 @@ from fawtgym.core.arrays import as_f64
 DT_MAX = 1.0
 
 
+def is_real(value: Any) -> bool:
+    """A finite real number (Python or numpy scalar), never a boolean: what every numeric wind option must be."""
+    return (not isinstance(value, (bool, np.bool_)) and isinstance(value, (int, float, np.integer, np.floating))
+            and math.isfinite(value))
+
+
 def check_step(t: float, dt: float) -> None:
     """ValueError naming the value unless ``t`` is a finite time [s] and ``0 < dt <= DT_MAX`` [s]."""
-    if isinstance(dt, bool) or not isinstance(dt, (float, int, np.floating, np.integer)) or not 0.0 < dt <= DT_MAX:
+    if not is_real(dt) or not 0.0 < dt <= DT_MAX:
         raise ValueError(f"dt must be a wind step in (0, {DT_MAX:g}] s, got {dt!r}")
-    if isinstance(t, bool) or not isinstance(t, (float, int, np.floating, np.integer)) or not math.isfinite(t):
+    if not is_real(t):
         raise ValueError(f"t must be a finite time [s], got {t!r}")
 
 

@@ -43,6 +43,8 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from .base import is_real
+
 FORMS = ("8785c", "1797")
 #: Lower bound of the frozen-turbulence speed [m/s].  Below ~1 m/s Taylor's hypothesis does not hold
 #: and L/V would freeze the gusts of a vehicle hovering in still mean air; 1 m/s keeps the time
@@ -51,13 +53,13 @@ V_FLOOR = 1.0
 
 
 def _check_positive(name: str, value: float) -> float:
-    if not (isinstance(value, (int, float, np.floating, np.integer)) and math.isfinite(value) and value > 0):
+    if not (is_real(value) and value > 0):
         raise ValueError(f"{name} must be a finite positive number, got {value!r}")
     return float(value)
 
 
 def _check_nonneg(name: str, value: float) -> float:
-    if not (isinstance(value, (int, float, np.floating, np.integer)) and math.isfinite(value) and value >= 0):
+    if not (is_real(value) and value >= 0):
         raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
     return float(value)
 

@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from .base import DT_MAX, is_real
 from .dryden import V_FLOOR, DrydenParams, spatial_state_space
 from .dryden_discrete import BIN, D_MAX, D_MIN, StepTable, psd_sqrt, stationary_covariance
 
@@ -171,9 +172,8 @@ class DrydenProcess:
         """
         if self.n == 0:
             raise RuntimeError("DrydenProcess.step before reset(n, seed)")
-        if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating, np.integer)) \
-                or not (0.0 < dt < math.inf):
-            raise ValueError(f"dt must be a finite positive step [s], got {dt!r}")
+        if not is_real(dt) or not 0.0 < dt <= DT_MAX:
+            raise ValueError(f"dt must be a wind step in (0, {DT_MAX:g}] s, got {dt!r}")
         speed = np.array(airspeed, dtype=float, ndmin=1)
         if speed.shape not in ((1,), (self.n,)) or not np.all(np.isfinite(speed)):
             raise ValueError(f"airspeed must be a finite scalar or shape ({self.n},) [m/s], got {airspeed!r}")

@@ -55,7 +55,7 @@ from numpy.typing import NDArray
 from fawtgym.core.checks import check_flag
 from fawtgym.core.frames import FAWT_ORIGIN_NED, R_FAWT_TO_NED
 
-from .base import WindModel, check_n, check_points, check_step, raise_not_finite
+from .base import WindModel, check_n, check_points, check_step, is_real, raise_not_finite
 from .dryden import FORMS, V_FLOOR, DrydenParams
 from .dryden_process import DrydenProcess, Seed, gust_row_step, step_bin
 from .schedule import DEFAULT_SPIN_TAU, FanSchedule
@@ -89,8 +89,7 @@ def length_scale_from_table3(duty_row: float) -> float:
 
 def check_duty(duty: float) -> float:
     """Validate a duty fraction: finite and in [0, 1] (ValueError naming it otherwise)."""
-    if isinstance(duty, bool) or not isinstance(duty, (int, float, np.floating, np.integer)) \
-            or not math.isfinite(duty) or not 0.0 <= duty <= 1.0:
+    if not is_real(duty) or not 0.0 <= duty <= 1.0:
         raise ValueError(f"FAWT duty must be a fraction in [0, 1] (Table 3 covers 0.3-0.7), got {duty!r}")
     return float(duty)
 
@@ -266,8 +265,7 @@ class FawtWind(WindModel):
         self.ti = stats["ti"]
         if length_scale is None:
             length_scale = stats["length_scale"]
-        if isinstance(length_scale, bool) or not isinstance(length_scale, (int, float, np.floating, np.integer)) \
-                or not math.isfinite(length_scale) or length_scale <= 0:
+        if not is_real(length_scale) or length_scale <= 0:
             raise ValueError(f"length_scale must be a finite positive length [m], got {length_scale!r}")
         if not isinstance(form, str) or form not in FORMS:
             raise ValueError(f"form must be one of {FORMS}, got {form!r}")

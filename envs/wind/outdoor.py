@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from fawtgym.core.checks import check_flag
 
-from .base import WindModel, check_n, check_points, check_step
+from .base import WindModel, check_n, check_points, check_step, is_real
 from .dryden import FORMS, V_FLOOR, DrydenParams
 from .dryden_process import DrydenProcess, Seed
 
@@ -52,8 +52,7 @@ def low_altitude_params(intensity: str, altitude: float, form: str = "8785c") ->
         raise ValueError(f"turbulence intensity must be one of {list(W20_KNOTS)}, got {intensity!r}")
     if form not in FORMS:
         raise ValueError(f"form must be one of {FORMS}, got {form!r}")
-    if isinstance(altitude, bool) or not isinstance(altitude, (int, float)) or not math.isfinite(altitude) \
-            or not 0.0 < altitude <= LOW_ALTITUDE_MAX:
+    if not is_real(altitude) or not 0.0 < altitude <= LOW_ALTITUDE_MAX:
         raise ValueError(f"altitude must be in (0, {LOW_ALTITUDE_MAX:.1f}] m (low-altitude model, 1000 ft), "
                          f"got {altitude!r}")
     h = max(altitude / FT, 10.0)
@@ -73,7 +72,7 @@ def log_profile_speed(intensity: str, altitude: float) -> float:
 
 
 def _direction(direction_deg: float) -> NDArray[np.float64]:
-    if not (isinstance(direction_deg, (int, float)) and math.isfinite(direction_deg)):
+    if not is_real(direction_deg):
         raise ValueError(f"direction_deg must be a finite heading in degrees, got {direction_deg!r}")
     a = math.radians(direction_deg)
     return np.array([math.cos(a), math.sin(a), 0.0])
@@ -92,8 +91,7 @@ class DrydenWind(WindModel):
                  rates: bool = False, span: float = 0.5, discretization: str = "exact") -> None:
         params = low_altitude_params(intensity, altitude, form)
         if length_scale is not None:
-            if isinstance(length_scale, bool) or not isinstance(length_scale, (int, float)) \
-                    or not math.isfinite(length_scale) or length_scale <= 0:
+            if not is_real(length_scale) or length_scale <= 0:
                 raise ValueError(f"length_scale must be a finite positive length [m], got {length_scale!r}")
             lat = length_scale if form == "8785c" else 0.5 * length_scale
             params = DrydenParams(sigma=params.sigma, length=(length_scale, lat, lat), form=form, span=span)
@@ -106,7 +104,7 @@ class DrydenWind(WindModel):
             speed = log_profile_speed(intensity, altitude)
         elif mean_wind is False or mean_wind is None:
             speed = 0.0
-        elif isinstance(mean_wind, (int, float)) and math.isfinite(mean_wind) and mean_wind >= 0:
+        elif is_real(mean_wind) and mean_wind >= 0:
             speed = float(mean_wind)
         else:
             raise ValueError(f"mean_wind must be False, True or a speed >= 0 [m/s], got {mean_wind!r}")
@@ -155,17 +153,18 @@ class OneCosineGust(WindModel):
                  speed: float = 5.0, start_time: float = 1.0, direction_deg: float = 0.0,
                  shape: str = "rise") -> None:
         d = _direction(direction_deg)
-        amp = np.asarray(amplitude, dtype=float)
-        if amp.shape == ():
+        raw = np.asarray(amplitude)
+        amp = raw.astype(float) if raw.dtype.kind in "fiu" else np.full(1, np.nan)  # (strings, bools, objects: bad)
+        if amp.shape == () and math.isfinite(float(amp)):
             amp = float(amp) * d
         if amp.shape != (3,) or not np.all(np.isfinite(amp)):
             raise ValueError(f"amplitude must be a finite speed or NED 3-vector [m/s], got {amplitude!r}")
         for name, val in (("length", length), ("speed", speed)):
-            if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
+            if not (is_real(val) and val > 0):
                 raise ValueError(f"{name} must be a finite positive number, got {val!r}")
-        if not (isinstance(start_time, (int, float)) and math.isfinite(start_time) and start_time >= 0):
+        if not (is_real(start_time) and start_time >= 0):
             raise ValueError(f"start_time must be a finite time >= 0 s, got {start_time!r}")
-        if shape not in ("rise", "full"):
+        if not isinstance(shape, str) or shape not in ("rise", "full"):
             raise ValueError(f"shape must be 'rise' or 'full', got {shape!r}")
         self.amplitude = amp
         self.length = float(length)
