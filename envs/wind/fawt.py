@@ -126,7 +126,8 @@ assert np.array_equal(R_FAWT_TO_NED, np.diag([1.0, -1.0, -1.0]))  # the kernels 
 
 
 def _reference(x_ref: float) -> tuple[float, float]:
-    """``(F(x_ref, 0, 0), U_c(x_ref) (1 + kappa x_ref) / U_c(...))`` normalizers of :func:`profile_point`."""
+    """The normalizers of :func:`profile_point` for the reference station ``x_ref``: ``F(x_ref, 0, 0)`` and
+    ``1 + kappa x_ref`` (so that ``U_c(x) / U_c(x_ref) = (1 + kappa x_ref) / (1 + kappa x)``)."""
     s = GOERTLER_SIGMA / x_ref
     return 0.25 * (1 + math.erf(HALF_SPAN * s)) * (1 + math.erf(HALF_HEIGHT * s)), 1.0 + DECAY_KAPPA * x_ref
 
