@@ -281,39 +281,6 @@ def _with_masks(info: Mapping[str, Any], mask: NDArray[np.bool_]) -> dict[str, A
     return out
 
 
-class _RowStreams:
-    """Per-row generators drawn as one block: ``standard_normal((k, m))`` takes row j's m numbers from generator j
-    (the numbers ``rngs[j].standard_normal((1, m))`` gives)."""
-
-    def __init__(self, rngs: Sequence[np.random.Generator]) -> None:
-        self.rngs = rngs
-
-    def standard_normal(self, shape: tuple[int, int]) -> NDArray[np.float64]:
-        return np.stack([g.standard_normal(shape[1:]) for g in self.rngs])
-
-
-def _measure_rows(sensor: BatchSensorModel, rows: NDArray[np.intp], rngs: Sequence[np.random.Generator],
-                  *state: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
-    """The sensor model's measurement of ``rows`` only (true ``state`` of those rows, as ``measure`` takes it), with
-    their noise from their own generators ``rngs``; the other rows' state (pose hold, counters, noise stream) is
-    untouched.  The model's own ``measure`` runs on a k-row view of its state (one law), then the rows' state is
-    written back."""
-    saved = (sensor.n, sensor.rng, sensor.gyro_bias, sensor.accel_bias, sensor._count, sensor._pose)
-    try:
-        sensor.n, sensor.rng = rows.size, _RowStreams(rngs)
-        sensor.gyro_bias, sensor.accel_bias = saved[2][rows], saved[3][rows]
-        sensor._count = saved[4][rows]
-        sensor._pose = {key: value[rows] for key, value in saved[5].items()}
-        out = sensor.measure(*state)
-        count, pose = sensor._count, sensor._pose
-    finally:
-        sensor.n, sensor.rng, sensor.gyro_bias, sensor.accel_bias, sensor._count, sensor._pose = saved
-    sensor._count[rows] = count
-    for key, value in pose.items():
-        sensor._pose[key][rows] = value
-    return out
-
-
 class BatchRateLoop:
     """:class:`fawtgym.envs.ctbr.RateLoop` for N vehicles: the same gains and law, row by row (batch-first)."""
 
@@ -738,7 +705,7 @@ class HoverBatchEnv(VectorEnv):
         state = (self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
         if not self.sensor.noisy:  # exact sensors have no state: every row measured as in a full step
             return self.sensor.measure(*state)
-        fresh = _measure_rows(self.sensor, rows, rngs, *(x[rows] for x in state))
+        fresh = self.sensor.measure_rows(rows, rngs, *(x[rows] for x in state))
         out = {}
         for key, value in measurement.items():
             out[key] = value.copy()

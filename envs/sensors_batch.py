@@ -154,6 +154,31 @@ class BatchSensorModel:
         Every array handed out is a fresh C-contiguous array.
         """
         n = self.n
+        z = self.rng.standard_normal((n, 21)) if self.noisy else np.zeros((n, 21))
+        return self._measure(None, z, t, position, velocity, rotation, angular_velocity, acceleration)
+
+    def measure_rows(self, rows: NDArray[np.intp], rngs: list[np.random.Generator], t: NDArray[np.float64],
+                     position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
+                     angular_velocity: NDArray[np.float64], acceleration: NDArray[np.float64]
+                     ) -> dict[str, NDArray[np.float64]]:
+        """The measurement of ``rows`` only (their true states, (k, ...)), each row's noise from its own generator
+        ``rngs[j]`` (21 normals); the other rows' state (pose hold, counters, noise stream) is untouched."""
+        rows = np.asarray(rows, dtype=np.intp)
+        if len(rngs) != rows.size:
+            raise ValueError(f"need one generator per measured row: {rows.size} rows, {len(rngs)} generators")
+        if self.noisy:
+            z = np.stack([g.standard_normal(21) for g in rngs]) if rngs else np.zeros((0, 21))
+        else:
+            z = np.zeros((rows.size, 21))
+        return self._measure(rows, z, t, position, velocity, rotation, angular_velocity, acceleration)
+
+    def _measure(self, rows: NDArray[np.intp] | None, z: NDArray[np.float64], t: NDArray[np.float64],
+                 position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
+                 angular_velocity: NDArray[np.float64], acceleration: NDArray[np.float64]
+                 ) -> dict[str, NDArray[np.float64]]:
+        """The kernel on ``rows`` (None: every row, the model's own state in place; else their state, written back)."""
+        every = rows is None
+        n = self.n if rows is None else rows.size
         position, velocity = as_f64(position, "position"), as_f64(velocity, "velocity")
         rotation, angular_velocity = as_f64(rotation, "rotation"), as_f64(angular_velocity, "angular_velocity")
         acceleration = as_f64(acceleration, "acceleration")
@@ -162,17 +187,21 @@ class BatchSensorModel:
             raise ValueError(f"sensor inputs must be position, velocity, angular_velocity, acceleration (N, 3) and "
                              f"rotation (N, 3, 3) with N = {n}; got {position.shape}, {velocity.shape}, "
                              f"{angular_velocity.shape}, {acceleration.shape}, {rotation.shape}")
-        if self.noisy:
-            z, pose_every = self.rng.standard_normal((n, 21)), self.pose_every
-        else:  # exact measurements every step (no hold without noise)
-            z, pose_every = np.zeros((n, 21)), 1
-        pose = self._pose
+        pose_every = self.pose_every if self.noisy else 1  # exact measurements every step (no hold without noise)
+        pose = self._pose if every else {key: value[rows] for key, value in self._pose.items()}
+        count = self._count if every else self._count[rows]
+        gyro_bias = self.gyro_bias if every else self.gyro_bias[rows]
+        accel_bias = self.accel_bias if every else self.accel_bias[rows]
         e = np.empty
         out = {M.POSITION: e((n, 3)), M.VELOCITY: e((n, 3)), M.ATTITUDE: e((n, 3, 3)), M.ANGULAR_VELOCITY: e((n, 3)),
                M.SPECIFIC_FORCE: e((n, 3)), M.GYRO: e((n, 3)), M.MAGNETOMETER: e((n, 3)),
                M.TIME: np.array(t, dtype=float)}
         measure_rows(position, velocity, rotation, angular_velocity, acceleration, z, self._sigma, _FIELD,
-                     self.gyro_bias, self.accel_bias, self._count, pose_every, pose[M.POSITION], pose[M.VELOCITY],
+                     gyro_bias, accel_bias, count, pose_every, pose[M.POSITION], pose[M.VELOCITY],
                      pose[M.ATTITUDE], out[M.POSITION], out[M.VELOCITY], out[M.ATTITUDE], out[M.ANGULAR_VELOCITY],
                      out[M.SPECIFIC_FORCE], out[M.GYRO], out[M.MAGNETOMETER])
+        if rows is not None:
+            self._count[rows] = count
+            for key, value in pose.items():
+                self._pose[key][rows] = value
         return out

@@ -179,3 +179,33 @@ def test_measurement_equals_the_sensor_equations(preset):
         for key, value in want.items():  # two implementations of one law (tests/_tolerance.py)
             assert_same_law(m[key], value, what=key)
         assert float(m["time"]) == pytest.approx(k * dt)
+
+
+def test_measure_rows_is_the_law_on_those_rows_with_their_own_noise():
+    """measure_rows (the first sample of restarted rows) gives each row what a one-row model with that row's
+    generators gives, bit for bit, and leaves the other rows alone (their next full step is unchanged)."""
+    from fawtgym.envs.sensors_batch import BatchSensorModel
+
+    def model(n, first_seed=10):
+        m = BatchSensorModel("mocap_imu", 0.002, n)
+        m.set_noise_rng(np.random.default_rng(99))
+        m.reset_rows(np.arange(n), [np.random.default_rng(first_seed + i) for i in range(n)])
+        return m
+
+    state = np.random.default_rng(1)
+    t = np.zeros(3)
+    b, v, w, a = (state.normal(size=(3, 3)) for _ in range(4))
+    r = np.tile(np.eye(3), (3, 1, 1))
+    batch, ref = model(3), model(3)
+    rows = np.array([2, 0])
+    got = batch.measure_rows(rows, [np.random.default_rng(7), np.random.default_rng(8)], t[rows], b[rows], v[rows],
+                             r[rows], w[rows], a[rows])
+    for j, row in enumerate(rows.tolist()):
+        one = model(1, first_seed=10 + row)  # the row's turn-on biases
+        one.set_noise_rng(np.random.default_rng(7 + j))
+        want = one.measure(t[:1], b[row:row + 1], v[row:row + 1], r[row:row + 1], w[row:row + 1], a[row:row + 1])
+        for key in want:
+            np.testing.assert_array_equal(got[key][j], want[key][0], err_msg=f"{key} row {row}")
+    m1, m2 = batch.measure(t, b, v, r, w, a), ref.measure(t, b, v, r, w, a)
+    for key in m1:
+        np.testing.assert_array_equal(m1[key][1], m2[key][1], err_msg=key)
