@@ -176,9 +176,8 @@ class SensorModel:
                 acceleration: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
         """Measurement at time ``t`` from the true state (position (3,), velocity (3,), rotation (3, 3), body rate
         (3,)) and the NED acceleration (3,): the batch law's row 0."""
-        rows = self._batch.measure(np.array([t], dtype=float), np.reshape(position, (1, 3)),
-                                   np.reshape(velocity, (1, 3)), np.reshape(rotation, (1, 3, 3)),
-                                   np.reshape(angular_velocity, (1, 3)), np.reshape(acceleration, (1, 3)))
+        rows = self._batch.measure(np.array([t], dtype=float), *(np.asarray(x)[None] for x in (
+            position, velocity, rotation, angular_velocity, acceleration)))
         out = {key: value[0] for key, value in rows.items()}
         out[M.TIME] = np.asarray(float(t))
         return out
