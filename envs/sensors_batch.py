@@ -27,31 +27,12 @@ from numpy.typing import NDArray
 
 from fawtgym.core import measurement as M
 from fawtgym.core.arrays import as_f64
+from fawtgym.core.so3_kernels import exp_so3_row, mat_mul_row
 
 from .sensors import SensorSpec, make_sensor_spec, pose_rate_error
 from .vehicles import GRAVITY
 
 _FIELD = np.ascontiguousarray(M.EARTH_FIELD_NED, dtype=float)
-_SMALL = 1e-8  # below this squared angle exp(w^) uses its Taylor series (as fawtgym.core.so3.exp_so3)
-
-
-@njit(cache=True)
-def exp_so3_row(x0: float, x1: float, x2: float) -> tuple[float, float, float, float, float, float, float, float,
-                                                           float]:
-    """Rodrigues ``exp(x^) = I + a x^ + b x^ x^`` of one rotation vector, row-major (the formulas and threshold of
-    :func:`fawtgym.core.so3.exp_so3`; ``x^ x^ = x x^T - |x|^2 I``)."""
-    t2 = x0 * x0 + x1 * x1 + x2 * x2
-    if t2 < _SMALL:
-        a, b = 1.0 - t2 / 6.0 + t2 * t2 / 120.0, 0.5 - t2 / 24.0 + t2 * t2 / 720.0
-    else:
-        t = math.sqrt(t2)
-        a, b = math.sin(t) / t, (1.0 - math.cos(t)) / (t * t)
-    b01, b02, b12 = b * (x0 * x1), b * (x0 * x2), b * (x1 * x2)
-    return (1.0 + b * (-(x2 * x2) - x1 * x1), -a * x2 + b01, a * x1 + b02,
-            a * x2 + b01, 1.0 + b * (-(x2 * x2) - x0 * x0), -a * x0 + b12,
-            -a * x1 + b02, a * x0 + b12, 1.0 + b * (-(x1 * x1) - x0 * x0))
-
-
 @njit(cache=True)
 def measure_rows(position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
                  rate: NDArray[np.float64], accel: NDArray[np.float64], z: NDArray[np.float64],
@@ -68,15 +49,16 @@ def measure_rows(position: NDArray[np.float64], velocity: NDArray[np.float64], r
     """
     s_pos, s_vel, s_att, s_rate, s_acc, s_gyro, s_mag = (sigma[0], sigma[1], sigma[2], sigma[3], sigma[4],
                                                          sigma[5], sigma[6])
+    delta, noise_rot = np.empty(3), np.empty((3, 3))
     for i in range(position.shape[0]):
         r = rotation[i]
         if count[i] % pose_every == 0:  # pose group: a new sample, held until the next one
-            e = exp_so3_row(s_att * z[i, 6], s_att * z[i, 7], s_att * z[i, 8])  # attitude noise R exp(Delta^x)
             for c in range(3):
                 pose_pos[i, c] = position[i, c] + s_pos * z[i, c]
                 pose_vel[i, c] = velocity[i, c] + s_vel * z[i, 3 + c]
-                for k in range(3):
-                    pose_att[i, c, k] = r[c, 0] * e[k] + r[c, 1] * e[3 + k] + r[c, 2] * e[6 + k]
+                delta[c] = s_att * z[i, 6 + c]
+            exp_so3_row(delta, noise_rot)
+            mat_mul_row(r, noise_rot, pose_att[i])  # attitude noise R exp(Delta^x) (Wang 2024, eq. 39)
         count[i] += 1
         ax, ay, az = accel[i, 0], accel[i, 1], accel[i, 2] - GRAVITY  # a - g e3 (NED)
         for c in range(3):
