@@ -36,6 +36,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core.arrays import as_f64
+from fawtgym.core.so3_kernels import cross_row, mat_t_vec_row, mat_vec_row
 
 from .vehicles import GRAVITY, VehiclePreset
 
@@ -51,6 +52,19 @@ def calibrated_rotor_drag(preset: VehiclePreset, linear_drag_per_kg: float = LIN
 
 
 @njit(cache=True)
+def _air_velocity(r: NDArray[np.float64], wind: NDArray[np.float64], v: NDArray[np.float64],
+                  rate: NDArray[np.float64], point: NDArray[np.float64], scratch: NDArray[np.float64],
+                  out: NDArray[np.float64]) -> None:
+    """``a = R^T (w - v) - Omega x p``: the air velocity relative to body point ``p``, body FRD (into ``out``)."""
+    for c in range(3):
+        scratch[c] = wind[c] - v[c]
+    mat_t_vec_row(r, scratch, out)
+    cross_row(rate, point, scratch)
+    for c in range(3):
+        out[c] -= scratch[c]
+
+
+@njit(cache=True)
 def aero_wrench_rows(rotation: NDArray[np.float64], velocity: NDArray[np.float64], rate: NDArray[np.float64],
                      rotor_speeds: NDArray[np.float64], wind: NDArray[np.float64], hubs: NDArray[np.float64],
                      cop: NDArray[np.float64], body_drag: NDArray[np.float64], k_d: float, k_r: float,
@@ -59,43 +73,34 @@ def aero_wrench_rows(rotation: NDArray[np.float64], velocity: NDArray[np.float64
 
     Returns -1, or the first row whose wrench is not finite (NaN/inf in its inputs).
     """
+    air, f_rotor, f_body, moment, scratch = np.empty(3), np.zeros(3), np.empty(3), np.empty(3), np.empty(3)
     for i in range(rotation.shape[0]):
         r = rotation[i]
-        vx, vy, vz = velocity[i, 0], velocity[i, 1], velocity[i, 2]
-        wp, wq, wr = rate[i, 0], rate[i, 1], rate[i, 2]
-        fx = fy = tx = ty = tz = 0.0
+        f_body[:] = 0.0  # sum_j F_j + F_b, body FRD
+        for c in range(3):
+            torque[i, c] = 0.0
         for j in range(hubs.shape[0]):
-            px, py, pz = hubs[j, 0], hubs[j, 1], hubs[j, 2]
-            # a_j = R^T (w_j - v) - Omega x r_j, in-plane part (P = diag(1, 1, 0))
-            dx, dy, dz = wind[i, j + 1, 0] - vx, wind[i, j + 1, 1] - vy, wind[i, j + 1, 2] - vz
-            ax = r[0, 0] * dx + r[1, 0] * dy + r[2, 0] * dz - (wq * pz - wr * py)
-            ay = r[0, 1] * dx + r[1, 1] * dy + r[2, 1] * dz - (wr * px - wp * pz)
-            drag = k_d * rotor_speeds[i, j]  # F_j = k_d omega_j P a_j
+            _air_velocity(r, wind[i, j + 1], velocity[i], rate[i], hubs[j], scratch, air)  # a_j
+            drag = k_d * rotor_speeds[i, j]  # F_j = k_d omega_j P a_j,  P = diag(1, 1, 0)
             flap = k_r * rotor_speeds[i, j]  # M_j = k_r omega_j (a_j x e3) = k_r omega_j (a_y, -a_x, 0)
-            f_jx, f_jy = drag * ax, drag * ay
-            fx += f_jx
-            fy += f_jy
-            tx += flap * ay - pz * f_jy  # r_j x F_j + M_j
-            ty += pz * f_jx - flap * ax
-            tz += px * f_jy - py * f_jx
-        # body: a_0 = R^T (w_0 - v) - Omega x c,  F_b = D |a_0| a_0 at the centre of pressure c
-        cx, cy, cz = cop[0], cop[1], cop[2]
-        dx, dy, dz = wind[i, 0, 0] - vx, wind[i, 0, 1] - vy, wind[i, 0, 2] - vz
-        ax = r[0, 0] * dx + r[1, 0] * dy + r[2, 0] * dz - (wq * cz - wr * cy)
-        ay = r[0, 1] * dx + r[1, 1] * dy + r[2, 1] * dz - (wr * cx - wp * cz)
-        az = r[0, 2] * dx + r[1, 2] * dy + r[2, 2] * dz - (wp * cy - wq * cx)
-        speed = math.sqrt(ax * ax + ay * ay + az * az)
-        bx, by, bz = body_drag[0] * ax * speed, body_drag[1] * ay * speed, body_drag[2] * az * speed
-        tx += cy * bz - cz * by  # c x F_b
-        ty += cz * bx - cx * bz
-        tz += cx * by - cy * bx
-        fx += bx
-        fy += by
-        fz = bz
-        for k in range(3):  # force = R (sum_j F_j + F_b), world NED
-            force[i, k] = r[k, 0] * fx + r[k, 1] * fy + r[k, 2] * fz
-        torque[i, 0], torque[i, 1], torque[i, 2] = tx, ty, tz
-        if not (math.isfinite(force[i, 0] + force[i, 1] + force[i, 2]) and math.isfinite(tx + ty + tz)):
+            f_rotor[0], f_rotor[1] = drag * air[0], drag * air[1]
+            cross_row(hubs[j], f_rotor, moment)  # r_j x F_j
+            torque[i, 0] += moment[0] + flap * air[1]
+            torque[i, 1] += moment[1] - flap * air[0]
+            torque[i, 2] += moment[2]
+            f_body[0] += f_rotor[0]
+            f_body[1] += f_rotor[1]
+        _air_velocity(r, wind[i, 0], velocity[i], rate[i], cop, scratch, air)  # a_0, at the centre of pressure
+        speed = math.sqrt(air[0] * air[0] + air[1] * air[1] + air[2] * air[2])
+        for c in range(3):
+            scratch[c] = body_drag[c] * air[c] * speed  # F_b = D |a_0| a_0
+        cross_row(cop, scratch, moment)  # c x F_b
+        for c in range(3):
+            torque[i, c] += moment[c]
+            f_body[c] += scratch[c]
+        mat_vec_row(r, f_body, force[i])  # force = R (sum_j F_j + F_b), world NED
+        if not (math.isfinite(force[i, 0] + force[i, 1] + force[i, 2])
+                and math.isfinite(torque[i, 0] + torque[i, 1] + torque[i, 2])):
             return i
     return -1
 
