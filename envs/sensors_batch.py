@@ -41,8 +41,9 @@ def measure_rows(position: NDArray[np.float64], velocity: NDArray[np.float64], r
                  pose_pos: NDArray[np.float64], pose_vel: NDArray[np.float64], pose_att: NDArray[np.float64],
                  out_pos: NDArray[np.float64], out_vel: NDArray[np.float64], out_att: NDArray[np.float64],
                  out_rate: NDArray[np.float64], out_fsp: NDArray[np.float64], out_gyro: NDArray[np.float64],
-                 out_mag: NDArray[np.float64]) -> None:
-    """Every row's measurement (module docstring) into the ``out_*`` arrays.
+                 out_mag: NDArray[np.float64]) -> int:
+    """Every row's measurement (module docstring) into the ``out_*`` arrays; returns -1, or the first row whose
+    measurement is not finite (NaN/inf in its state).
 
     ``sigma`` = (position, velocity, attitude, angular_velocity, accelerometer, gyro, magnetometer) per-sample
     sigmas; ``z`` (N, 21) the step's normals; the pose hold ``pose_*`` and ``count`` are updated in place.
@@ -72,6 +73,13 @@ def measure_rows(position: NDArray[np.float64], velocity: NDArray[np.float64], r
             out_mag[i, c] = mag + s_mag * z[i, 18 + c]
             for k in range(3):
                 out_att[i, c, k] = pose_att[i, c, k]
+        total = 0.0
+        for c in range(3):
+            total += (out_pos[i, c] + out_vel[i, c] + out_rate[i, c] + out_fsp[i, c] + out_gyro[i, c] + out_mag[i, c]
+                      + out_att[i, c, 0] + out_att[i, c, 1] + out_att[i, c, 2])
+        if not math.isfinite(total):
+            return i
+    return -1
 
 
 class BatchSensorModel:
@@ -178,10 +186,12 @@ class BatchSensorModel:
         out = {M.POSITION: e((n, 3)), M.VELOCITY: e((n, 3)), M.ATTITUDE: e((n, 3, 3)), M.ANGULAR_VELOCITY: e((n, 3)),
                M.SPECIFIC_FORCE: e((n, 3)), M.GYRO: e((n, 3)), M.MAGNETOMETER: e((n, 3)),
                M.TIME: np.array(t, dtype=float)}
-        measure_rows(position, velocity, rotation, angular_velocity, acceleration, z, self._sigma, _FIELD,
-                     gyro_bias, accel_bias, count, pose_every, pose[M.POSITION], pose[M.VELOCITY],
-                     pose[M.ATTITUDE], out[M.POSITION], out[M.VELOCITY], out[M.ATTITUDE], out[M.ANGULAR_VELOCITY],
-                     out[M.SPECIFIC_FORCE], out[M.GYRO], out[M.MAGNETOMETER])
+        if measure_rows(position, velocity, rotation, angular_velocity, acceleration, z, self._sigma, _FIELD,
+                        gyro_bias, accel_bias, count, pose_every, pose[M.POSITION], pose[M.VELOCITY],
+                        pose[M.ATTITUDE], out[M.POSITION], out[M.VELOCITY], out[M.ATTITUDE], out[M.ANGULAR_VELOCITY],
+                        out[M.SPECIFIC_FORCE], out[M.GYRO], out[M.MAGNETOMETER]) >= 0:
+            raise ValueError("sensor measurement is not finite: check position, velocity, rotation, angular_velocity "
+                             "and acceleration for NaN/inf")
         if rows is not None:
             self._count[rows] = count
             for key, value in pose.items():

@@ -98,7 +98,10 @@ def _measure_errors(n):
     good = [np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)), np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3)),
             np.zeros((n, 3))]
     out = []
-    for k, bad in ((1, np.zeros((n, 2))), (3, np.zeros((n, 3))), (5, np.full((n, 3), "a")), (2, np.ones((n, 3)) * 1j)):
+    nan = np.zeros((n, 3))
+    nan[-1, 1] = np.nan
+    for k, bad in ((1, np.zeros((n, 2))), (3, np.zeros((n, 3))), (5, np.full((n, 3), "a")), (2, np.ones((n, 3)) * 1j),
+                   (4, nan)):
         args = list(good)
         args[k] = bad
         with pytest.raises(ValueError) as err:
@@ -111,6 +114,7 @@ def test_bad_sensor_input_gives_the_same_error_at_every_n():
     one = _measure_errors(1)
     assert one == _measure_errors(3)
     assert "rotation (N, 3, 3)" in one[0] and "acceleration must be an array of real numbers" in one[2]
+    assert "sensor measurement is not finite" in one[4]
 
 
 def test_batch_row_equals_the_single_model():
