@@ -31,13 +31,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core.checks import check_flag
 
-from .base import WindModel, check_n, check_points, check_step, is_real
+from .base import WindModel, check_n, check_points, check_step, is_real, raise_not_finite
 from .dryden import FORMS, V_FLOOR, DrydenParams
-from .dryden_process import DrydenProcess, Seed
+from .dryden_process import DrydenProcess, Seed, gust_row_step, step_bin
 
 FT = 0.3048  #: [m] per foot
 KNOT = 0.514444  #: [m/s] per knot
@@ -76,6 +77,52 @@ def _direction(direction_deg: float) -> NDArray[np.float64]:
         raise ValueError(f"direction_deg must be a finite heading in degrees, got {direction_deg!r}")
     a = math.radians(direction_deg)
     return np.array([math.cos(a), math.sin(a), 0.0])
+
+
+@njit(cache=True)
+def dryden_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], mean: NDArray[np.float64],
+                     advection: NDArray[np.float64], axes: NDArray[np.float64], rates: bool, dt: float,
+                     x: NDArray[np.float64], noise: NDArray[np.float64], k: int, table: NDArray[np.float64],
+                     filled: NDArray[np.bool_], k0: int, bins: NDArray[np.int64], y: NDArray[np.float64],
+                     out: NDArray[np.float64]) -> int:
+    """The outdoor Dryden wind (N, K, 3) NED at ``points`` into ``out`` (module docstring), every row.
+
+    Each row's gust field (state ``x``, normals ``noise[:, k]``) steps at ``V = |W_adv - v|``; the gust
+    ``[u, v, w]`` along ``axes`` (rows: u, v, w in NED), plus with ``rates`` the gradients across the vehicle.
+    Returns -1; or, before changing anything, -2 if a point or velocity is not finite, or a table bin to fill.
+    """
+    n, n_pts = points.shape[0], points.shape[1]
+    for i in range(n):  # pass 1: inputs finite, each row's Dryden bin filled
+        for p in range(n_pts):
+            if not (math.isfinite(points[i, p, 0]) and math.isfinite(points[i, p, 1])
+                    and math.isfinite(points[i, p, 2])):
+                return -2
+        if not (math.isfinite(velocity[i, 0]) and math.isfinite(velocity[i, 1]) and math.isfinite(velocity[i, 2])):
+            return -2
+        speed = 0.0  # frozen-turbulence speed |W_adv - v|
+        for c in range(3):
+            speed += (advection[c] - velocity[i, c]) ** 2
+        speed = math.sqrt(speed)
+        b = step_bin((speed if speed > V_FLOOR else V_FLOOR) * dt, k0)
+        if not filled[b]:
+            return b
+        bins[i] = b
+    scratch = np.empty(table.shape[2])
+    for i in range(n):
+        gust_row_step(x, noise[i, k], table[bins[i]], y, i, scratch)
+        for p in range(n_pts):
+            g_u, g_v, g_w = y[i, 0], y[i, 1], y[i, 2]
+            if rates:  # offsets from the CoM along the gust axes u, v
+                d_u = d_v = 0.0
+                for c in range(3):
+                    offset = points[i, p, c] - points[i, 0, c]
+                    d_u += axes[0, c] * offset
+                    d_v += axes[1, c] * offset
+                g_v = g_v - d_u * y[i, 5]
+                g_w = g_w - d_u * y[i, 4] + d_v * y[i, 3]
+            for c in range(3):  # mean + [g_u, g_v, g_w] @ axes (NED)
+                out[i, p, c] = mean[c] + (g_u * axes[0, c] + g_v * axes[1, c] + g_w * axes[2, c])
+    return -1
 
 
 class DrydenWind(WindModel):
@@ -122,22 +169,24 @@ class DrydenWind(WindModel):
     def reset(self, n: int, seed: Seed = None) -> None:
         self.process.reset(check_n(n), seed)
         self.n = int(n)
+        self._y = np.zeros((self.n, self.process.n_out))
 
     def step(self, t: float, dt: float, points_ned: NDArray[np.float64],
              vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
         check_step(t, dt)
-        points_ned, vehicle_velocity_ned = check_points(points_ned, vehicle_velocity_ned, self.n)
-        rel = self.advection - vehicle_velocity_ned
-        speed = np.sqrt((rel * rel).sum(axis=1))
-        y = self.process.step(dt, speed)
-        if self.rates:
-            d = (points_ned - points_ned[:, :1, :]) @ self.axes.T  # offsets along (u, v, w) axes
-            gv = y[:, None, 1] - d[..., 0] * y[:, None, 5]
-            gw = y[:, None, 2] - d[..., 0] * y[:, None, 4] + d[..., 1] * y[:, None, 3]
-            gust = np.stack([np.broadcast_to(y[:, None, 0], gv.shape), gv, gw], axis=-1) @ self.axes
-        else:
-            gust = (y[:, :3] @ self.axes)[:, None, :]
-        return self.mean + gust + np.zeros(points_ned.shape)
+        points, velocity = check_points(points_ned, vehicle_velocity_ned, self.n, finite=False)
+        proc = self.process
+        table = proc.table
+        k = proc.noise_index()
+        out = np.empty(points.shape)
+        while (status := dryden_wind_rows(points, velocity, self.mean, self.advection, self.axes, self.rates,
+                                          float(dt), proc.x, proc.noise, k, table.matrices, table.filled, table.k0,
+                                          proc.bins, self._y, out)) != -1:
+            if status == -2:
+                raise_not_finite(points, velocity)
+            table.fill(status)
+        proc.advance_noise()
+        return out
 
 
 class OneCosineGust(WindModel):
