@@ -1,7 +1,8 @@
 """Aerodynamics: wind at the vehicle -> disturbance force (world NED) and torque (body FRD).
 
-Model (per vehicle, batch-first; every coefficient is a :class:`~fawtgym.envs.vehicles.VehiclePreset`
-field, the calibration is in ``docs/wind.md`` and :func:`calibrated_rotor_drag`)::
+Model (per vehicle; one compiled kernel, :func:`aero_wrench_rows`, loops over the vehicles, N = 1 is a batch of
+one; every coefficient is a :class:`~fawtgym.envs.vehicles.VehiclePreset` field, the calibration is in
+``docs/wind.md`` and :func:`calibrated_rotor_drag`)::
 
     a_i   = R^T (w_i - v) - Omega x r_i                 air velocity relative to rotor hub i, body FRD
     a_0   = R^T (w_0 - v) - Omega x c                   ... relative to the centre of pressure c
@@ -31,7 +32,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
+
+from fawtgym.core.arrays import as_f64
+from fawtgym.core.so3_kernels import cross_row, mat_t_vec_row, mat_vec_row
 
 from .vehicles import GRAVITY, VehiclePreset
 
@@ -46,8 +51,58 @@ def calibrated_rotor_drag(preset: VehiclePreset, linear_drag_per_kg: float = LIN
     return linear_drag_per_kg * preset.mass / (4.0 * preset.hover_omega)
 
 
-def _hat(r: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+@njit(cache=True)
+def _air_velocity(r: NDArray[np.float64], wind: NDArray[np.float64], v: NDArray[np.float64],
+                  rate: NDArray[np.float64], point: NDArray[np.float64], scratch: NDArray[np.float64],
+                  out: NDArray[np.float64]) -> None:
+    """``a = R^T (w - v) - Omega x p``: the air velocity relative to body point ``p``, body FRD (into ``out``)."""
+    for c in range(3):
+        scratch[c] = wind[c] - v[c]
+    mat_t_vec_row(r, scratch, out)
+    cross_row(rate, point, scratch)
+    for c in range(3):
+        out[c] -= scratch[c]
+
+
+@njit(cache=True)
+def aero_wrench_rows(rotation: NDArray[np.float64], velocity: NDArray[np.float64], rate: NDArray[np.float64],
+                     rotor_speeds: NDArray[np.float64], wind: NDArray[np.float64], hubs: NDArray[np.float64],
+                     cop: NDArray[np.float64], body_drag: NDArray[np.float64], k_d: float, k_r: float,
+                     force: NDArray[np.float64], torque: NDArray[np.float64]) -> int:
+    """The wrench of the module docstring for every row into ``force`` (N, 3) NED and ``torque`` (N, 3) FRD.
+
+    Returns -1, or the first row whose wrench is not finite (NaN/inf in its inputs).
+    """
+    air, f_rotor, f_body, moment, scratch = np.empty(3), np.zeros(3), np.empty(3), np.empty(3), np.empty(3)
+    for i in range(rotation.shape[0]):
+        r = rotation[i]
+        f_body[:] = 0.0  # sum_j F_j + F_b, body FRD
+        for c in range(3):
+            torque[i, c] = 0.0
+        for j in range(hubs.shape[0]):
+            _air_velocity(r, wind[i, j + 1], velocity[i], rate[i], hubs[j], scratch, air)  # a_j
+            drag = k_d * rotor_speeds[i, j]  # F_j = k_d omega_j P a_j,  P = diag(1, 1, 0)
+            flap = k_r * rotor_speeds[i, j]  # M_j = k_r omega_j (a_j x e3) = k_r omega_j (a_y, -a_x, 0)
+            f_rotor[0], f_rotor[1] = drag * air[0], drag * air[1]
+            cross_row(hubs[j], f_rotor, moment)  # r_j x F_j
+            torque[i, 0] += moment[0] + flap * air[1]
+            torque[i, 1] += moment[1] - flap * air[0]
+            torque[i, 2] += moment[2]
+            f_body[0] += f_rotor[0]
+            f_body[1] += f_rotor[1]
+        _air_velocity(r, wind[i, 0], velocity[i], rate[i], cop, scratch, air)  # a_0, at the centre of pressure
+        speed = math.sqrt(air[0] * air[0] + air[1] * air[1] + air[2] * air[2])
+        for c in range(3):
+            scratch[c] = body_drag[c] * air[c] * speed  # F_b = D |a_0| a_0
+        cross_row(cop, scratch, moment)  # c x F_b
+        for c in range(3):
+            torque[i, c] += moment[c]
+            f_body[c] += scratch[c]
+        mat_vec_row(r, f_body, force[i])  # force = R (sum_j F_j + F_b), world NED
+        if not (math.isfinite(force[i, 0] + force[i, 1] + force[i, 2])
+                and math.isfinite(torque[i, 0] + torque[i, 1] + torque[i, 2])):
+            return i
+    return -1
 
 
 class AeroModel:
@@ -55,28 +110,11 @@ class AeroModel:
 
     def __init__(self, preset: VehiclePreset) -> None:
         self.preset = preset
-        self.rotor_positions = np.asarray(preset.rotor_positions, dtype=float)  # (4, 3) body FRD
-        r = self.rotor_positions
-        self.n_rotors = r.shape[0]
-        k_d, k_r = float(preset.rotor_drag), float(preset.rolling_moment)
-        self.cop = np.asarray(preset.cop_offset, dtype=float)
-        self.body_drag = np.asarray(preset.body_drag, dtype=float)
-        proj = np.diag([1.0, 1.0, 0.0])
-        flap = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])  # a -> a x e3
-        # [omega_i a_i] (N, 4*3) @ W (12, 6) = [sum F_i, sum (r_i x F_i + M_i)]
-        w = np.zeros((3 * self.n_rotors, 6))
-        for i in range(self.n_rotors):
-            w[3 * i:3 * i + 3, :3] = (k_d * proj).T
-            w[3 * i:3 * i + 3, 3:] = (k_d * _hat(r[i]) @ proj + k_r * flap).T
-        self._w = w
-        # Omega (N, 3) @ X (3, 15) = [Omega x c, Omega x r_1, ..., Omega x r_4]; Omega x r = -r^ Omega
-        self._x = np.hstack([(-_hat(p)).T for p in (self.cop, *r)])
-        self._cop_hat_t = _hat(self.cop).T
-        # plain-float copies for the N = 1 path
-        self._kd, self._kr = k_d, k_r
-        self._rp = [tuple(row) for row in r.tolist()]
-        self._c = tuple(self.cop.tolist())
-        self._d = tuple(self.body_drag.tolist())
+        self.rotor_positions = np.ascontiguousarray(preset.rotor_positions, dtype=float)  # (R, 3) body FRD
+        self.n_rotors = self.rotor_positions.shape[0]
+        self.k_d, self.k_r = float(preset.rotor_drag), float(preset.rolling_moment)
+        self.cop = np.ascontiguousarray(preset.cop_offset, dtype=float)
+        self.body_drag = np.ascontiguousarray(preset.body_drag, dtype=float)
 
     def wrench(self, rotation: NDArray[np.float64], velocity: NDArray[np.float64],
                angular_velocity: NDArray[np.float64], rotor_speeds: NDArray[np.float64],
@@ -84,81 +122,24 @@ class AeroModel:
         """Force (N, 3) world NED [N] and torque (N, 3) body FRD [N m].
 
         ``rotation`` (N, 3, 3) body FRD -> NED, ``velocity`` (N, 3) NED, ``angular_velocity`` (N, 3)
-        FRD, ``rotor_speeds`` (N, 4) rad/s, ``wind`` (N, 5, 3) NED at [CoM, rotor 1..4].
+        FRD, ``rotor_speeds`` (N, R) rad/s, ``wind`` (N, R + 1, 3) NED at [CoM, rotor 1..R].
         """
-        n = velocity.shape[0]
-        if n == 1 and self.n_rotors == 4 and wind.shape == (1, 5, 3) and rotation.shape == (1, 3, 3) \
-                and angular_velocity.shape == (1, 3) and rotor_speeds.shape == (1, 4):
-            return self._wrench_single(rotation, velocity, angular_velocity, rotor_speeds, wind)
-        if wind.shape != (n, self.n_rotors + 1, 3) or rotation.shape != (n, 3, 3) \
-                or angular_velocity.shape != (n, 3) or rotor_speeds.shape != (n, self.n_rotors):
-            raise ValueError(f"AeroModel.wrench shapes must be rotation ({n},3,3), velocity ({n},3), angular_velocity "
-                             f"({n},3), rotor_speeds ({n},{self.n_rotors}), wind ({n},{self.n_rotors + 1},3); got "
-                             f"{rotation.shape}, {velocity.shape}, {angular_velocity.shape}, {rotor_speeds.shape}, "
-                             f"{wind.shape}")
-        # air velocity relative to each point, body FRD: R^T (w_k - v) - Omega x r_k
-        rel = (wind - velocity[:, None, :]) @ rotation - (angular_velocity @ self._x).reshape(n, self.n_rotors + 1, 3)
-        q = (rotor_speeds[:, :, None] * rel[:, 1:, :]).reshape(n, 3 * self.n_rotors)
-        ft = q @ self._w  # (N, 6): rotor force (body) and torque
-        a0 = rel[:, 0, :]
-        f_body = self.body_drag * a0 * np.sqrt((a0 * a0).sum(axis=1, keepdims=True))
-        force_b = ft[:, :3] + f_body
-        torque = ft[:, 3:] + f_body @ self._cop_hat_t
-        force_ned = (rotation @ force_b[:, :, None])[:, :, 0]
-        if not math.isfinite(float(force_ned.sum()) + float(torque.sum())):
+        rotation, velocity = as_f64(rotation, "rotation"), as_f64(velocity, "velocity")
+        angular_velocity, rotor_speeds = as_f64(angular_velocity, "angular_velocity"), as_f64(rotor_speeds,
+                                                                                             "rotor_speeds")
+        wind = as_f64(wind, "wind")
+        n, m = velocity.shape[0] if velocity.ndim else -1, self.n_rotors
+        if velocity.shape != (n, 3) or wind.shape != (n, m + 1, 3) or rotation.shape != (n, 3, 3) \
+                or angular_velocity.shape != (n, 3) or rotor_speeds.shape != (n, m):
+            raise ValueError(f"AeroModel.wrench shapes must be rotation (N,3,3), velocity (N,3), angular_velocity "
+                             f"(N,3), rotor_speeds (N,{m}), wind (N,{m + 1},3); got {rotation.shape}, "
+                             f"{velocity.shape}, {angular_velocity.shape}, {rotor_speeds.shape}, {wind.shape}")
+        force, torque = np.empty((n, 3)), np.empty((n, 3))
+        if aero_wrench_rows(rotation, velocity, angular_velocity, rotor_speeds, wind, self.rotor_positions,
+                            self.cop, self.body_drag, self.k_d, self.k_r, force, torque) >= 0:
             raise ValueError("aerodynamic wrench is not finite: check rotation, velocity, angular_velocity, "
                              "rotor_speeds and wind for NaN/inf")
-        return force_ned, torque
-
-    def _wrench_single(self, rotation: NDArray[np.float64], velocity: NDArray[np.float64],
-                       angular_velocity: NDArray[np.float64], rotor_speeds: NDArray[np.float64],
-                       wind: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """N = 1 :meth:`wrench` through :meth:`wrench_floats`."""
-        force, torque = self.wrench_floats(rotation.ravel().tolist(), velocity[0].tolist(),
-                                           angular_velocity[0].tolist(), rotor_speeds[0].tolist(),
-                                           wind.ravel().tolist())
-        return np.array([force]), np.array([torque])
-
-    def wrench_floats(self, r: list[float], v: list[float], w: list[float], om: list[float], wind: list[float]
-                      ) -> tuple[list[float], list[float]]:
-        """One vehicle in plain float arithmetic (same model as :meth:`wrench`; small numpy ops cost more than the
-        math here): ``r`` = R row-major (9), ``v`` (3), ``w`` = Omega (3), ``om`` = rotor speeds (4), ``wind`` flat
-        (15: CoM then hubs).  Returns (force NED, torque FRD) as lists; ValueError if not finite."""
-        r00, r01, r02, r10, r11, r12, r20, r21, r22 = r
-        vx, vy, vz = v
-        wp, wq, wr = w
-        k_d, k_r = self._kd, self._kr
-        fx = fy = tx = ty = tz = 0.0
-        for i, (px, py, pz) in enumerate(self._rp):
-            j = 3 * i + 3
-            dx, dy, dz = wind[j] - vx, wind[j + 1] - vy, wind[j + 2] - vz
-            ax = r00 * dx + r10 * dy + r20 * dz - (wq * pz - wr * py)
-            ay = r01 * dx + r11 * dy + r21 * dz - (wr * px - wp * pz)
-            kw, mw = k_d * om[i], k_r * om[i]
-            gx, gy = kw * ax, kw * ay
-            fx += gx
-            fy += gy
-            tx += mw * ay - pz * gy
-            ty += pz * gx - mw * ax
-            tz += px * gy - py * gx
-        cx, cy, cz = self._c
-        dx, dy, dz = wind[0] - vx, wind[1] - vy, wind[2] - vz
-        ax = r00 * dx + r10 * dy + r20 * dz - (wq * cz - wr * cy)
-        ay = r01 * dx + r11 * dy + r21 * dz - (wr * cx - wp * cz)
-        az = r02 * dx + r12 * dy + r22 * dz - (wp * cy - wq * cx)
-        nrm = math.sqrt(ax * ax + ay * ay + az * az)
-        bx, by, bz = self._d[0] * ax * nrm, self._d[1] * ay * nrm, self._d[2] * az * nrm
-        tx += cy * bz - cz * by
-        ty += cz * bx - cx * bz
-        tz += cx * by - cy * bx
-        fx += bx
-        fy += by
-        fz = bz
-        force = [r00 * fx + r01 * fy + r02 * fz, r10 * fx + r11 * fy + r12 * fz, r20 * fx + r21 * fy + r22 * fz]
-        if not math.isfinite(force[0] + force[1] + force[2] + tx + ty + tz):
-            raise ValueError("aerodynamic wrench is not finite: check rotation, velocity, angular_velocity, "
-                             "rotor_speeds and wind for NaN/inf")
-        return force, [tx, ty, tz]
+        return force, torque
 
 
 def hover_drag(preset: VehiclePreset, airspeed: float | NDArray[np.float64]) -> NDArray[np.float64]:

@@ -113,7 +113,7 @@ from __future__ import annotations
 import copy
 import os
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any, cast
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -131,7 +131,7 @@ from fawtgym.core.so3 import exp_so3
 from .aero import AeroModel
 from .ctbr import MAX_RATES, RateLoop
 from .mjcf import hull_points, vehicle_mjcf
-from .motors import allocation_matrix
+from .motors import allocation_matrix, decay_factors, substep_times
 from .observation import OBS_SIZE, hover_observation, observation_bounds, observation_rows
 from .options import (
     INIT_SPREAD,
@@ -203,37 +203,6 @@ def _with_masks(info: Mapping[str, Any], mask: NDArray[np.bool_]) -> dict[str, A
     return out
 
 
-class _RowStreams:
-    """Per-row generators drawn as one block: ``standard_normal((k, m))`` takes row j's m numbers from generator j
-    (the numbers ``rngs[j].standard_normal((1, m))`` gives)."""
-
-    def __init__(self, rngs: Sequence[np.random.Generator]) -> None:
-        self.rngs = rngs
-
-    def standard_normal(self, shape: tuple[int, int]) -> NDArray[np.float64]:
-        return np.stack([g.standard_normal(shape[1:]) for g in self.rngs])
-
-
-def _measure_rows(sensor: BatchSensorModel, rows: NDArray[np.intp], rngs: Sequence[np.random.Generator],
-                  *state: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
-    """The sensor model's measurement of ``rows`` only (true ``state`` of those rows, as ``measure`` takes it), with
-    their noise from their own generators ``rngs``; the other rows' state (pose hold, counters, noise stream) is
-    untouched.  The model's own ``measure`` runs on a k-row view of its state (one law), then the rows' state is
-    written back."""
-    saved = (sensor.n, sensor.rng, sensor.gyro_bias, sensor.accel_bias, sensor._count, sensor._pose)
-    try:
-        sensor.n, sensor.rng = rows.size, cast(np.random.Generator, _RowStreams(rngs))  # standard_normal only
-        sensor.gyro_bias, sensor.accel_bias = saved[2][rows], saved[3][rows]
-        sensor._count = saved[4][rows]
-        sensor._pose = {key: value[rows] for key, value in saved[5].items()}
-        out = sensor.measure(*state)
-        count, pose = sensor._count, sensor._pose
-    finally:
-        sensor.n, sensor.rng, sensor.gyro_bias, sensor.accel_bias, sensor._count, sensor._pose = saved
-    sensor._count[rows] = count
-    for key, value in pose.items():
-        sensor._pose[key][rows] = value
-    return out
 
 
 class HoverBatchEnv(VectorEnv):
@@ -323,17 +292,14 @@ class HoverBatchEnv(VectorEnv):
         self._rotor_pos = np.ascontiguousarray(p.rotor_positions)
         self._hover = hover_action(p, self.action_type)
         self._rate_loop = RateLoop(p, self.physics_dt, n) if action_type == "ctbr" else None
-        sub_times = np.array([0.5 * self.physics_dt, self.physics_dt])
-        self._sub_decay_up, self._sub_decay_down = np.exp(-sub_times / p.tau_up), np.exp(-sub_times / p.tau_down)
+        self._sub_decay_up, self._sub_decay_down = decay_factors(p, substep_times(self.physics_dt, 1))
         self._max_thrust = 4.0 * p.max_thrust_per_rotor
         self._act_low = self.single_action_space.low.astype(float)
         self._act_high = self.single_action_space.high.astype(float)
         self._obs_low = self.single_observation_space.low.astype(float)
         self._obs_high = self.single_observation_space.high.astype(float)
         k = self.n_substeps
-        step_times = np.append((np.arange(k) + 0.5) * self.physics_dt, self.dt)  # mid-substep times, end of step
-        self._decay_up = np.exp(-step_times / p.tau_up)  # (K + 1,) motor lag decay factors (step_kernels)
-        self._decay_down = np.exp(-step_times / p.tau_down)
+        self._decay_up, self._decay_down = decay_factors(p, substep_times(self.dt, k))  # (K + 1,): motors.lag_thrusts
         self._omega_min, self._omega_span = p.omega_min, p.omega_max - p.omega_min
         self._k_thrust = float(p.k_thrust)
         if self._qfrc_col != 4:  # motor_controls writes [4 rotor thrusts, qfrc_applied 6]
@@ -624,7 +590,7 @@ class HoverBatchEnv(VectorEnv):
         state = (self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
         if not self.sensor.noisy:  # exact sensors have no state: every row measured as in a full step
             return self.sensor.measure(*state)
-        fresh = _measure_rows(self.sensor, rows, rngs, *(x[rows] for x in state))
+        fresh = self.sensor.measure_rows(rows, rngs, *(x[rows] for x in state))
         out = {}
         for key, value in measurement.items():
             out[key] = value.copy()

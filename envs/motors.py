@@ -11,11 +11,15 @@ the speed approaches the reference monotonically, so the time constant cannot sw
 period and the exact solution ``omega(t) = omega_ref + (omega_0 - omega_ref) exp(-t / tau)`` is used
 (no integration error, any step size).  Thrust ``T = k_T omega^2`` along body -z (FRD) and reaction
 torque ``d_i k_M T`` about body z.
+
+The lag over a step of K physics substeps is one compiled kernel over rows (:func:`lag_thrusts`): the thrust of
+substep k is ``k_T omega(t_k)^2`` at its midpoint ``t_k``, the speed carried on is ``omega`` at the step's end.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from .vehicles import VehiclePreset
@@ -47,8 +51,48 @@ def hover_command(preset: VehiclePreset) -> float:
     return float(omega_to_command(preset, preset.hover_omega))
 
 
+def decay_factors(preset: VehiclePreset, times: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(exp(-t / tau_up), exp(-t / tau_down))`` at ``times`` (K,): the factors of :func:`lag_thrusts`."""
+    t = np.ascontiguousarray(times, dtype=float)
+    return np.exp(-t / preset.tau_up), np.exp(-t / preset.tau_down)
+
+
+def substep_times(step_dt: float, substeps: int) -> NDArray[np.float64]:
+    """The K substep midpoints and the step's end [s]: ``(k + 1/2) step_dt / K`` for k < K, then ``step_dt``."""
+    return np.append((np.arange(substeps) + 0.5) * (step_dt / substeps), step_dt)
+
+
+@njit(cache=True)
+def lag_thrusts(omega_ref: NDArray[np.float64], omega0: NDArray[np.float64], decay_up: NDArray[np.float64],
+                decay_down: NDArray[np.float64], k_thrust: float, thrust_out: NDArray[np.float64],
+                speeds_out: NDArray[np.float64], mean_thrust: NDArray[np.float64]) -> None:
+    """Exact lag of every row's rotors (N, R) from ``omega0`` toward the held ``omega_ref`` over K substeps.
+
+    ``decay_*`` (K + 1,) are ``exp(-t / tau)`` at the substep midpoints and the step's end (:func:`substep_times`):
+    ``thrust_out[i, k, j] = k_T omega_ij(t_k)^2`` (columns 0..R-1 of a wider array are written), ``mean_thrust`` their
+    mean over the K substeps, ``speeds_out`` the speeds at the end.
+    """
+    n_sub = decay_up.shape[0] - 1
+    for i in range(omega_ref.shape[0]):
+        for j in range(omega_ref.shape[1]):
+            ref, w0 = omega_ref[i, j], omega0[i, j]
+            decay = decay_up if ref > w0 else decay_down  # monotone approach: one time constant per step
+            gap = w0 - ref
+            total = 0.0
+            for k in range(n_sub):
+                w = ref + gap * decay[k]  # omega(t_k) = omega_ref + (omega_0 - omega_ref) exp(-t_k / tau)
+                thrust = k_thrust * (w * w)
+                thrust_out[i, k, j] = thrust
+                total += thrust
+            mean_thrust[i, j] = total / n_sub
+            speeds_out[i, j] = ref + gap * decay[n_sub]
+
+
 def lag_speeds(preset: VehiclePreset, omega0: ArrayLike, omega_ref: ArrayLike, times: ArrayLike) -> NDArray[np.float64]:
-    """Exact rotor speeds at ``times`` (K,) after ``omega0`` with a held reference; returns (K, ..., 4)."""
+    """Exact rotor speeds at ``times`` (K,) after ``omega0`` with a held reference; returns (K, ..., 4).
+
+    The closed form :func:`lag_thrusts` evaluates, written out with numpy (a reference for tests and plots).
+    """
     omega0 = np.asarray(omega0, dtype=float)
     omega_ref = np.asarray(omega_ref, dtype=float)
     tau = np.where(omega_ref > omega0, preset.tau_up, preset.tau_down)

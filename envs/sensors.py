@@ -1,4 +1,4 @@
-"""Sensor models: noise presets, sample-and-hold rates, the measurement the agent sees.
+"""Sensor presets (noise, rates) and the single-vehicle view of the sensor law (:mod:`.sensors_batch`).
 
 Every noise figure is given as a white-noise *density* ``d`` (unit/sqrt(Hz)), i.e. a one-sided
 power spectral density ``P = d^2``.  Sampled every ``dt`` seconds, white noise of density ``d``
@@ -38,9 +38,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.so3 import exp_so3_floats, matmul33_floats
-
-from .vehicles import GRAVITY
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,10 +62,11 @@ class SensorSpec:
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
-            if f.name in ("name",) or v is None:
+            if f.name == "name" or (v is None and f.name == "pose_rate"):
                 continue
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"sensor field {f.name!r} must be finite and >= 0, got {v!r}")
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
+                    or not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"sensor field {f.name!r} must be a finite number >= 0, got {v!r}")
         if self.pose_rate is not None and self.pose_rate <= 0:
             raise ValueError(f"sensor field 'pose_rate' must be > 0 Hz, got {self.pose_rate!r}")
 
@@ -87,11 +85,16 @@ SENSOR_PRESETS: dict[str, SensorSpec] = {
 
 
 def make_sensor_spec(spec: str | SensorSpec | Mapping[str, Any]) -> SensorSpec:
+    """A :class:`SensorSpec` from a preset name, a spec, or ``{"base": preset, field: value, ...}``."""
     if isinstance(spec, SensorSpec):
         return spec
     if isinstance(spec, Mapping):
         data = dict(spec)
         base = data.pop("base", "none")
+        fields = [f.name for f in dataclasses.fields(SensorSpec)]
+        unknown = sorted(str(k) for k in data if k not in fields)
+        if unknown:
+            raise ValueError(f"unknown sensor field(s) {unknown}; valid: ['base', {str(fields)[1:]}")
         return dataclasses.replace(make_sensor_spec(base), **data)
     if isinstance(spec, str) and spec in SENSOR_PRESETS:
         return SENSOR_PRESETS[spec]
@@ -112,6 +115,8 @@ def pose_rate_error(spec: SensorSpec, control_rate: float, physics_rate: float |
     """The one-line message for a control rate that the pose rate of ``spec`` does not divide: names the preset
     and the control rates allowed with it (given the physics rate when known)."""
     pose = spec.pose_rate
+    if pose is None:
+        raise ValueError(f"sensor preset {spec.name!r} has no pose_rate: every control rate is allowed")
     head = (f"sensor preset {spec.name!r}: sensor pose_rate {pose} Hz must divide the control rate "
             f"{control_rate:g} Hz; allowed: ")
     if physics_rate is None:
@@ -125,113 +130,64 @@ def pose_rate_error(spec: SensorSpec, control_rate: float, physics_rate: float |
 
 
 class SensorModel:
-    """Turns the true state into a measurement mapping, for one vehicle, at the control rate.
+    """One vehicle's sensors: :class:`~fawtgym.envs.sensors_batch.BatchSensorModel` (the one law) as a batch of one,
+    with 1-D arrays in and out.
 
     ``physics_dt`` (optional) is only used to list the allowed control rates when the pose rate does not divide
     the control rate.
     """
 
     def __init__(self, spec: SensorSpec, control_dt: float, physics_dt: float | None = None) -> None:
-        self.spec = spec
-        self.dt = control_dt
-        if spec.pose_rate is None:
-            self.pose_every = 1
-        else:
-            ratio = 1.0 / (spec.pose_rate * control_dt)
-            if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
-                raise ValueError(pose_rate_error(spec, 1.0 / control_dt,
-                                                 None if physics_dt is None else 1.0 / physics_dt))
-            self.pose_every = int(round(ratio))
-        pose_dt = self.pose_every * control_dt
-        root_dt, root_pose = math.sqrt(control_dt), math.sqrt(pose_dt)
-        self.sig_pos = math.hypot(spec.position_density / root_pose, spec.position_sigma)
-        self.sig_vel = math.hypot(spec.velocity_density / root_pose, spec.velocity_sigma)
-        self.sig_att = math.hypot(spec.attitude_density / root_pose, spec.attitude_sigma)
-        self.sig_rate = spec.angular_velocity_density / root_dt
-        self.sig_gyro = spec.gyro_density / root_dt
-        self.sig_acc = spec.accel_density / root_dt
-        self.noisy = any(s > 0 for s in (self.sig_pos, self.sig_vel, self.sig_att, self.sig_rate, self.sig_gyro,
-                                         self.sig_acc, spec.mag_sigma, spec.gyro_bias_sigma, spec.accel_bias_sigma))
+        from .sensors_batch import BatchSensorModel  # the law's module imports this one's specs
+
+        self._batch = BatchSensorModel(spec, control_dt, 1, physics_dt)
+        b = self._batch
+        self.spec, self.dt, self.pose_every, self.noisy = b.spec, b.dt, b.pose_every, b.noisy
+        self.sig_pos, self.sig_vel, self.sig_att = b.sig_pos, b.sig_vel, b.sig_att
+        self.sig_rate, self.sig_gyro, self.sig_acc = b.sig_rate, b.sig_gyro, b.sig_acc
 
     def reset(self, rng: np.random.Generator) -> None:
+        """A new episode: turn-on biases from ``rng``, which then draws the per-step noise too (the batch model's
+        draws at N = 1: ``standard_normal((1, 21))`` per step)."""
         self.rng = rng
-        self.gyro_bias = rng.normal(0.0, self.spec.gyro_bias_sigma, 3) if self.spec.gyro_bias_sigma else np.zeros(3)
-        self.accel_bias = rng.normal(0.0, self.spec.accel_bias_sigma, 3) if self.spec.accel_bias_sigma else np.zeros(3)
-        self._pose: tuple[list[float], list[float], tuple[float, ...]] | None = None
-        self._count = 0
+        self._batch.set_noise_rng(rng)
+        self._batch.reset_rows(np.zeros(1, dtype=np.intp), [rng])
 
     @property
     def gyro_bias(self) -> NDArray[np.float64]:
         """Gyroscope turn-on bias [rad/s] (3,), drawn at :meth:`reset`; assign to set it (e.g. a bias sweep)."""
-        return np.array(self._gyro_bias)
+        return self._batch.gyro_bias[0].copy()
 
     @gyro_bias.setter
     def gyro_bias(self, value: Any) -> None:
-        self._gyro_bias = _bias("gyro_bias", value)
+        self._batch.gyro_bias[0] = _bias("gyro_bias", value)
 
     @property
     def accel_bias(self) -> NDArray[np.float64]:
         """Accelerometer turn-on bias [m/s^2] (3,), drawn at :meth:`reset`; assign to set it."""
-        return np.array(self._accel_bias)
+        return self._batch.accel_bias[0].copy()
 
     @accel_bias.setter
     def accel_bias(self, value: Any) -> None:
-        self._accel_bias = _bias("accel_bias", value)
+        self._batch.accel_bias[0] = _bias("accel_bias", value)
 
     def measure(self, t: float, position: NDArray[np.float64], velocity: NDArray[np.float64],
                 rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],
                 acceleration: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
-        """Measurement at time ``t`` from the true state (arrays) and NED acceleration."""
-        lists = self.measure_floats(np.ravel(position).tolist(), np.ravel(velocity).tolist(),
-                                    np.ravel(rotation).tolist(), np.ravel(angular_velocity).tolist(),
-                                    np.ravel(acceleration).tolist())
-        return as_measurement(lists, t)
-
-    def measure_floats(self, b: list[float], v: list[float], r: list[float], w: list[float],
-                       acc: list[float]) -> tuple[list[float], ...]:
-        """:meth:`measure` in float arithmetic (the env's hot path): state as lists (``r``: R row-major, 9),
-        returns ``(position, velocity, attitude (9, row-major), angular_velocity, specific_force, gyro,
-        magnetometer)`` as fresh lists; :func:`as_measurement` turns them into the measurement mapping."""
-        r0, r1, r2, r3, r4, r5, r6, r7, r8 = r
-        # body-frame vectors R^T (a - g e3) and R^T m_E
-        ax, ay, az = acc[0], acc[1], acc[2] - GRAVITY
-        f_sp = [r0 * ax + r3 * ay + r6 * az, r1 * ax + r4 * ay + r7 * az, r2 * ax + r5 * ay + r8 * az]
-        mx, my, mz = _FIELD
-        mag = [r0 * mx + r3 * my + r6 * mz, r1 * mx + r4 * my + r7 * mz, r2 * mx + r5 * my + r8 * mz]
-        if not self.noisy:
-            return list(b), list(v), list(r), list(w), f_sp, list(w), mag
-        n = self.rng.normal(size=18).tolist()
-        if self._pose is None or self._count % self.pose_every == 0:
-            sp, sv, st = self.sig_pos, self.sig_vel, self.sig_att
-            self._pose = ([b[0] + sp * n[0], b[1] + sp * n[1], b[2] + sp * n[2]],
-                          [v[0] + sv * n[3], v[1] + sv * n[4], v[2] + sv * n[5]],
-                          matmul33_floats(r, exp_so3_floats(st * n[6], st * n[7], st * n[8])))
-        self._count += 1
-        sr, sa, sg = self.sig_rate, self.sig_acc, self.sig_gyro
-        ba, bg = self._accel_bias, self._gyro_bias
-        m = self.rng.normal(size=3).tolist()
-        sm = self.spec.mag_sigma
-        pos, vel, att = self._pose
-        return (list(pos), list(vel), list(att),
-                [w[0] + sr * n[9], w[1] + sr * n[10], w[2] + sr * n[11]],
-                [f_sp[0] + ba[0] + sa * n[12], f_sp[1] + ba[1] + sa * n[13], f_sp[2] + ba[2] + sa * n[14]],
-                [w[0] + bg[0] + sg * n[15], w[1] + bg[1] + sg * n[16], w[2] + bg[2] + sg * n[17]],
-                [mag[0] + sm * m[0], mag[1] + sm * m[1], mag[2] + sm * m[2]])
+        """Measurement at time ``t`` from the true state (position (3,), velocity (3,), rotation (3, 3), body rate
+        (3,)) and the NED acceleration (3,): the batch law's row 0."""
+        rows = self._batch.measure(np.array([t], dtype=float), *(np.asarray(x)[None] for x in (
+            position, velocity, rotation, angular_velocity, acceleration)))
+        out = {key: value[0] for key, value in rows.items()}
+        out[M.TIME] = np.asarray(float(t))
+        return out
 
 
-_FIELD = tuple(M.EARTH_FIELD_NED.tolist())
-
-
-def _bias(name: str, value: Any) -> list[float]:
-    b = np.array(value, dtype=float)
+def _bias(name: str, value: Any) -> NDArray[np.float64]:
+    try:
+        b = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        b = np.array([np.nan])
     if b.shape != (3,) or not np.all(np.isfinite(b)):
         raise ValueError(f"{name} must be 3 finite values, got {value!r}")
-    return b.tolist()
-
-
-def as_measurement(lists: tuple[list[float], ...], t: float) -> dict[str, NDArray[np.float64]]:
-    """The measurement mapping (fresh arrays) from :meth:`SensorModel.measure_floats`' lists."""
-    pos, vel, att, rate, f_sp, gyro, mag = lists
-    return {M.POSITION: np.array(pos), M.VELOCITY: np.array(vel), M.ATTITUDE: np.array(att).reshape(3, 3),
-            M.ANGULAR_VELOCITY: np.array(rate), M.SPECIFIC_FORCE: np.array(f_sp), M.GYRO: np.array(gyro),
-            M.MAGNETOMETER: np.array(mag), M.TIME: np.asarray(float(t))}
+    return b

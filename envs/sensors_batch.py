@@ -1,50 +1,120 @@
-"""Batched sensor model: :class:`fawtgym.envs.sensors.SensorModel` for N vehicles at once.
+"""The sensor law: N vehicles' measurements at the control rate, one compiled kernel over rows.
 
-Same noise model, presets and rates as the single-vehicle model (the per-sample sigmas are taken
-from a :class:`~fawtgym.envs.sensors.SensorModel` built with the same spec, so the two can never
-disagree): pose group sample-and-hold every ``pose_every`` control steps (per vehicle, counted from
-that vehicle's own episode start), IMU group every step, constant turn-on biases drawn per vehicle
-at its reset, attitude noise ``R exp(Delta^x)`` (Wang et al. (2024) eq. 39).
+Noise model and presets: :mod:`fawtgym.envs.sensors`.  Per row: the pose group (position, velocity,
+attitude) is sampled and held every ``pose_every`` control steps (counted from that vehicle's own
+episode start), the IMU group every step, with constant turn-on biases drawn per vehicle at its reset::
 
-Random streams.  Per-step noise for all N rows comes from one generator in fixed-size blocks
-(N, 21) per step, so one row's trajectory never changes how many numbers another row consumes
-(rows stay independent).  The turn-on biases of a row are drawn from that row's own generator
-(passed to :meth:`BatchSensorModel.reset_rows`), exactly as :meth:`SensorModel.reset` draws them,
-so a row's biases equal a single env's for the same sensor seed.  With N = 1 the caller may pass
-the row's generator as the noise generator too; the draws then equal the single model's
-(``normal(size=18)`` then ``normal(size=3)`` per step = ``standard_normal((1, 21))``).
+    position = b + sigma_p n_p,  velocity = v + sigma_v n_v,  attitude = R exp((sigma_R n_R)^x)   (Wang 2024, eq. 39)
+    angular_velocity = Omega + sigma_Omega n_Omega             (estimator grade: bias removed)
+    specific_force   = R^T (a - g e3) + b_a + sigma_a n_a
+    gyro             = Omega + b_g + sigma_g n_g
+    magnetometer     = R^T m_E + sigma_m n_m
+
+Random streams.  Per-step noise for all N rows comes from one generator, ``standard_normal((N, 21))`` per step
+(columns: n_p, n_v, n_R, n_Omega, n_a, n_g, n_m), so one row's trajectory never changes how many numbers another
+row consumes (rows stay independent).  The turn-on biases of a row are drawn from that row's own generator
+(passed to :meth:`BatchSensorModel.reset_rows`).  With N = 1 and the row's generator as the noise generator,
+this is the single-vehicle model (:class:`fawtgym.envs.sensors.SensorModel`).
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.so3 import exp_so3
+from fawtgym.core.arrays import as_f64
+from fawtgym.core.so3_kernels import exp_so3_row, mat_mul_row
 
-from .sensors import SensorModel, SensorSpec, make_sensor_spec
+from .sensors import SensorSpec, make_sensor_spec, pose_rate_error
 from .vehicles import GRAVITY
 
-_GRAVITY_NED = np.array([0.0, 0.0, GRAVITY])
+_FIELD = np.ascontiguousarray(M.EARTH_FIELD_NED, dtype=float)
+@njit(cache=True)
+def measure_rows(position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
+                 rate: NDArray[np.float64], accel: NDArray[np.float64], z: NDArray[np.float64],
+                 sigma: NDArray[np.float64], field: NDArray[np.float64], gyro_bias: NDArray[np.float64],
+                 accel_bias: NDArray[np.float64], count: NDArray[np.int64], pose_every: int,
+                 pose_pos: NDArray[np.float64], pose_vel: NDArray[np.float64], pose_att: NDArray[np.float64],
+                 out_pos: NDArray[np.float64], out_vel: NDArray[np.float64], out_att: NDArray[np.float64],
+                 out_rate: NDArray[np.float64], out_fsp: NDArray[np.float64], out_gyro: NDArray[np.float64],
+                 out_mag: NDArray[np.float64]) -> int:
+    """Every row's measurement (module docstring) into the ``out_*`` arrays; returns -1, or the first row whose
+    measurement is not finite (NaN/inf in its state).
+
+    ``sigma`` = (position, velocity, attitude, angular_velocity, accelerometer, gyro, magnetometer) per-sample
+    sigmas; ``z`` (N, 21) the step's normals; the pose hold ``pose_*`` and ``count`` are updated in place.
+    """
+    s_pos, s_vel, s_att, s_rate, s_acc, s_gyro, s_mag = (sigma[0], sigma[1], sigma[2], sigma[3], sigma[4],
+                                                         sigma[5], sigma[6])
+    delta, noise_rot = np.empty(3), np.empty((3, 3))
+    for i in range(position.shape[0]):
+        r = rotation[i]
+        if count[i] % pose_every == 0:  # pose group: a new sample, held until the next one
+            for c in range(3):
+                pose_pos[i, c] = position[i, c] + s_pos * z[i, c]
+                pose_vel[i, c] = velocity[i, c] + s_vel * z[i, 3 + c]
+                delta[c] = s_att * z[i, 6 + c]
+            exp_so3_row(delta, noise_rot)
+            mat_mul_row(r, noise_rot, pose_att[i])  # attitude noise R exp(Delta^x) (Wang 2024, eq. 39)
+        count[i] += 1
+        ax, ay, az = accel[i, 0], accel[i, 1], accel[i, 2] - GRAVITY  # a - g e3 (NED)
+        for c in range(3):
+            f_sp = r[0, c] * ax + r[1, c] * ay + r[2, c] * az  # R^T (a - g e3)
+            mag = r[0, c] * field[0] + r[1, c] * field[1] + r[2, c] * field[2]  # R^T m_E
+            out_pos[i, c] = pose_pos[i, c]
+            out_vel[i, c] = pose_vel[i, c]
+            out_rate[i, c] = rate[i, c] + s_rate * z[i, 9 + c]
+            out_fsp[i, c] = f_sp + accel_bias[i, c] + s_acc * z[i, 12 + c]
+            out_gyro[i, c] = rate[i, c] + gyro_bias[i, c] + s_gyro * z[i, 15 + c]
+            out_mag[i, c] = mag + s_mag * z[i, 18 + c]
+            for k in range(3):
+                out_att[i, c, k] = pose_att[i, c, k]
+        total = 0.0
+        for c in range(3):
+            total += (out_pos[i, c] + out_vel[i, c] + out_rate[i, c] + out_fsp[i, c] + out_gyro[i, c] + out_mag[i, c]
+                      + out_att[i, c, 0] + out_att[i, c, 1] + out_att[i, c, 2])
+        if not math.isfinite(total):
+            return i
+    return -1
 
 
 class BatchSensorModel:
-    """Measurements of N vehicles (batch-first) at the control rate; see the module docstring."""
+    """Measurements of N vehicles (batch-first) at the control rate; see the module docstring.
+
+    ``physics_dt`` (optional) is only used to list the allowed control rates when the pose rate does not divide
+    the control rate.
+    """
 
     def __init__(self, spec: SensorSpec | str, control_dt: float, n: int, physics_dt: float | None = None) -> None:
-        if not (isinstance(n, (int, np.integer)) and n >= 1):
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ValueError(f"number of vehicles n must be a positive int, got {n!r}")
-        single = SensorModel(make_sensor_spec(spec), control_dt, physics_dt)
-        self.spec = single.spec
+        self.spec = spec = make_sensor_spec(spec)
         self.dt = control_dt
         self.n = int(n)
-        self.pose_every = single.pose_every
-        self.sig_pos, self.sig_vel, self.sig_att = single.sig_pos, single.sig_vel, single.sig_att
-        self.sig_rate, self.sig_gyro, self.sig_acc = single.sig_rate, single.sig_gyro, single.sig_acc
-        self.noisy = single.noisy
+        if spec.pose_rate is None:
+            self.pose_every = 1
+        else:
+            ratio = 1.0 / (spec.pose_rate * control_dt)
+            if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
+                raise ValueError(pose_rate_error(spec, 1.0 / control_dt,
+                                                 None if physics_dt is None else 1.0 / physics_dt))
+            self.pose_every = int(round(ratio))
+        # white noise of density d sampled every dt has sigma d / sqrt(dt) (sensors module docstring)
+        root_dt, root_pose = math.sqrt(control_dt), math.sqrt(self.pose_every * control_dt)
+        self.sig_pos = math.hypot(spec.position_density / root_pose, spec.position_sigma)
+        self.sig_vel = math.hypot(spec.velocity_density / root_pose, spec.velocity_sigma)
+        self.sig_att = math.hypot(spec.attitude_density / root_pose, spec.attitude_sigma)
+        self.sig_rate = spec.angular_velocity_density / root_dt
+        self.sig_gyro = spec.gyro_density / root_dt
+        self.sig_acc = spec.accel_density / root_dt
+        self._sigma = np.array([self.sig_pos, self.sig_vel, self.sig_att, self.sig_rate, self.sig_acc,
+                                self.sig_gyro, spec.mag_sigma])
+        self.noisy = bool(np.any(self._sigma > 0) or spec.gyro_bias_sigma > 0 or spec.accel_bias_sigma > 0)
         self.gyro_bias = np.zeros((self.n, 3))
         self.accel_bias = np.zeros((self.n, 3))
         self._count = np.zeros(self.n, dtype=np.int64)
@@ -94,31 +164,61 @@ class BatchSensorModel:
     def measure(self, t: NDArray[np.float64], position: NDArray[np.float64], velocity: NDArray[np.float64],
                 rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],
                 acceleration: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
-        """Measurements (N, ...) at times ``t`` (N,) from true states (N, 3) / (N, 3, 3) and NED accelerations."""
-        # R^T (a - g e3) and R^T m_E, row by row
-        f_sp = np.einsum("nj,nji->ni", acceleration - _GRAVITY_NED, rotation)
-        mag = M.EARTH_FIELD_NED @ rotation
-        time = np.array(t, dtype=float)
-        if not self.noisy:
-            return {M.POSITION: position.copy(), M.VELOCITY: velocity.copy(), M.ATTITUDE: rotation.copy(),
-                    M.ANGULAR_VELOCITY: angular_velocity.copy(), M.SPECIFIC_FORCE: f_sp,
-                    M.GYRO: angular_velocity.copy(), M.MAGNETOMETER: mag, M.TIME: time}
-        z = self.rng.standard_normal((self.n, 21))
-        take = self._count % self.pose_every == 0
-        pose = self._pose
-        if take.all():
-            pose[M.POSITION] = position + self.sig_pos * z[:, 0:3]
-            pose[M.VELOCITY] = velocity + self.sig_vel * z[:, 3:6]
-            pose[M.ATTITUDE] = rotation @ exp_so3(self.sig_att * z[:, 6:9])
-        elif take.any():
-            pose[M.POSITION][take] = position[take] + self.sig_pos * z[take, 0:3]
-            pose[M.VELOCITY][take] = velocity[take] + self.sig_vel * z[take, 3:6]
-            pose[M.ATTITUDE][take] = rotation[take] @ exp_so3(self.sig_att * z[take, 6:9])
-        self._count += 1
-        return {M.POSITION: pose[M.POSITION].copy(), M.VELOCITY: pose[M.VELOCITY].copy(),
-                M.ATTITUDE: pose[M.ATTITUDE].copy(),
-                M.ANGULAR_VELOCITY: angular_velocity + self.sig_rate * z[:, 9:12],
-                M.SPECIFIC_FORCE: f_sp + self.accel_bias + self.sig_acc * z[:, 12:15],
-                M.GYRO: angular_velocity + self.gyro_bias + self.sig_gyro * z[:, 15:18],
-                M.MAGNETOMETER: mag + self.spec.mag_sigma * z[:, 18:21],
-                M.TIME: time}
+        """Measurements (N, ...) at times ``t`` (N,) from true states (N, 3) / (N, 3, 3) and NED accelerations.
+
+        Every array handed out is a fresh C-contiguous array.
+        """
+        n = self.n
+        z = self.rng.standard_normal((n, 21)) if self.noisy else np.zeros((n, 21))
+        return self._measure(None, z, t, position, velocity, rotation, angular_velocity, acceleration)
+
+    def measure_rows(self, rows: NDArray[np.intp], rngs: list[np.random.Generator], t: NDArray[np.float64],
+                     position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
+                     angular_velocity: NDArray[np.float64], acceleration: NDArray[np.float64]
+                     ) -> dict[str, NDArray[np.float64]]:
+        """The measurement of ``rows`` only (their true states, (k, ...)), each row's noise from its own generator
+        ``rngs[j]`` (21 normals); the other rows' state (pose hold, counters, noise stream) is untouched."""
+        rows = np.asarray(rows, dtype=np.intp)
+        if len(rngs) != rows.size:
+            raise ValueError(f"need one generator per measured row: {rows.size} rows, {len(rngs)} generators")
+        if self.noisy:
+            z = np.stack([g.standard_normal(21) for g in rngs]) if rngs else np.zeros((0, 21))
+        else:
+            z = np.zeros((rows.size, 21))
+        return self._measure(rows, z, t, position, velocity, rotation, angular_velocity, acceleration)
+
+    def _measure(self, rows: NDArray[np.intp] | None, z: NDArray[np.float64], t: NDArray[np.float64],
+                 position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
+                 angular_velocity: NDArray[np.float64], acceleration: NDArray[np.float64]
+                 ) -> dict[str, NDArray[np.float64]]:
+        """The kernel on ``rows`` (None: every row, the model's own state in place; else their state, written back)."""
+        every = rows is None
+        n = self.n if rows is None else rows.size
+        position, velocity = as_f64(position, "position"), as_f64(velocity, "velocity")
+        rotation, angular_velocity = as_f64(rotation, "rotation"), as_f64(angular_velocity, "angular_velocity")
+        acceleration = as_f64(acceleration, "acceleration")
+        if position.shape != (n, 3) or velocity.shape != (n, 3) or rotation.shape != (n, 3, 3) \
+                or angular_velocity.shape != (n, 3) or acceleration.shape != (n, 3):
+            raise ValueError(f"sensor inputs must be position, velocity, angular_velocity, acceleration (N, 3) and "
+                             f"rotation (N, 3, 3) with N = {n}; got {position.shape}, {velocity.shape}, "
+                             f"{angular_velocity.shape}, {acceleration.shape}, {rotation.shape}")
+        pose_every = self.pose_every if self.noisy else 1  # exact measurements every step (no hold without noise)
+        pose = self._pose if every else {key: value[rows] for key, value in self._pose.items()}
+        count = self._count if every else self._count[rows]
+        gyro_bias = self.gyro_bias if every else self.gyro_bias[rows]
+        accel_bias = self.accel_bias if every else self.accel_bias[rows]
+        e = np.empty
+        out = {M.POSITION: e((n, 3)), M.VELOCITY: e((n, 3)), M.ATTITUDE: e((n, 3, 3)), M.ANGULAR_VELOCITY: e((n, 3)),
+               M.SPECIFIC_FORCE: e((n, 3)), M.GYRO: e((n, 3)), M.MAGNETOMETER: e((n, 3)),
+               M.TIME: np.array(t, dtype=float)}
+        if measure_rows(position, velocity, rotation, angular_velocity, acceleration, z, self._sigma, _FIELD,
+                        gyro_bias, accel_bias, count, pose_every, pose[M.POSITION], pose[M.VELOCITY],
+                        pose[M.ATTITUDE], out[M.POSITION], out[M.VELOCITY], out[M.ATTITUDE], out[M.ANGULAR_VELOCITY],
+                        out[M.SPECIFIC_FORCE], out[M.GYRO], out[M.MAGNETOMETER]) >= 0:
+            raise ValueError("sensor measurement is not finite: check position, velocity, rotation, angular_velocity "
+                             "and acceleration for NaN/inf")
+        if rows is not None:
+            self._count[rows] = count
+            for key, value in pose.items():
+                self._pose[key][rows] = value
+        return out

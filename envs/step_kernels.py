@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 from fawtgym.core.so3_kernels import quat_to_rot_row
 
 from .ctbr import rate_loop_rows
+from .motors import lag_thrusts
 
 #: failure codes of :func:`read_states` -> ``info["failure"]`` names (index = code)
 FAILURES = np.array(["", "diverged", "ground_contact", "out_of_bounds"], dtype="<U14")
@@ -122,22 +123,10 @@ def motor_controls(ref: NDArray[np.float64], speeds: NDArray[np.float64], k_thru
     wrench (force world NED (N, 3), torque body FRD (N, 3)) in MuJoCo's frames as the free joint's generalized
     force; ``speeds`` (N, 4) becomes the end-of-step speeds and ``applied`` (N, 4) the mean rotor thrusts.
     """
+    # the rotor lag: the one law of envs/motors.py (speeds updated in place: each entry is read before written)
+    lag_thrusts(ref, speeds, decay_up, decay_down, k_thrust, ctrl, speeds, applied)
     n, k = ctrl.shape[0], ctrl.shape[1]
-    inv_k = 1.0 / k
     for i in range(n):
-        for j in range(4):
-            c = ref[i, j]
-            w0 = speeds[i, j]
-            decay = decay_up if c > w0 else decay_down
-            gap = w0 - c
-            total = 0.0
-            for s in range(k):
-                w_mid = c + gap * decay[s]
-                thrust = k_thrust * w_mid * w_mid
-                ctrl[i, s, j] = thrust
-                total += thrust
-            speeds[i, j] = c + gap * decay[k]
-            applied[i, j] = total * inv_k
         for s in range(k):  # NED/FRD -> MuJoCo world z-up / body FLU
             ctrl[i, s, 4], ctrl[i, s, 5], ctrl[i, s, 6] = force[i, 0], -force[i, 1], -force[i, 2]
             ctrl[i, s, 7], ctrl[i, s, 8], ctrl[i, s, 9] = torque[i, 0], -torque[i, 1], -torque[i, 2]

@@ -139,16 +139,41 @@ def test_bad_shapes_and_nan_raise():
         m.wrench(r, v, rate, om, w)
 
 
-def test_single_path_equals_batched_path():
-    """The N = 1 float path and the vectorized path give the same wrench (rows of a batch of 2)."""
+def test_a_row_alone_equals_the_row_in_a_batch():
+    """One kernel loops over the rows: a vehicle's wrench alone (N = 1) is bit for bit its row in a batch of 3."""
     rng = np.random.default_rng(5)
     m = AeroModel(S500)
-    r = euler_to_rot(*rng.uniform(-0.6, 0.6, (3, 2)))
-    v, rate = rng.normal(0, 2, (2, 3)), rng.normal(0, 1, (2, 3))
-    omega, wind = rng.uniform(100, 800, (2, 4)), rng.normal(0, 5, (2, 5, 3))
+    r = euler_to_rot(*rng.uniform(-0.6, 0.6, (3, 3)))
+    v, rate = rng.normal(0, 2, (3, 3)), rng.normal(0, 1, (3, 3))
+    omega, wind = rng.uniform(100, 800, (3, 4)), rng.normal(0, 5, (3, 5, 3))
     fb, tb = m.wrench(r, v, rate, omega, wind)
-    for k in range(2):
+    for k in range(3):
         f1, t1 = m.wrench(r[k:k + 1], v[k:k + 1], rate[k:k + 1], omega[k:k + 1], wind[k:k + 1])
-        # two implementations of one law (tests/_tolerance.py), at the scale of the batch's wrench
-        assert_same_law(f1[0], fb[k], scale=np.abs(fb).max(), what=f"row {k} force")
-        assert_same_law(t1[0], tb[k], scale=np.abs(tb).max(), what=f"row {k} torque")
+        np.testing.assert_array_equal(f1[0], fb[k])
+        np.testing.assert_array_equal(t1[0], tb[k])
+
+
+def _bad_input_messages(n):
+    m = AeroModel(S500)
+    messages = []
+    for bad in ("nan", "shape", "complex", "string"):
+        r, v, rate, om, w = _args(n)
+        if bad == "nan":
+            v[-1, 1] = np.inf
+        elif bad == "shape":
+            om = om[:, :3]
+        elif bad == "complex":
+            w = w + 0j
+        else:
+            r = np.full((n, 3, 3), "a")
+        with pytest.raises(ValueError) as err:
+            m.wrench(r, v, rate, om, w)
+        messages.append(str(err.value).replace(f"({n},", "(N,"))
+    return messages
+
+
+def test_bad_input_gives_the_same_error_at_every_n():
+    one, three = _bad_input_messages(1), _bad_input_messages(3)
+    assert one == three
+    assert "not finite" in one[0] and "rotor_speeds (N,4)" in one[1]
+    assert "wind must be an array of real numbers" in one[2] and "rotation must be" in one[3]

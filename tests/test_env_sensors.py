@@ -83,6 +83,58 @@ def test_unknown_sensor_preset_and_bad_field():
         make_sensor_spec("lidar")
     with pytest.raises(ValueError, match="position_sigma"):
         make_sensor_spec({"base": "none", "position_sigma": -1.0})
+    with pytest.raises(ValueError, match=r"'gyro_density' must be a finite number >= 0, got 'a'"):
+        make_sensor_spec({"base": "mocap_imu", "gyro_density": "a"})
+    with pytest.raises(ValueError, match=r"unknown sensor field\(s\) \['lidar_rate'\]; valid: \['base', 'name'"):
+        make_sensor_spec({"base": "none", "lidar_rate": 10.0})
+    with pytest.raises(ValueError, match="pose_rate"):
+        make_sensor_spec({"base": "none", "pose_rate": True})
+
+
+def _measure_errors(n):
+    from fawtgym.envs.sensors_batch import BatchSensorModel
+
+    model = BatchSensorModel("mocap_imu", 0.01, n)
+    good = [np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)), np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3)),
+            np.zeros((n, 3))]
+    out = []
+    nan = np.zeros((n, 3))
+    nan[-1, 1] = np.nan
+    for k, bad in ((1, np.zeros((n, 2))), (3, np.zeros((n, 3))), (5, np.full((n, 3), "a")), (2, np.ones((n, 3)) * 1j),
+                   (4, nan)):
+        args = list(good)
+        args[k] = bad
+        with pytest.raises(ValueError) as err:
+            model.measure(*args)
+        out.append(str(err.value).replace(f"N = {n}", "N").replace(f"({n}, ", "(N, "))
+    return out
+
+
+def test_bad_sensor_input_gives_the_same_error_at_every_n():
+    one = _measure_errors(1)
+    assert one == _measure_errors(3)
+    assert "rotation (N, 3, 3)" in one[0] and "acceleration must be an array of real numbers" in one[2]
+    assert "sensor measurement is not finite" in one[4]
+
+
+def test_batch_row_equals_the_single_model():
+    """The single model is the batch law at N = 1: same generator, same numbers, bit for bit."""
+    from fawtgym.envs.sensors_batch import BatchSensorModel
+
+    single, batch = SensorModel(make_sensor_spec("mocap_imu"), 0.002), BatchSensorModel("mocap_imu", 0.002, 1)
+    single.reset(np.random.default_rng(4))
+    rng = np.random.default_rng(4)
+    batch.set_noise_rng(rng)
+    batch.reset_rows(np.zeros(1, dtype=np.intp), [rng])
+    state = np.random.default_rng(0)
+    for k in range(12):
+        b, v, w, a = (state.normal(size=3) for _ in range(4))
+        r = np.eye(3)
+        m1 = single.measure(k * 0.002, b, v, r, w, a)
+        mb = batch.measure(np.array([k * 0.002]), b[None], v[None], r[None], w[None], a[None])
+        for key in m1:
+            if key != "time":
+                np.testing.assert_array_equal(m1[key], mb[key][0])
 
 
 def test_reward_bounded_and_decreasing_with_error():
@@ -96,8 +148,8 @@ def test_reward_bounded_and_decreasing_with_error():
 
 
 @pytest.mark.parametrize("preset", ["none", "seed000", "mocap_imu"])
-def test_float_measurement_equals_numpy_formulas(preset):
-    """measure() (float arithmetic) against the sensor equations written with numpy, same random draws."""
+def test_measurement_equals_the_sensor_equations(preset):
+    """measure() (the compiled law at N = 1) against the sensor equations written with numpy, same random draws."""
     from fawtgym.core.measurement import EARTH_FIELD_NED
     from fawtgym.core.so3 import exp_so3
 
@@ -131,3 +183,33 @@ def test_float_measurement_equals_numpy_formulas(preset):
         for key, value in want.items():  # two implementations of one law (tests/_tolerance.py)
             assert_same_law(m[key], value, what=key)
         assert float(m["time"]) == pytest.approx(k * dt)
+
+
+def test_measure_rows_is_the_law_on_those_rows_with_their_own_noise():
+    """measure_rows (the first sample of restarted rows) gives each row what a one-row model with that row's
+    generators gives, bit for bit, and leaves the other rows alone (their next full step is unchanged)."""
+    from fawtgym.envs.sensors_batch import BatchSensorModel
+
+    def model(n, first_seed=10):
+        m = BatchSensorModel("mocap_imu", 0.002, n)
+        m.set_noise_rng(np.random.default_rng(99))
+        m.reset_rows(np.arange(n), [np.random.default_rng(first_seed + i) for i in range(n)])
+        return m
+
+    state = np.random.default_rng(1)
+    t = np.zeros(3)
+    b, v, w, a = (state.normal(size=(3, 3)) for _ in range(4))
+    r = np.tile(np.eye(3), (3, 1, 1))
+    batch, ref = model(3), model(3)
+    rows = np.array([2, 0])
+    got = batch.measure_rows(rows, [np.random.default_rng(7), np.random.default_rng(8)], t[rows], b[rows], v[rows],
+                             r[rows], w[rows], a[rows])
+    for j, row in enumerate(rows.tolist()):
+        one = model(1, first_seed=10 + row)  # the row's turn-on biases
+        one.set_noise_rng(np.random.default_rng(7 + j))
+        want = one.measure(t[:1], b[row:row + 1], v[row:row + 1], r[row:row + 1], w[row:row + 1], a[row:row + 1])
+        for key in want:
+            np.testing.assert_array_equal(got[key][j], want[key][0], err_msg=f"{key} row {row}")
+    m1, m2 = batch.measure(t, b, v, r, w, a), ref.measure(t, b, v, r, w, a)
+    for key in m1:
+        np.testing.assert_array_equal(m1[key][1], m2[key][1], err_msg=key)

@@ -103,7 +103,7 @@ def test_env_deepcopy_and_pickle_continue_identically():
 def test_stepped_wind_pickles():
     wind = make_wind("fawt-50")
     wind.reset(1, seed=0)
-    pts = [1.5, 0.0, -1.5] * 5
-    wind.step_floats(0.01, 0.01, pts, [0.0, 0.0, 0.0])
+    pts, vel = np.tile([1.5, 0.0, -1.5], (1, 5, 1)), np.zeros((1, 3))
+    wind.step(0.01, 0.01, pts, vel)
     twin = pickle.loads(pickle.dumps(wind))
-    assert twin.step_floats(0.02, 0.01, pts, [0.0, 0.0, 0.0]) == wind.step_floats(0.02, 0.01, pts, [0.0, 0.0, 0.0])
+    np.testing.assert_array_equal(twin.step(0.02, 0.01, pts, vel), wind.step(0.02, 0.01, pts, vel))

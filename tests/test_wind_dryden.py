@@ -1,4 +1,4 @@
-"""Dryden shaping filters: spectrum, step-size independence, seeding, batching (envs/wind/dryden.py)."""
+"""Dryden shaping filters: spectrum, step-size independence, seeding, batching (envs/wind/dryden*.py)."""
 
 import math
 
@@ -8,7 +8,8 @@ import scipy.integrate
 import scipy.signal
 from _tolerance import assert_same_law
 
-from fawtgym.envs.wind.dryden import V_FLOOR, DrydenParams, DrydenProcess, dryden_psd
+from fawtgym.envs.wind.dryden import V_FLOOR, DrydenParams, dryden_psd
+from fawtgym.envs.wind.dryden_process import DrydenProcess
 
 
 @pytest.mark.parametrize("form", ["8785c", "1797"])
@@ -163,7 +164,7 @@ def test_bad_parameters_raise(kwargs, word):
 def test_expm_small_matches_scipy():
     import scipy.linalg
 
-    from fawtgym.envs.wind.dryden import expm_small
+    from fawtgym.envs.wind.dryden_discrete import expm_small
 
     for rates in (False, True):
         a = DrydenProcess(DrydenParams(sigma=(1.0, 1.0, 1.0), length=(0.015, 0.02, 0.01)), rates=rates).a
@@ -176,35 +177,75 @@ def test_expm_small_matches_scipy():
 
 
 @pytest.mark.parametrize("rates", [False, True])
-def test_float_path_equals_numpy_path(rates):
-    """step1 (N = 1 float arithmetic) follows the same trajectory as step, and the two can be mixed."""
+def test_a_row_does_not_depend_on_the_other_rows(rates):
+    """Row i of an N = 5 run is bit for bit the run of that field alone with the same seed and airspeeds: the rows'
+    airspeeds vary and fall in different step-matrix bins, some shared, some not (same path, tests/_tolerance.py)."""
     p = DrydenParams(sigma=(1.0, 0.8, 0.5), length=(0.02, 0.02, 0.02))
-    a, b = DrydenProcess(p, rates=rates), DrydenProcess(p, rates=rates)
-    a.reset(1, seed=4)
-    b.reset(1, seed=4)
-    for k in range(600):  # crosses block refills; airspeed varies
-        v = 8.0 + np.sin(0.05 * k)
-        ya = a.step1(0.01, v) if k % 7 else a.step(0.01, v)[0].tolist()
-        yb = b.step(0.01, v)[0]
-        # two implementations of one law (tests/_tolerance.py), at the process's standard deviation
-        assert_same_law(ya, yb, scale=b.stationary_std().max(), steps=k + 1, what=f"step {k}")
+    seeds = np.random.SeedSequence(7).spawn(5)
+    base = np.array([1.0, 8.0, 8.0, 9.5, 30.0])
+    speeds = [base * (1.0 + 0.3 * np.sin(0.07 * k + np.arange(5))) for k in range(600)]  # crosses block refills
+    batch = DrydenProcess(p, rates=rates)
+    batch.reset(5, seed=seeds)
+    got = np.stack([batch.step(0.01, v) for v in speeds])
+    for i in range(5):
+        alone = DrydenProcess(p, rates=rates)
+        alone.reset(1, seed=[seeds[i]])
+        ref = np.stack([alone.step(0.01, v[i]) for v in speeds])
+        np.testing.assert_array_equal(got[:, i], ref[:, 0], err_msg=f"row {i}")
+    # and the same with a scalar airspeed for all rows
+    batch.reset(5, seed=seeds)
+    alone = DrydenProcess(p, rates=rates)
+    alone.reset(1, seed=[seeds[3]])
+    for k in range(300):
+        np.testing.assert_array_equal(batch.step(0.01, 8.0 + k % 3)[3], alone.step(0.01, 8.0 + k % 3)[0])
 
 
-def test_float_path_picks_the_same_bin_at_bin_edges():
-    """step1 caches its bin's d range: speeds right at, just inside and just outside bin edges (and outside the
-    table) still give the step matrix the numpy path picks."""
-    from fawtgym.envs.wind.dryden import _BIN, _D_MAX, _D_MIN
+def test_step_matrix_bins_at_their_edges():
+    """Speeds right at, just inside and just outside bin edges (and outside the table) pick the bin of the table's
+    own formula, whose matrix is the exact step of the bin's length."""
+    from fawtgym.envs.wind.dryden_discrete import BIN, D_MAX, D_MIN, expm_small
 
     p = DrydenParams(sigma=(1.0, 0.8, 0.5), length=(0.02, 0.02, 0.02))
-    a, b = DrydenProcess(p), DrydenProcess(p)
-    a.reset(1, seed=2)
-    b.reset(1, seed=2)
-    dt = 0.01
-    speeds = []
+    proc = DrydenProcess(p)
+    proc.reset(1, seed=2)
+    table, dt = proc.table, 0.01
     for k in (-110, -109, 20, 21, 150):
-        edge = math.exp((k + 0.5) * _BIN) / dt
-        speeds += [edge, edge * (1 + 1e-15), edge * (1 - 1e-15), edge * (1 + 1e-9), edge * (1 - 1e-9)]
-    speeds += [_D_MIN / dt * 0.5, 2 * _D_MAX / dt, 8.0, 8.0 * (1 + 1e-13)]
-    for k, v in enumerate(speeds * 2):  # two implementations of one law (tests/_tolerance.py)
-        assert_same_law(a.step1(dt, v), b.step(dt, v)[0], scale=b.stationary_std().max(), steps=k + 1,
-                        what=f"v = {v!r}")
+        edge = math.exp((k + 0.5) * BIN)
+        for d in (edge * (1 - 1e-9), edge * (1 + 1e-9)):
+            b = table.bin_of(d)
+            assert abs(math.log(table.bin_length(b) / d)) <= BIN / 2 + 1e-9  # the nearest bin
+            x0 = proc.x.copy()
+            proc.step(dt, d / dt)
+            assert table.filled[b]
+            ad, _ = proc.discrete(d)
+            np.testing.assert_array_equal(ad, expm_small(proc.a * table.bin_length(b)))
+            assert np.all(np.isfinite(proc.x)) and not np.array_equal(proc.x, x0)
+    assert table.bin_of(D_MIN * 0.5) == table.bin_of(D_MIN)
+    assert table.bin_of(2 * D_MAX) == table.bin_of(D_MAX) == table.matrices.shape[0] - 1
+
+
+@pytest.mark.parametrize("bad, word", [
+    ({"dt": 0.0}, "dt"), ({"dt": float("nan")}, "dt"), ({"dt": "0.01"}, "dt"), ({"dt": True}, "dt"),
+    ({"airspeed": float("inf")}, "airspeed"), ({"airspeed": np.ones(3)}, "airspeed"),
+])
+@pytest.mark.parametrize("n", [1, 2])
+def test_bad_step_input_raises_the_same_at_every_n(bad, word, n):
+    p = DrydenParams(sigma=(1.0, 1.0, 1.0), length=(1.0, 1.0, 1.0))
+    proc = DrydenProcess(p)
+    proc.reset(n, seed=0)
+    args = {"dt": 0.01, "airspeed": 5.0, **bad}
+    with pytest.raises(ValueError, match=word) as err:
+        proc.step(**args)
+    assert "\n" not in str(err.value)
+
+
+def test_step_before_reset_and_bad_seed_raise():
+    proc = DrydenProcess(DrydenParams(sigma=(1.0, 1.0, 1.0), length=(1.0, 1.0, 1.0)))
+    with pytest.raises(RuntimeError, match="reset"):
+        proc.step(0.01, 5.0)
+    with pytest.raises(ValueError, match="seed"):
+        proc.reset(2, seed=[np.random.SeedSequence(1)])
+    with pytest.raises(ValueError, match="seed"):
+        proc.reset(2, seed=1.5)
+    with pytest.raises(ValueError, match="n must"):
+        proc.reset(True)

@@ -190,20 +190,74 @@ def test_rates_give_differential_gusts_across_the_vehicle():
     np.testing.assert_allclose(w[:, 1, 0] - w[:, 0, 0], w[:, 1, 0] - w[:, 0, 0])
 
 
-@pytest.mark.parametrize("options", [{}, {"on_time": 0.05, "spin_tau": 0.1}, {"turbulence": False}])
-def test_single_path_equals_batched_path(options):
-    """N = 1 float path == a row of the vectorized path (same seed stream: field 0 is the same for any N)."""
-    a, b = FawtWind(0.6, **options), FawtWind(0.6, **options)
-    a.reset(1, seed=8)
-    b.reset(3, seed=8)
+@pytest.mark.parametrize("options", [{}, {"on_time": 0.05, "spin_tau": 0.1}, {"turbulence": False},
+                                     {"rates": True, "length_scale": 0.3}])
+def test_a_row_equals_that_vehicle_alone(options):
+    """Row i of an N = 3 run is bit for bit the wind of that vehicle run alone with the same field seed (one kernel
+    over rows; each row's gust step uses its own state, noise and step-matrix bin)."""
+    seeds = np.random.SeedSequence(8).spawn(3)
+    batch = FawtWind(0.6, **options)
+    batch.reset(3, seed=seeds)
+    alone = [FawtWind(0.6, **options) for _ in range(3)]
+    for i, w in enumerate(alone):
+        w.reset(1, seed=[seeds[i]])
     rng = np.random.default_rng(0)
-    for k in range(50):
+    for k in range(300):
         pts = fawt_to_ned(rng.uniform([-0.2, -1.0, -0.6], [3.0, 1.0, 0.6], (3, 5, 3)))
         vel = rng.normal(0, 1, (3, 3))
-        wa = a.step((k + 1) * 0.01, 0.01, pts[:1], vel[:1])
-        wb = b.step((k + 1) * 0.01, 0.01, pts, vel)
-        # two implementations of one law (tests/_tolerance.py), at the scale of the wind speeds
-        assert_same_law(wa[0], wb[0], scale=np.abs(wb).max(), steps=k + 1, what=f"step {k}")
+        wb = batch.step((k + 1) * 0.01, 0.01, pts, vel)
+        for i, w in enumerate(alone):
+            np.testing.assert_array_equal(w.step((k + 1) * 0.01, 0.01, pts[i:i + 1], vel[i:i + 1])[0], wb[i],
+                                          err_msg=f"step {k} row {i}")
+
+
+def _step_errors(name, n):
+    """(type, message) of each bad step input for wind ``name`` with ``n`` rows (N-dependent shapes masked)."""
+    wind = make_wind(name)
+    pts, vel = np.tile(FAWT_HOVER_POINT_NED, (n, 5, 1)), np.zeros((n, 3))
+    bad_pts, bad_vel = pts.copy(), vel.copy()
+    bad_pts[-1, 2, 1] = np.nan
+    bad_vel[-1, 0] = -np.inf
+    cases = [(0.01, 0.0, pts, vel), (0.01, -1.0, pts, vel), (0.01, 2.0, pts, vel), (0.01, "0.01", pts, vel),
+             (0.01, None, pts, vel), (0.01, True, pts, vel), (float("nan"), 0.01, pts, vel),
+             (0.01, 0.01, bad_pts, vel), (0.01, 0.01, pts, bad_vel), (0.01, 0.01, pts[:, :, :2], vel),
+             (0.01, 0.01, pts, vel[:, :2]), (0.01, 0.01, pts + 0j, vel), (0.01, 0.01, pts.astype(str), vel)]
+    out = []
+    with pytest.raises(RuntimeError, match="reset") as err:
+        wind.step(0.01, 0.01, pts, vel)
+    out.append((err.type, str(err.value)))
+    wind.reset(n, seed=1)
+    for t, dt, p, v in cases:
+        with pytest.raises(ValueError) as err:
+            wind.step(t, dt, p, v)
+        assert "\n" not in str(err.value)
+        out.append((err.type, str(err.value).replace(f"({n}, ", "(N, ")))
+    return out
+
+
+@pytest.mark.parametrize("name", wind_names())
+def test_bad_step_input_gives_the_same_error_at_every_n(name):
+    one, three = _step_errors(name, 1), _step_errors(name, 3)
+    assert one == three
+    text = " ".join(m for _, m in one)
+    for word in ("dt must be a wind step in (0, 1] s, got 2.0", "'0.01'", "None", "t must be a finite time",
+                 "points_ned must be finite", "vehicle_velocity_ned must be finite", "points_ned must have shape",
+                 "vehicle_velocity_ned must have shape", "real numbers"):
+        assert word in text, word
+
+
+def test_a_failed_step_changes_nothing():
+    """A step refused for a non-finite point leaves the fan level and the gust stream as they were."""
+    a, b = FawtWind(0.5, on_time=0.0, spin_tau=0.2), FawtWind(0.5, on_time=0.0, spin_tau=0.2)
+    a.reset(2, seed=3)
+    b.reset(2, seed=3)
+    pts, vel = np.tile(FAWT_HOVER_POINT_NED, (2, 5, 1)), np.zeros((2, 3))
+    bad = pts.copy()
+    bad[1, 0, 0] = np.nan
+    for k in range(5):
+        with pytest.raises(ValueError, match="finite"):
+            a.step((k + 1) * 0.01, 0.01, bad, vel)
+        np.testing.assert_array_equal(a.step((k + 1) * 0.01, 0.01, pts, vel), b.step((k + 1) * 0.01, 0.01, pts, vel))
 
 
 def test_fawt_variance_independent_of_time_step():
@@ -215,3 +269,33 @@ def test_fawt_variance_independent_of_time_step():
         out.append(_run(wind, 64, 2000, dt, HOTWIRE)[..., 0].var())
     assert out[0] / out[1] == pytest.approx(1.0, abs=0.05)
     assert out[0] == pytest.approx(PAPER[50][1], rel=0.05)
+
+
+_NUMERIC_OPTIONS = {"fawt": ["duty", "on_time", "off_time", "spin_tau", "spin_down_tau", "length_scale", "span"],
+                    "dryden-light": ["altitude", "direction_deg", "length_scale", "span", "mean_wind"],
+                    "gust-1cos": ["amplitude", "length", "speed", "start_time", "direction_deg"]}
+
+
+_BAD_NUMBERS = ["a", True, float("nan"), float("inf"), [1.0, 2.0], {}]
+# an amplitude may be a vector (a 2-vector is refused in test_numpy_scalars_are_numbers); mean_wind=True is the
+# log-profile wind
+_VALID_HERE = {("amplitude", 4), ("mean_wind", 1)}
+
+
+@pytest.mark.parametrize("name, option, bad", [(n, o, b) for n, opts in _NUMERIC_OPTIONS.items() for o in opts
+                                               for k, b in enumerate(_BAD_NUMBERS) if (o, k) not in _VALID_HERE])
+def test_numeric_wind_options_refuse_non_numbers_in_one_line(name, option, bad):
+    """A numeric option given a string, a boolean, NaN/inf, a list or a dict: one ValueError naming the option (a
+    boolean is not a number here: True would silently be 1)."""
+    with pytest.raises(ValueError, match=option) as err:
+        make_wind({"name": name, option: bad})
+    assert "\n" not in str(err.value)
+
+
+def test_numpy_scalars_are_numbers():
+    w = make_wind({"name": "fawt", "duty": np.float32(0.5), "length_scale": np.float64(0.02), "spin_tau": np.int64(2)})
+    assert w.duty == pytest.approx(0.5) and w.length_scale == 0.02
+    with pytest.raises(ValueError, match="amplitude"):
+        make_wind({"name": "gust-1cos", "amplitude": [1.0, 2.0]})
+    with pytest.raises(ValueError, match="spin_tau"):
+        make_wind({"name": "fawt", "spin_tau": None})

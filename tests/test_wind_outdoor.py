@@ -7,7 +7,8 @@ import pytest
 from _tolerance import assert_same_law
 
 from fawtgym.envs.wind import make_wind
-from fawtgym.envs.wind.dryden import DrydenProcess, dryden_psd
+from fawtgym.envs.wind.dryden import dryden_psd
+from fawtgym.envs.wind.dryden_process import DrydenProcess
 from fawtgym.envs.wind.outdoor import DrydenWind, OneCosineGust, low_altitude_params
 
 
@@ -102,3 +103,45 @@ def test_turbulence_advected_by_the_spec_wind_without_mean_output():
     w_h = log_profile_speed("light", 10.0)
     assert np.all(wind.mean == 0.0)
     assert rho == pytest.approx(math.exp(-w_h * 0.1 / 20.0), abs=0.02)
+
+
+@pytest.mark.parametrize("rates", [False, True])
+def test_dryden_wind_is_its_gust_process_along_the_wind_axes(rates):
+    """DrydenWind (one kernel over rows) against its definition written with numpy: the same process (same seed)
+    stepped at V = |W_adv - v|, gust [u, v, w] along the wind axes, gradients across the vehicle, plus the mean."""
+    from _tolerance import assert_same_law
+
+    wind = DrydenWind("moderate", mean_wind=True, direction_deg=30.0, rates=rates, span=0.4)
+    proc = DrydenProcess(wind.params, rates=rates)
+    wind.reset(3, seed=5)
+    proc.reset(3, seed=5)
+    rng = np.random.default_rng(0)
+    for k in range(50):
+        pts = rng.normal(0.0, 0.3, (3, 5, 3))
+        vel = rng.normal(0.0, 2.0, (3, 3))
+        got = wind.step((k + 1) * 0.01, 0.01, pts, vel)
+        rel = wind.advection - vel
+        y = proc.step(0.01, np.sqrt((rel * rel).sum(axis=1)))
+        if rates:
+            d = (pts - pts[:, :1, :]) @ wind.axes.T
+            gv = y[:, None, 1] - d[..., 0] * y[:, None, 5]
+            gw = y[:, None, 2] - d[..., 0] * y[:, None, 4] + d[..., 1] * y[:, None, 3]
+            gust = np.stack([np.broadcast_to(y[:, None, 0], gv.shape), gv, gw], axis=-1) @ wind.axes
+        else:
+            gust = (y[:, :3] @ wind.axes)[:, None, :]
+        want = wind.mean + gust
+        # the kernel and numpy: two implementations of one law (tests/_tolerance.py), at the wind's scale
+        assert_same_law(got, np.broadcast_to(want, got.shape), scale=np.abs(want).max(), what=f"step {k}")
+
+
+def test_dryden_wind_row_equals_that_vehicle_alone():
+    seeds = np.random.SeedSequence(3).spawn(3)
+    batch = DrydenWind("light", rates=True)
+    batch.reset(3, seed=seeds)
+    alone = DrydenWind("light", rates=True)
+    alone.reset(1, seed=[seeds[2]])
+    rng = np.random.default_rng(1)
+    for k in range(100):
+        pts, vel = rng.normal(0.0, 0.3, (3, 5, 3)), rng.normal(0.0, 3.0, (3, 3))
+        np.testing.assert_array_equal(batch.step(0.01 * (k + 1), 0.01, pts, vel)[2],
+                                      alone.step(0.01 * (k + 1), 0.01, pts[2:], vel[2:])[0])

@@ -20,7 +20,8 @@ from collections.abc import Callable
 from typing import Any
 
 from .base import CalmWind, WindModel, make_wind, register_wind, wind_names
-from .dryden import DrydenParams, DrydenProcess, dryden_psd
+from .dryden import DrydenParams, dryden_psd
+from .dryden_process import DrydenProcess
 from .fawt import TABLE3, FawtWind, fawt_statistics
 from .outdoor import DrydenWind, OneCosineGust
 from .schedule import FanSchedule

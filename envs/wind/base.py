@@ -1,22 +1,74 @@
-"""The wind-model interface and the registry of named wind presets.
+"""The wind-model interface, its input checks, and the registry of named wind presets.
 
 A wind model is a small class with one job: given time, the sample points (vehicle CoM and rotor
 hubs) and the vehicle velocity, return the wind velocity at those points.  Batch-first: N
-independent vehicles/fields, each with its own random stream.
+independent vehicles/fields, each with its own random stream; N = 1 is a batch of one (one law).
 """
 
 from __future__ import annotations
 
 import abc
+import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from fawtgym.core.arrays import as_f64
+
+#: Longest wind step [s].  The gust filters are exact at any step, but their step-matrix table holds air
+#: travel ``V dt`` up to 200 m (:mod:`.dryden_discrete`): 1 s covers airspeeds up to 200 m/s.  A step of
+#: seconds is no simulation step (the env's control step is 1-50 ms).
+DT_MAX = 1.0
+
+
+def is_real(value: Any) -> bool:
+    """A finite real number (Python or numpy scalar), never a boolean: what every numeric wind option must be."""
+    return (not isinstance(value, (bool, np.bool_)) and isinstance(value, (int, float, np.integer, np.floating))
+            and math.isfinite(value))
+
+
+def check_step(t: float, dt: float) -> None:
+    """ValueError naming the value unless ``t`` is a finite time [s] and ``0 < dt <= DT_MAX`` [s]."""
+    if not is_real(dt) or not 0.0 < dt <= DT_MAX:
+        raise ValueError(f"dt must be a wind step in (0, {DT_MAX:g}] s, got {dt!r}")
+    if not is_real(t):
+        raise ValueError(f"t must be a finite time [s], got {t!r}")
+
+
+def check_points(points_ned: Any, velocity_ned: Any, n: int, finite: bool = True
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(points (N, K, 3), velocities (N, 3))`` as float64; ValueError naming the bad value if malformed.
+
+    ``finite=False`` skips the finiteness check (a kernel that checks it itself calls :func:`raise_not_finite`).
+    """
+    if n < 1:
+        raise RuntimeError("wind step before reset(n, seed)")
+    points = as_f64(points_ned, "points_ned")
+    velocity = as_f64(velocity_ned, "vehicle_velocity_ned")
+    if points.ndim != 3 or points.shape[0] != n or points.shape[2] != 3 or points.shape[1] < 1:
+        raise ValueError(f"points_ned must have shape ({n}, K, 3), got {points.shape}")
+    if velocity.shape != (n, 3):
+        raise ValueError(f"vehicle_velocity_ned must have shape ({n}, 3), got {velocity.shape}")
+    if finite and not math.isfinite(float(points.sum()) + float(velocity.sum())):
+        raise_not_finite(points, velocity)
+    return points, velocity
+
+
+def raise_not_finite(points: NDArray[np.float64], velocity: NDArray[np.float64]) -> None:
+    """ValueError naming the first non-finite point or velocity (the same text at every N)."""
+    bad_p = ~np.isfinite(points)
+    if bad_p.any():
+        raise ValueError(f"points_ned must be finite, got {points[np.nonzero(bad_p.any(axis=-1))][0]}")
+    row = np.nonzero(~np.isfinite(velocity))[0][0]
+    raise ValueError(f"vehicle_velocity_ned must be finite, got {velocity[row]}")
+
 
 class WindModel(abc.ABC):
     """Wind velocity field in world NED [m/s]."""
+
+    n: int = 0
 
     @abc.abstractmethod
     def reset(self, n: int, seed: int | np.random.SeedSequence | None = None) -> None:
@@ -30,29 +82,25 @@ class WindModel(abc.ABC):
         ``vehicle_velocity_ned`` (N, 3) sets the frozen-turbulence airspeed of the gust filters.
         """
 
-    def step_floats(self, t: float, dt: float, points_ned: list[float], vehicle_velocity_ned: list[float]
-                    ) -> list[float]:
-        """:meth:`step` for one vehicle (``reset(1)``) on plain floats: K points flat (3 K) in, the wind flat out.
 
-        The single env's hot path; models with a float fast path override it (tested equal to :meth:`step`).
-        """
-        pts = np.array(points_ned, dtype=float).reshape(1, -1, 3)
-        return self.step(t, dt, pts, np.array([vehicle_velocity_ned], dtype=float)).ravel().tolist()
+def check_n(n: Any) -> int:
+    """The number of fields of ``reset``: a positive int (ValueError naming it otherwise)."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(f"number of fields n must be a positive int, got {n!r}")
+    return int(n)
 
 
 class CalmWind(WindModel):
     """Still air."""
 
     def reset(self, n: int, seed: int | np.random.SeedSequence | None = None) -> None:
-        self.n = n
+        self.n = check_n(n)
 
     def step(self, t: float, dt: float, points_ned: NDArray[np.float64],
              vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.zeros(np.shape(points_ned))
-
-    def step_floats(self, t: float, dt: float, points_ned: list[float], vehicle_velocity_ned: list[float]
-                    ) -> list[float]:
-        return [0.0] * len(points_ned)
+        check_step(t, dt)
+        points, _ = check_points(points_ned, vehicle_velocity_ned, self.n)
+        return np.zeros(points.shape)
 
 
 _WIND_REGISTRY: dict[str, Callable[..., WindModel]] = {"calm": CalmWind}
@@ -76,7 +124,7 @@ def make_wind(spec: str | WindModel | Mapping[str, Any] | None) -> WindModel:
     if isinstance(spec, Mapping):
         options = dict(spec)
         name = options.pop("name", None)
-        if name not in _WIND_REGISTRY:
+        if not isinstance(name, str) or name not in _WIND_REGISTRY:
             raise ValueError(f"unknown wind {name!r}; valid names: {wind_names()}")
         return _WIND_REGISTRY[name](**options)
     if isinstance(spec, str):

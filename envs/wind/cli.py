@@ -140,7 +140,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             a = analytic_psd(wind, point, f[1:], mean)
             if a is not None:
                 fs = 1.0 / ns.dt
-                aliased = sum(analytic_psd(wind, point, np.abs(f[1:] + k * fs), mean) for k in range(-50, 51))
+                images = [analytic_psd(wind, point, np.abs(f[1:] + k * fs), mean) for k in range(-50, 51)]
+                aliased = np.sum([x for x in images if x is not None], axis=0)
                 ax2.loglog(f[1:], a, "k--", lw=1.2, label="analytic Dryden PSD")
                 ax2.loglog(f[1:], aliased, "r:", lw=1.2, label="analytic, sampled at 1/dt (aliased)")
         ax2.set_xlabel("frequency [Hz]")

@@ -49,14 +49,15 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-import scipy.special
+from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core.checks import check_flag
 from fawtgym.core.frames import FAWT_ORIGIN_NED, R_FAWT_TO_NED
 
-from .base import WindModel
-from .dryden import FORMS, DrydenParams, DrydenProcess
+from .base import WindModel, check_n, check_points, check_step, is_real, raise_not_finite
+from .dryden import FORMS, V_FLOOR, DrydenParams
+from .dryden_process import DrydenProcess, Seed, gust_row_step, step_bin
 from .schedule import DEFAULT_SPIN_TAU, FanSchedule
 
 #: Wang et al. (2024) Table 3: duty -> (U [m/s], variance [(m/s)^2], Re_lambda, TI), hot wire at x = 1.2 m.
@@ -88,8 +89,7 @@ def length_scale_from_table3(duty_row: float) -> float:
 
 def check_duty(duty: float) -> float:
     """Validate a duty fraction: finite and in [0, 1] (ValueError naming it otherwise)."""
-    if isinstance(duty, bool) or not isinstance(duty, (int, float, np.floating, np.integer)) \
-            or not math.isfinite(duty) or not 0.0 <= duty <= 1.0:
+    if not is_real(duty) or not 0.0 <= duty <= 1.0:
         raise ValueError(f"FAWT duty must be a fraction in [0, 1] (Table 3 covers 0.3-0.7), got {duty!r}")
     return float(duty)
 
@@ -121,77 +121,129 @@ def fawt_statistics(duty: float) -> dict[str, float]:
     return {"mean": float(u), "variance": float(var), "ti": float(ti), "length_scale": float(length)}
 
 
-_HALVES = np.array([HALF_SPAN, HALF_HEIGHT])
-_SREF = GOERTLER_SIGMA / HOTWIRE_X
+_OX, _OY, _OZ = (float(c) for c in FAWT_ORIGIN_NED)
+assert np.array_equal(R_FAWT_TO_NED, np.diag([1.0, -1.0, -1.0]))  # the kernels write FAWT = (x, -y, -z) from the origin
+
+
+def _reference(x_ref: float) -> tuple[float, float]:
+    """The normalizers of :func:`profile_point` for the reference station ``x_ref``: ``F(x_ref, 0, 0)`` and
+    ``1 + kappa x_ref`` (so that ``U_c(x) / U_c(x_ref) = (1 + kappa x_ref) / (1 + kappa x)``)."""
+    s = GOERTLER_SIGMA / x_ref
+    return 0.25 * (1 + math.erf(HALF_SPAN * s)) * (1 + math.erf(HALF_HEIGHT * s)), 1.0 + DECAY_KAPPA * x_ref
+
+
+_F_REF, _CORE_REF = _reference(HOTWIRE_X)
+
+
+@njit(cache=True)
+def _goertler(eta: float) -> float:
+    """``(1 + erf(eta)) / 2``; exactly 0 or 1 beyond |eta| = 6, where ``erf`` rounds to -1 or 1 (saves the call)."""
+    if eta >= 6.0:
+        return 1.0
+    if eta <= -6.0:
+        return 0.0
+    return 0.5 + 0.5 * math.erf(eta)
+
+
+@njit(cache=True)
+def profile_point(xf: float, yf: float, zf: float, f_ref: float, core_ref: float) -> tuple[float, float]:
+    """Mean-speed factor ``F / F_ref`` and shear-layer variance weight at one FAWT-frame point (module docstring).
+
+    ``eta = sigma_G (h - |q|) / x`` per edge, ``f = (1 + erf(eta)) / 2`` (Goertler profile), ``g = exp(-eta^2)``;
+    factor ``f_y f_z U_c(x) / (U_c(x_ref) F_ref)``, weight ``max(g_y f_z, g_z f_y) (U_c(x) / U_c(x_ref))^2``:
+    each edge's Gaussian shear-layer shape restricted to the other direction's extent of the jet.  Both are 0
+    behind the array (x <= 0).
+    """
+    if not xf > 0.0:
+        return 0.0, 0.0
+    xs = xf if xf > 1e-3 else 1e-3
+    s = GOERTLER_SIGMA / xs
+    eta_y = (HALF_SPAN - abs(yf)) * s
+    eta_z = (HALF_HEIGHT - abs(zf)) * s
+    f_y = _goertler(eta_y)
+    f_z = _goertler(eta_z)
+    core = core_ref / (1.0 + DECAY_KAPPA * xs)  # U_c(x) / U_c(x_ref): slow stream-wise decay of the core
+    # max(exp(-eta_y^2) f_z, exp(-eta_z^2) f_y): where 0 <= eta_a <= eta_b, term a is the larger in both factors
+    if 0.0 <= eta_y <= eta_z:
+        g = math.exp(-eta_y * eta_y) * f_z
+    elif 0.0 <= eta_z <= eta_y:
+        g = math.exp(-eta_z * eta_z) * f_y
+    else:
+        g_y, g_z = math.exp(-eta_y * eta_y) * f_z, math.exp(-eta_z * eta_z) * f_y
+        g = g_y if g_y > g_z else g_z
+    return f_y * f_z * core / f_ref, g * (core * core)
+
+
+@njit(cache=True)
+def profile_rows(p: NDArray[np.float64], f_ref: float, core_ref: float, factor: NDArray[np.float64],
+                 weight: NDArray[np.float64]) -> None:
+    """:func:`profile_point` at each row of ``p`` (M, 3) (FAWT frame) into ``factor``, ``weight`` (M,)."""
+    for i in range(p.shape[0]):
+        factor[i], weight[i] = profile_point(p[i, 0], p[i, 1], p[i, 2], f_ref, core_ref)
 
 
 def fawt_profile(p_fawt: NDArray[np.float64], x_ref: float = HOTWIRE_X) -> tuple[NDArray, NDArray]:
-    """Mean-speed factor ``F / F_ref`` and shear-layer variance weight at FAWT points (..., 3).
+    """Mean-speed factor ``F / F_ref`` and shear-layer variance weight (:func:`profile_point`) at FAWT points
+    (..., 3); ``F / F_ref`` is 1 at ``(x_ref, 0, 0)``."""
+    p = np.ascontiguousarray(p_fawt, dtype=float)
+    flat = p.reshape(-1, 3)
+    factor, weight = np.empty(flat.shape[0]), np.empty(flat.shape[0])
+    profile_rows(flat, *_reference(float(x_ref)), factor, weight)
+    return factor.reshape(p.shape[:-1]), weight.reshape(p.shape[:-1])
 
-    ``F / F_ref`` is 1 at ``(x_ref, 0, 0)``.  The weight is ``max(g_y f_z, g_z f_y) (U_c(x) / U_c(x_ref))^2``
-    with ``g = exp(-eta^2)``, ``eta = sigma_G (h - |q|) / x``: each edge's Gaussian shear-layer shape
-    restricted to the other direction's extent of the jet.  Both are 0 behind the array (x <= 0).
+
+@njit(cache=True)
+def fawt_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], scale: float, ti: float,
+                   turbulent: bool, rates: bool, dt: float, x: NDArray[np.float64], noise: NDArray[np.float64],
+                   k: int, table: NDArray[np.float64], filled: NDArray[np.bool_], k0: int, bins: NDArray[np.int64],
+                   y: NDArray[np.float64], out: NDArray[np.float64]) -> int:
+    """The FAWT wind (N, K, 3) NED at ``points`` (N, K, 3) into ``out``, every row (module docstring).
+
+    ``scale = U_ref s(t)`` (mean speed at the hot wire times the fan level); with ``turbulent`` each row's Dryden
+    field (state ``x``, normals ``noise[:, k]``, step matrices ``table``) is advanced by ``dt`` at its
+    frozen-turbulence speed ``V = |U(CoM) e_x - v|`` (outputs ``y``).  Returns -1; or, before changing
+    anything, -2 if a point or velocity is not finite, or the index of a table bin that must be filled first.
     """
-    x = p_fawt[..., 0]
-    xs = np.maximum(x, 1e-3)
-    eta = (_HALVES - np.abs(p_fawt[..., 1:])) * (GOERTLER_SIGMA / xs)[..., None]
-    f = 0.5 + 0.5 * scipy.special.erf(eta)
-    g = np.exp(-eta * eta)
-    sref = GOERTLER_SIGMA / x_ref
-    f_ref = 0.25 * (1 + math.erf(HALF_SPAN * sref)) * (1 + math.erf(HALF_HEIGHT * sref))
-    core = (1.0 + DECAY_KAPPA * x_ref) / (1.0 + DECAY_KAPPA * xs) * (x > 0)  # U_c(x) / U_c(x_ref), 0 behind
-    fy, fz = f[..., 0], f[..., 1]
-    factor = fy * fz * core / f_ref
-    weight = np.maximum(g[..., 0] * fz, g[..., 1] * fy) * (core * core)
-    return factor, weight
-
-
-_ORIGIN = tuple(FAWT_ORIGIN_NED.tolist())
-_F_REF = 0.25 * (1 + math.erf(HALF_SPAN * _SREF)) * (1 + math.erf(HALF_HEIGHT * _SREF))
-_CORE_REF = 1.0 + DECAY_KAPPA * HOTWIRE_X
-assert np.allclose(R_FAWT_TO_NED, np.diag([1.0, -1.0, -1.0]))  # used by the float path below
-
-
-def _profile_point_floats(x: float, y: float, z: float, weight: bool = True) -> tuple[float, float]:
-    """:func:`fawt_profile` at one NED point in float arithmetic: ``(F * U_c / U_c(x_ref), shear weight)`` with
-    ``F`` not yet divided by ``F_ref`` (the caller folds it into its gain); the weight only if ``weight``."""
-    x -= _ORIGIN[0]  # FAWT x = NED x - origin; |y|, |z| are sign-free, so the FAWT axis flips do not matter
-    if x <= 0.0:
-        return 0.0, 0.0
-    if x < 1e-3:
-        x = 1e-3
-    s = GOERTLER_SIGMA / x
-    dy, dz = y - _ORIGIN[1], z - _ORIGIN[2]
-    ey = (HALF_SPAN - (dy if dy >= 0.0 else -dy)) * s  # (|.| inline: a builtin call costs more than the branch)
-    ez = (HALF_HEIGHT - (dz if dz >= 0.0 else -dz)) * s
-    fy = 0.5 + 0.5 * math.erf(ey)
-    fz = 0.5 + 0.5 * math.erf(ez)
-    core = _CORE_REF / (1.0 + DECAY_KAPPA * x)
-    if not weight:
-        return fy * fz * core, 0.0
-    # max(exp(-ey^2) fz, exp(-ez^2) fy): one exp where one term dominates in both factors
-    if 0.0 <= ey <= ez:
-        g = math.exp(-ey * ey) * fz
-    elif 0.0 <= ez <= ey:
-        g = math.exp(-ez * ez) * fy
-    else:
-        gy, gz = math.exp(-ey * ey) * fz, math.exp(-ez * ez) * fy
-        g = gy if gy > gz else gz
-    return fy * fz * core, g * core * core
-
-
-def check_points(points_ned: NDArray[np.float64], velocity_ned: NDArray[np.float64], n: int) -> None:
-    """ValueError naming the bad value if points (N, K, 3) or velocities (N, 3) are malformed or not finite."""
-    if points_ned.ndim != 3 or points_ned.shape[0] != n or points_ned.shape[2] != 3:
-        raise ValueError(f"points_ned must have shape ({n}, K, 3), got {points_ned.shape}")
-    if velocity_ned.shape != (n, 3):
-        raise ValueError(f"vehicle_velocity_ned must have shape ({n}, 3), got {velocity_ned.shape}")
-    if not math.isfinite(float(points_ned.sum()) + float(velocity_ned.sum())):
-        bad_p = ~np.isfinite(points_ned)
-        if bad_p.any():
-            raise ValueError(f"points_ned must be finite, got {points_ned[np.nonzero(bad_p.any(axis=-1))][0]}")
-        row = np.nonzero(~np.isfinite(velocity_ned))[0][0]
-        raise ValueError(f"vehicle_velocity_ned must be finite, got {velocity_ned[row]}")
+    n, n_pts = points.shape[0], points.shape[1]
+    for i in range(n):  # pass 1: inputs finite, each row's Dryden bin filled
+        for p in range(n_pts):
+            if not (math.isfinite(points[i, p, 0]) and math.isfinite(points[i, p, 1])
+                    and math.isfinite(points[i, p, 2])):
+                return -2
+        if not (math.isfinite(velocity[i, 0]) and math.isfinite(velocity[i, 1]) and math.isfinite(velocity[i, 2])):
+            return -2
+        if turbulent:
+            factor, _ = profile_point(points[i, 0, 0] - _OX, _OY - points[i, 0, 1], _OZ - points[i, 0, 2],
+                                      _F_REF, _CORE_REF)
+            rel_x = scale * factor - velocity[i, 0]  # air velocity relative to the vehicle at the CoM
+            speed = math.sqrt(rel_x * rel_x + velocity[i, 1] * velocity[i, 1] + velocity[i, 2] * velocity[i, 2])
+            b = step_bin((speed if speed > V_FLOOR else V_FLOOR) * dt, k0)
+            if not filled[b]:
+                return b
+            bins[i] = b
+    scratch = np.empty(table.shape[2])
+    shear_scale2 = (SHEAR_TI * scale) ** 2  # peak mixing-layer variance (TI_sl U_c)^2
+    for i in range(n):
+        if turbulent:
+            gust_row_step(x, noise[i, k], table[bins[i]], y, i, scratch)  # one gust per field: [u, v, w](, p, q, r)
+        x0, y0 = points[i, 0, 0] - _OX, _OY - points[i, 0, 1]  # CoM, FAWT frame
+        for p in range(n_pts):
+            xf, yf, zf = points[i, p, 0] - _OX, _OY - points[i, p, 1], _OZ - points[i, p, 2]
+            factor, shear = profile_point(xf, yf, zf, _F_REF, _CORE_REF)
+            u_mean = scale * factor  # stream-wise mean, FAWT x = NED north
+            if not turbulent:
+                out[i, p, 0], out[i, p, 1], out[i, p, 2] = u_mean, 0.0, 0.0
+                continue
+            sigma = math.sqrt((ti * u_mean) ** 2 + shear_scale2 * shear)  # local r.m.s. gust
+            g_u, g_v, g_w = y[i, 0], y[i, 1], y[i, 2]
+            if rates:  # gust gradients: linear variation across the vehicle (offsets from the CoM, FAWT frame)
+                g_v = g_v - (xf - x0) * y[i, 5]
+                g_w = g_w - (xf - x0) * y[i, 4] + (yf - y0) * y[i, 3]
+            # FAWT (x, y, z) -> NED (x, -y, -z)
+            out[i, p, 0] = u_mean + sigma * g_u
+            out[i, p, 1] = -(sigma * g_v)
+            out[i, p, 2] = -(sigma * g_w)
+    return -1
 
 
 class FawtWind(WindModel):
@@ -214,10 +266,9 @@ class FawtWind(WindModel):
         self.ti = stats["ti"]
         if length_scale is None:
             length_scale = stats["length_scale"]
-        if isinstance(length_scale, bool) or not isinstance(length_scale, (int, float)) \
-                or not math.isfinite(length_scale) or length_scale <= 0:
+        if not is_real(length_scale) or length_scale <= 0:
             raise ValueError(f"length_scale must be a finite positive length [m], got {length_scale!r}")
-        if form not in FORMS:
+        if not isinstance(form, str) or form not in FORMS:
             raise ValueError(f"form must be one of {FORMS}, got {form!r}")
         self.length_scale = float(length_scale)
         self.form = form
@@ -230,92 +281,32 @@ class FawtWind(WindModel):
         self.n = 0
         self.level = self.schedule.initial_level()
 
-    def reset(self, n: int, seed: int | np.random.SeedSequence | None = None) -> None:
-        self.process.reset(n, seed)
+    def reset(self, n: int, seed: Seed = None) -> None:
+        self.process.reset(check_n(n), seed)
         self.n = int(n)
         self.level = self.schedule.initial_level()
-        self._t = 0.0
+        self._y = np.zeros((self.n, self.process.n_out))
 
     def step(self, t: float, dt: float, points_ned: NDArray[np.float64],
              vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
         """Wind (N, K, 3) NED at ``points_ned`` (N, K, 3) at time ``t`` (advanced by ``dt``); point 0 is the CoM."""
-        if not (dt > 0 and math.isfinite(dt)):
-            raise ValueError(f"dt must be a finite positive step [s], got {dt!r}")
-        if self.n == 1 and not self.rates:
-            return self._step_single(t, dt, points_ned, vehicle_velocity_ned)
-        check_points(points_ned, vehicle_velocity_ned, self.n)
-        self.level = self.schedule.advance(t - dt, t, self.level)
-        self._t = t
-        p = (points_ned - FAWT_ORIGIN_NED) @ R_FAWT_TO_NED  # FAWT frame
-        factor, shear = fawt_profile(p)
-        u_mean = (self.mean_speed * self.level) * factor  # (N, K) stream-wise
-        out = np.zeros(points_ned.shape)
-        out[..., 0] = u_mean  # FAWT x is NED north
-        if self.turbulence and self.level > 0.0:
-            sig = np.sqrt((self.ti * u_mean) ** 2 + (SHEAR_TI * self.mean_speed * self.level) ** 2 * shear)
-            if self.n == 1:
-                rx = u_mean[0, 0] - vehicle_velocity_ned[0, 0]
-                speed = math.sqrt(rx * rx + vehicle_velocity_ned[0, 1] ** 2 + vehicle_velocity_ned[0, 2] ** 2)
-            else:
-                rel = -vehicle_velocity_ned
-                rel[:, 0] += u_mean[:, 0]
-                speed = np.sqrt((rel * rel).sum(axis=1))
-            y = self.process.step(dt, speed)
-            g = y[:, :3]
-            if self.rates:
-                d = p - p[:, :1, :]  # offsets from the CoM in the FAWT frame
-                gv = g[:, None, 1] - d[..., 0] * y[:, None, 5]
-                gw = g[:, None, 2] - d[..., 0] * y[:, None, 4] + d[..., 1] * y[:, None, 3]
-                gust = np.stack([np.broadcast_to(g[:, None, 0], gv.shape), gv, gw], axis=-1)
-            else:
-                gust = g[:, None, :]
-            # FAWT (x, y, z) -> NED (x, -y, -z)
-            out[..., 0] += sig * gust[..., 0]
-            out[..., 1] -= sig * gust[..., 1]
-            out[..., 2] -= sig * gust[..., 2]
-        return out
-
-    def _step_single(self, t: float, dt: float, points_ned: NDArray[np.float64],
-                     vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
-        """N = 1 :meth:`step` through the float path :meth:`step_floats` (tested equal to the vectorized path)."""
-        if points_ned.ndim != 3 or points_ned.shape[0] != 1 or points_ned.shape[2] != 3 \
-                or vehicle_velocity_ned.shape != (1, 3):
-            check_points(points_ned, vehicle_velocity_ned, 1)
-        flat, vel = points_ned.ravel().tolist(), vehicle_velocity_ned[0].tolist()
-        if not math.isfinite(sum(flat) + sum(vel)):
-            check_points(points_ned, vehicle_velocity_ned, 1)
-        return np.array(self.step_floats(t, dt, flat, vel)).reshape(1, -1, 3)
-
-    def step_floats(self, t: float, dt: float, points_ned: list[float], vehicle_velocity_ned: list[float]
-                    ) -> list[float]:
-        """One vehicle, plain float arithmetic: the same model as the vectorized :meth:`step`."""
-        flat = points_ned
-        vx, vy, vz = vehicle_velocity_ned
-        if self.n != 1 or self.rates or not (dt > 0 and math.isfinite(dt)):
-            return super().step_floats(t, dt, flat, vehicle_velocity_ned)  # step(): vectorized path or dt error
-        if len(flat) % 3 or not math.isfinite(sum(flat) + vx + vy + vz):
-            raise ValueError(f"points_ned must be 3 K finite coordinates and vehicle_velocity_ned 3 finite values, "
-                             f"got {flat} and {vehicle_velocity_ned}")
-        self.level = level = self.schedule.advance(t - dt, t, self.level)
-        self._t = t
-        scale = self.mean_speed * level
+        check_step(t, dt)
+        points, velocity = check_points(points_ned, vehicle_velocity_ned, self.n, finite=False)
+        level = self.schedule.advance(t - dt, t, self.level)
         turbulent = self.turbulence and level > 0.0
-        gain = scale / _F_REF
-        n = len(flat)
-        out = [0.0] * n
-        gu = gv = gw = 0.0
-        ti2, sh = self.ti * self.ti, (SHEAR_TI * scale) ** 2
-        for k in range(0, n, 3):
-            u, g = _profile_point_floats(flat[k], flat[k + 1], flat[k + 2], turbulent)
-            if k == 0 and turbulent:  # the CoM's mean sets the frozen-turbulence airspeed of the one gust
-                rx = gain * u - vx
-                gu, gv, gw = self.process.step1(dt, math.sqrt(rx * rx + vy * vy + vz * vz))[:3]
-            u *= gain
-            if turbulent:
-                s = math.sqrt(ti2 * u * u + sh * g) if g > 0.0 else self.ti * u
-                out[k], out[k + 1], out[k + 2] = u + s * gu, -s * gv, -s * gw
-            else:
-                out[k] = u
+        proc = self.process
+        table = proc.table
+        k = proc.noise_index() if turbulent else 0
+        out = np.empty(points.shape)
+        while (status := fawt_wind_rows(points, velocity, self.mean_speed * level, self.ti, turbulent, self.rates,
+                                        float(dt), proc.x, proc.noise, k, table.matrices, table.filled, table.k0,
+                                        proc.bins, self._y, out)) != -1:
+            if status == -2:
+                raise_not_finite(points, velocity)
+            table.fill(status)
+        if turbulent:
+            proc.advance_noise()
+        self.level = level
         return out
 
     def mean_wind_at(self, points_ned: Sequence[float] | NDArray[np.float64]) -> NDArray[np.float64]:

@@ -31,13 +31,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core.checks import check_flag
 
-from .base import WindModel
-from .dryden import FORMS, V_FLOOR, DrydenParams, DrydenProcess
-from .fawt import check_points
+from .base import WindModel, check_n, check_points, check_step, is_real, raise_not_finite
+from .dryden import FORMS, V_FLOOR, DrydenParams
+from .dryden_process import DrydenProcess, Seed, gust_row_step, step_bin
 
 FT = 0.3048  #: [m] per foot
 KNOT = 0.514444  #: [m/s] per knot
@@ -52,8 +53,7 @@ def low_altitude_params(intensity: str, altitude: float, form: str = "8785c") ->
         raise ValueError(f"turbulence intensity must be one of {list(W20_KNOTS)}, got {intensity!r}")
     if form not in FORMS:
         raise ValueError(f"form must be one of {FORMS}, got {form!r}")
-    if isinstance(altitude, bool) or not isinstance(altitude, (int, float)) or not math.isfinite(altitude) \
-            or not 0.0 < altitude <= LOW_ALTITUDE_MAX:
+    if not is_real(altitude) or not 0.0 < altitude <= LOW_ALTITUDE_MAX:
         raise ValueError(f"altitude must be in (0, {LOW_ALTITUDE_MAX:.1f}] m (low-altitude model, 1000 ft), "
                          f"got {altitude!r}")
     h = max(altitude / FT, 10.0)
@@ -73,10 +73,56 @@ def log_profile_speed(intensity: str, altitude: float) -> float:
 
 
 def _direction(direction_deg: float) -> NDArray[np.float64]:
-    if not (isinstance(direction_deg, (int, float)) and math.isfinite(direction_deg)):
+    if not is_real(direction_deg):
         raise ValueError(f"direction_deg must be a finite heading in degrees, got {direction_deg!r}")
     a = math.radians(direction_deg)
     return np.array([math.cos(a), math.sin(a), 0.0])
+
+
+@njit(cache=True)
+def dryden_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], mean: NDArray[np.float64],
+                     advection: NDArray[np.float64], axes: NDArray[np.float64], rates: bool, dt: float,
+                     x: NDArray[np.float64], noise: NDArray[np.float64], k: int, table: NDArray[np.float64],
+                     filled: NDArray[np.bool_], k0: int, bins: NDArray[np.int64], y: NDArray[np.float64],
+                     out: NDArray[np.float64]) -> int:
+    """The outdoor Dryden wind (N, K, 3) NED at ``points`` into ``out`` (module docstring), every row.
+
+    Each row's gust field (state ``x``, normals ``noise[:, k]``) steps at ``V = |W_adv - v|``; the gust
+    ``[u, v, w]`` along ``axes`` (rows: u, v, w in NED), plus with ``rates`` the gradients across the vehicle.
+    Returns -1; or, before changing anything, -2 if a point or velocity is not finite, or a table bin to fill.
+    """
+    n, n_pts = points.shape[0], points.shape[1]
+    for i in range(n):  # pass 1: inputs finite, each row's Dryden bin filled
+        for p in range(n_pts):
+            if not (math.isfinite(points[i, p, 0]) and math.isfinite(points[i, p, 1])
+                    and math.isfinite(points[i, p, 2])):
+                return -2
+        if not (math.isfinite(velocity[i, 0]) and math.isfinite(velocity[i, 1]) and math.isfinite(velocity[i, 2])):
+            return -2
+        speed = 0.0  # frozen-turbulence speed |W_adv - v|
+        for c in range(3):
+            speed += (advection[c] - velocity[i, c]) ** 2
+        speed = math.sqrt(speed)
+        b = step_bin((speed if speed > V_FLOOR else V_FLOOR) * dt, k0)
+        if not filled[b]:
+            return b
+        bins[i] = b
+    scratch = np.empty(table.shape[2])
+    for i in range(n):
+        gust_row_step(x, noise[i, k], table[bins[i]], y, i, scratch)
+        for p in range(n_pts):
+            g_u, g_v, g_w = y[i, 0], y[i, 1], y[i, 2]
+            if rates:  # offsets from the CoM along the gust axes u, v
+                d_u = d_v = 0.0
+                for c in range(3):
+                    offset = points[i, p, c] - points[i, 0, c]
+                    d_u += axes[0, c] * offset
+                    d_v += axes[1, c] * offset
+                g_v = g_v - d_u * y[i, 5]
+                g_w = g_w - d_u * y[i, 4] + d_v * y[i, 3]
+            for c in range(3):  # mean + [g_u, g_v, g_w] @ axes (NED)
+                out[i, p, c] = mean[c] + (g_u * axes[0, c] + g_v * axes[1, c] + g_w * axes[2, c])
+    return -1
 
 
 class DrydenWind(WindModel):
@@ -92,8 +138,7 @@ class DrydenWind(WindModel):
                  rates: bool = False, span: float = 0.5, discretization: str = "exact") -> None:
         params = low_altitude_params(intensity, altitude, form)
         if length_scale is not None:
-            if isinstance(length_scale, bool) or not isinstance(length_scale, (int, float)) \
-                    or not math.isfinite(length_scale) or length_scale <= 0:
+            if not is_real(length_scale) or length_scale <= 0:
                 raise ValueError(f"length_scale must be a finite positive length [m], got {length_scale!r}")
             lat = length_scale if form == "8785c" else 0.5 * length_scale
             params = DrydenParams(sigma=params.sigma, length=(length_scale, lat, lat), form=form, span=span)
@@ -106,7 +151,7 @@ class DrydenWind(WindModel):
             speed = log_profile_speed(intensity, altitude)
         elif mean_wind is False or mean_wind is None:
             speed = 0.0
-        elif isinstance(mean_wind, (int, float)) and math.isfinite(mean_wind) and mean_wind >= 0:
+        elif is_real(mean_wind) and mean_wind >= 0:
             speed = float(mean_wind)
         else:
             raise ValueError(f"mean_wind must be False, True or a speed >= 0 [m/s], got {mean_wind!r}")
@@ -121,26 +166,27 @@ class DrydenWind(WindModel):
         self.process = DrydenProcess(params, rates=self.rates, discretization=discretization)
         self.n = 0
 
-    def reset(self, n: int, seed: int | np.random.SeedSequence | None = None) -> None:
-        self.process.reset(n, seed)
+    def reset(self, n: int, seed: Seed = None) -> None:
+        self.process.reset(check_n(n), seed)
         self.n = int(n)
+        self._y = np.zeros((self.n, self.process.n_out))
 
     def step(self, t: float, dt: float, points_ned: NDArray[np.float64],
              vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
-        if not (dt > 0 and math.isfinite(dt)):
-            raise ValueError(f"dt must be a finite positive step [s], got {dt!r}")
-        check_points(points_ned, vehicle_velocity_ned, self.n)
-        rel = self.advection - vehicle_velocity_ned
-        speed = np.sqrt((rel * rel).sum(axis=1))
-        y = self.process.step(dt, float(speed[0]) if self.n == 1 else speed)
-        if self.rates:
-            d = (points_ned - points_ned[:, :1, :]) @ self.axes.T  # offsets along (u, v, w) axes
-            gv = y[:, None, 1] - d[..., 0] * y[:, None, 5]
-            gw = y[:, None, 2] - d[..., 0] * y[:, None, 4] + d[..., 1] * y[:, None, 3]
-            gust = np.stack([np.broadcast_to(y[:, None, 0], gv.shape), gv, gw], axis=-1) @ self.axes
-        else:
-            gust = (y[:, :3] @ self.axes)[:, None, :]
-        return self.mean + gust + np.zeros(points_ned.shape)
+        check_step(t, dt)
+        points, velocity = check_points(points_ned, vehicle_velocity_ned, self.n, finite=False)
+        proc = self.process
+        table = proc.table
+        k = proc.noise_index()
+        out = np.empty(points.shape)
+        while (status := dryden_wind_rows(points, velocity, self.mean, self.advection, self.axes, self.rates,
+                                          float(dt), proc.x, proc.noise, k, table.matrices, table.filled, table.k0,
+                                          proc.bins, self._y, out)) != -1:
+            if status == -2:
+                raise_not_finite(points, velocity)
+            table.fill(status)
+        proc.advance_noise()
+        return out
 
 
 class OneCosineGust(WindModel):
@@ -156,17 +202,18 @@ class OneCosineGust(WindModel):
                  speed: float = 5.0, start_time: float = 1.0, direction_deg: float = 0.0,
                  shape: str = "rise") -> None:
         d = _direction(direction_deg)
-        amp = np.asarray(amplitude, dtype=float)
-        if amp.shape == ():
+        raw = np.asarray(amplitude)
+        amp = raw.astype(float) if raw.dtype.kind in "fiu" else np.full(1, np.nan)  # (strings, bools, objects: bad)
+        if amp.shape == () and math.isfinite(float(amp)):
             amp = float(amp) * d
         if amp.shape != (3,) or not np.all(np.isfinite(amp)):
             raise ValueError(f"amplitude must be a finite speed or NED 3-vector [m/s], got {amplitude!r}")
         for name, val in (("length", length), ("speed", speed)):
-            if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
+            if not (is_real(val) and val > 0):
                 raise ValueError(f"{name} must be a finite positive number, got {val!r}")
-        if not (isinstance(start_time, (int, float)) and math.isfinite(start_time) and start_time >= 0):
+        if not (is_real(start_time) and start_time >= 0):
             raise ValueError(f"start_time must be a finite time >= 0 s, got {start_time!r}")
-        if shape not in ("rise", "full"):
+        if not isinstance(shape, str) or shape not in ("rise", "full"):
             raise ValueError(f"shape must be 'rise' or 'full', got {shape!r}")
         self.amplitude = amp
         self.length = float(length)
@@ -176,8 +223,8 @@ class OneCosineGust(WindModel):
         self.shape = shape
         self.n = 0
 
-    def reset(self, n: int, seed: int | np.random.SeedSequence | None = None) -> None:
-        self.n = int(n)
+    def reset(self, n: int, seed: Seed = None) -> None:
+        self.n = check_n(n)
         self.x = np.zeros(self.n)  # distance the front has moved past the CoM
 
     def profile(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -187,9 +234,8 @@ class OneCosineGust(WindModel):
 
     def step(self, t: float, dt: float, points_ned: NDArray[np.float64],
              vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
-        if not (dt > 0 and math.isfinite(dt)):
-            raise ValueError(f"dt must be a finite positive step [s], got {dt!r}")
-        check_points(points_ned, vehicle_velocity_ned, self.n)
+        check_step(t, dt)
+        points_ned, vehicle_velocity_ned = check_points(points_ned, vehicle_velocity_ned, self.n)
         active = min(max(t - self.start_time, 0.0), dt)  # part of this step after the gust started
         if active > 0:
             rel = self.speed * self.direction - vehicle_velocity_ned

@@ -20,13 +20,15 @@ from __future__ import annotations
 
 import math
 
+from .base import is_real
+
 DEFAULT_SPIN_TAU = 1.0  #: [s] first-order fan spin-up time constant (assumption, see module docstring)
 
 
 def _check_time(name: str, value: float | None) -> float | None:
     if value is None:
         return None
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+    if not (is_real(value) and value >= 0):
         raise ValueError(f"{name} must be a finite time >= 0 s or None, got {value!r}")
     return float(value)
 
@@ -44,7 +46,9 @@ class FanSchedule:
         self.on_time = _check_time("on_time", on_time)
         self.off_time = _check_time("off_time", off_time)
         for name, val in (("spin_tau", spin_tau), ("spin_down_tau", spin_down_tau)):
-            if val is not None and not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
+            if val is None and name == "spin_down_tau":  # None: the spin-up time constant
+                continue
+            if not (is_real(val) and val is not None and val > 0):
                 raise ValueError(f"{name} must be a finite positive time constant [s], got {val!r}")
         if self.on_time is not None and self.off_time is not None and self.off_time <= self.on_time:
             raise ValueError(f"off_time ({self.off_time}) must be after on_time ({self.on_time})")

@@ -1,8 +1,10 @@
-"""Benchmark: wind + aerodynamics update cost per step, single (N = 1) and batched (N = 1024).
+"""Benchmark: wind, aerodynamics, sensors and motor lag update cost per step, single (N = 1) and batched (N = 1024).
 
 ``fawtgym bench wind`` prints, measured in one run on this machine:
 
-* ``wind.step`` and ``AeroModel.wrench`` per call for N = 1 and N = 1024 (and per env);
+* ``wind.step``, ``AeroModel.wrench``, the sensor law (``mocap_imu``) and the motor lag of one control step (5
+  substeps) per call for N = 1 and N = 1024 (and per env); each is a compiled kernel over rows, called once
+  before timing so that compilation (or loading it from the cache) is not timed;
 * the env step cost with ``wind="calm"`` and ``wind="fawt-50"``, alternating single steps so that
   machine load affects both alike, and their ratio (target: the FAWT wind adds <= 20 %).  Both hover at the
   FAWT point under the PX4 cascade (:class:`~fawtgym.agents.PX4Agent`, not timed), so the FAWT env meets the
@@ -21,12 +23,15 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
 from fawtgym.cli_parser import ArgumentParser, positive_int
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED
 from fawtgym.envs.aero import AeroModel
+from fawtgym.envs.motors import decay_factors, lag_thrusts, substep_times
+from fawtgym.envs.sensors_batch import BatchSensorModel
 from fawtgym.envs.vehicles import make_vehicle
 from fawtgym.envs.wind import make_wind
 
@@ -43,7 +48,8 @@ def _best_per_call(fn: Callable[[], object], calls: int, repeats: int = 5) -> fl
 
 
 def wind_aero_costs(n: int, calls: int, preset: str = "fawt-50", vehicle: str = "s500") -> dict[str, float]:
-    """Per-call seconds of ``wind.step`` and ``aero.wrench`` with ``n`` vehicles hovering at the FAWT point."""
+    """Per-call seconds of ``wind.step``, ``aero.wrench``, both, the sensor law and the motor lag of one 5 ms step (5
+    substeps) with ``n`` vehicles hovering at the FAWT point (each called once first: compile/warm-up)."""
     p = make_vehicle(vehicle)
     wind = make_wind(preset)
     wind.reset(n, seed=0)
@@ -54,7 +60,13 @@ def wind_aero_costs(n: int, calls: int, preset: str = "fawt-50", vehicle: str = 
     rot = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
     rate = np.zeros((n, 3))
     omega = np.full((n, 4), p.hover_omega)
-    state = {"t": 0.0, "w": wind.step(0.01, 0.01, pts, vel)}
+    state: dict[str, Any] = {"t": 0.0, "w": wind.step(0.01, 0.01, pts, vel)}
+    sensor = BatchSensorModel("mocap_imu", 0.005, n)
+    sensor.reset_rows(np.arange(n), [np.random.default_rng(i) for i in range(n)])
+    times = np.zeros(n)
+    up, down = decay_factors(p, substep_times(0.005, 5))
+    ref = np.full((n, 4), 1.01 * p.hover_omega)
+    ctrl, speeds, mean = np.zeros((n, 5, 10)), np.empty((n, 4)), np.empty((n, 4))
 
     def step_wind() -> None:
         state["t"] += 0.01
@@ -67,8 +79,17 @@ def wind_aero_costs(n: int, calls: int, preset: str = "fawt-50", vehicle: str = 
         step_wind()
         step_aero()
 
+    def measure() -> None:
+        sensor.measure(times, pts[:, 0], vel, rot, rate, vel)
+
+    def lag() -> None:
+        lag_thrusts(ref, omega, up, down, p.k_thrust, ctrl, speeds, mean)
+
+    for fn in (step_aero, measure, lag):  # compile (or load from the cache) before timing
+        fn()
     return {"wind": _best_per_call(step_wind, calls), "aero": _best_per_call(step_aero, calls),
-            "both": _best_per_call(both, calls)}
+            "both": _best_per_call(both, calls), "sensors": _best_per_call(measure, calls),
+            "motors": _best_per_call(lag, calls)}
 
 
 def env_costs(steps: int, blocks: int) -> dict[str, float] | None:
@@ -149,7 +170,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     single = wind_aero_costs(1, ns.calls)
     batch = wind_aero_costs(ns.batch, max(ns.calls // 20, 20))
     print(f"{'':22s}{'N = 1 [us]':>12s}{f'N = {ns.batch} [us]':>16s}{'per env [us]':>14s}")
-    for key, label in (("wind", "wind.step (fawt-50)"), ("aero", "aero.wrench"), ("both", "wind + aero")):
+    for key, label in (("wind", "wind.step (fawt-50)"), ("aero", "aero.wrench"), ("both", "wind + aero"),
+                       ("sensors", "sensors (mocap_imu)"), ("motors", "motor lag (5 subst.)")):
         print(f"{label:22s}{single[key] * 1e6:12.1f}{batch[key] * 1e6:16.1f}{batch[key] / ns.batch * 1e6:14.3f}")
     print(f"wind + aero, N = 1, in numpy reference ops: {single['both'] / ref:.0f}")
     if not ns.no_env:
