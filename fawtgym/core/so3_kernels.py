@@ -1,0 +1,161 @@
+"""Row helpers of SO(3), quaternions and Euler angles for compiled kernels (numba), written once.
+
+Every function here works on ONE row (a 3-vector, a 3 x 3 matrix, a (w, x, y, z) quaternion) and writes
+its result into an ``out`` array it is given (no allocation), so a kernel that loops over the rows of a
+batch calls them per row: ``for i in range(n): exp_so3_row(h * w[i], r_step[i])``.  They are compiled
+with ``@njit(cache=True)`` and inlined by numba into the kernels that call them; with
+``NUMBA_DISABLE_JIT=1`` they run as plain Python.
+
+The batch-first numpy functions of :mod:`fawtgym.core.so3` and :mod:`fawtgym.core.frames` are the same
+laws for non-hot code; ``tests/test_core_so3_kernels.py`` pins that each row helper equals its numpy
+counterpart (to a tolerance scaled by the magnitudes involved) on random and edge-case inputs.
+
+Conventions (DESIGN.md): R maps body FRD to world NED; quaternions are (w, x, y, z); Euler angles are
+Z-Y-X (roll, pitch, yaw) as PX4's ``matrix::Eulerf``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: below this squared angle [rad^2] the Rodrigues coefficients use their Taylor series (as core.so3)
+SMALL_ANGLE_SQ = 1e-8
+
+
+@njit(cache=True)
+def cross_row(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """out = a x b (3-vectors); ``out`` must not alias ``a`` or ``b``."""
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@njit(cache=True)
+def mat_vec_row(r: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
+    """out = R v (3 x 3 times a 3-vector); ``out`` must not alias ``v``."""
+    for j in range(3):
+        out[j] = r[j, 0] * v[0] + r[j, 1] * v[1] + r[j, 2] * v[2]
+
+
+@njit(cache=True)
+def mat_t_vec_row(r: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
+    """out = R^T v (world -> body for R body -> world); ``out`` must not alias ``v``."""
+    for j in range(3):
+        out[j] = r[0, j] * v[0] + r[1, j] * v[1] + r[2, j] * v[2]
+
+
+@njit(cache=True)
+def mat_mul_row(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """out = A B (3 x 3); ``out`` must not alias ``a`` or ``b``."""
+    for j in range(3):
+        for k in range(3):
+            out[j, k] = a[j, 0] * b[0, k] + a[j, 1] * b[1, k] + a[j, 2] * b[2, k]
+
+
+@njit(cache=True)
+def exp_so3_row(w: np.ndarray, out: np.ndarray) -> None:
+    """Rodrigues' formula exp(w^) = I + a w^ + b w^ w^ with a = sin t / t, b = (1 - cos t) / t^2, t = |w|.
+
+    Below ``SMALL_ANGLE_SQ`` a and b are their Taylor series to t^4 (as :func:`fawtgym.core.so3.exp_so3`);
+    w^ w^ = w w^T - t^2 I is written out, so no hat matrix is formed.
+    """
+    t2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+    if t2 < SMALL_ANGLE_SQ:
+        a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
+        b = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+    else:
+        t = math.sqrt(t2)
+        a = math.sin(t) / t
+        b = (1.0 - math.cos(t)) / t2
+    for j in range(3):
+        for k in range(3):
+            out[j, k] = b * w[j] * w[k]
+        out[j, j] += 1.0 - b * t2
+    out[0, 1] -= a * w[2]
+    out[0, 2] += a * w[1]
+    out[1, 0] += a * w[2]
+    out[1, 2] -= a * w[0]
+    out[2, 0] -= a * w[1]
+    out[2, 1] += a * w[0]
+
+
+@njit(cache=True)
+def rot_to_euler_row(r: np.ndarray, out: np.ndarray) -> None:
+    """Z-Y-X Euler angles (roll, pitch, yaw) of R (FRD -> NED), as :func:`fawtgym.core.frames.rot_to_euler`."""
+    out[0] = math.atan2(r[2, 1], r[2, 2])
+    out[1] = math.asin(min(max(-r[2, 0], -1.0), 1.0))
+    out[2] = math.atan2(r[1, 0], r[0, 0])
+
+
+@njit(cache=True)
+def quat_to_rot_row(q: np.ndarray, out: np.ndarray) -> None:
+    """Rotation matrix of the quaternion (w, x, y, z), normalized first (the caller refuses a zero one)."""
+    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    w, x, y, z = q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm
+    out[0, 0] = 1.0 - 2.0 * (y * y + z * z)
+    out[0, 1] = 2.0 * (x * y - w * z)
+    out[0, 2] = 2.0 * (x * z + w * y)
+    out[1, 0] = 2.0 * (x * y + w * z)
+    out[1, 1] = 1.0 - 2.0 * (x * x + z * z)
+    out[1, 2] = 2.0 * (y * z - w * x)
+    out[2, 0] = 2.0 * (x * z - w * y)
+    out[2, 1] = 2.0 * (y * z + w * x)
+    out[2, 2] = 1.0 - 2.0 * (x * x + y * y)
+
+
+@njit(cache=True)
+def rot_to_quat_row(r: np.ndarray, out: np.ndarray) -> None:
+    """Unit quaternion (w, x, y, z), w >= 0, of R by Shepperd's method (the largest of 1 + trace and the
+    diagonal picks the well-conditioned formula), as :func:`fawtgym.core.frames.rot_to_quat`."""
+    tr = r[0, 0] + r[1, 1] + r[2, 2]
+    if tr >= r[0, 0] and tr >= r[1, 1] and tr >= r[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + tr)
+        w, x, y, z = 0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s
+    elif r[0, 0] >= r[1, 1] and r[0, 0] >= r[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2])
+        w, x, y, z = (r[2, 1] - r[1, 2]) / s, 0.25 * s, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s
+    elif r[1, 1] >= r[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2])
+        w, x, y, z = (r[0, 2] - r[2, 0]) / s, (r[0, 1] + r[1, 0]) / s, 0.25 * s, (r[1, 2] + r[2, 1]) / s
+    else:
+        s = 2.0 * math.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1])
+        w, x, y, z = (r[1, 0] - r[0, 1]) / s, (r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, 0.25 * s
+    sign = -1.0 if w < 0.0 else 1.0
+    norm = sign * math.sqrt(w * w + x * x + y * y + z * z)
+    out[0] = w / norm
+    out[1] = x / norm
+    out[2] = y / norm
+    out[3] = z / norm
+
+
+@njit(cache=True)
+def rotation_defect_row(r: np.ndarray) -> float:
+    """How far R is from a rotation: max |(R^T R - I)_jk| over the entries, or +inf if det R <= 0 or R is
+    not finite.  A rotation gives rounding-level values (~1e-16); :func:`first_non_rotation` compares
+    against a tolerance."""
+    worst = 0.0
+    for j in range(3):
+        for k in range(3):
+            g = r[0, j] * r[0, k] + r[1, j] * r[1, k] + r[2, j] * r[2, k]
+            if j == k:
+                g -= 1.0
+            if not math.isfinite(g):
+                return math.inf
+            worst = max(worst, abs(g))
+    det = (r[0, 0] * (r[1, 1] * r[2, 2] - r[1, 2] * r[2, 1]) - r[0, 1] * (r[1, 0] * r[2, 2] - r[1, 2] * r[2, 0])
+           + r[0, 2] * (r[1, 0] * r[2, 1] - r[1, 1] * r[2, 0]))
+    if not det > 0.0:
+        return math.inf
+    return worst
+
+
+@njit(cache=True)
+def first_non_rotation(r: np.ndarray, tol: float) -> int:
+    """Index of the first row of ``r`` (N, 3, 3) whose :func:`rotation_defect_row` exceeds ``tol``, or -1."""
+    for i in range(r.shape[0]):
+        if rotation_defect_row(r[i]) > tol:
+            return i
+    return -1
