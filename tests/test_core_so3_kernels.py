@@ -1,12 +1,15 @@
-"""The compiled row helpers of fawtgym.core.so3_kernels equal the batch-first numpy laws of core.so3/frames.
+"""The compiled row helpers of fawtgym.core.so3_kernels (and the batch functions of core.so3/frames built on
+them) against independent references: scipy's matrix exponential and ``Rotation``, and defining identities.
 
-Two implementations of one formula agree to a tolerance scaled by the magnitudes involved
-(tests/_tolerance.py), never to one ulp; edge cases: zero and tiny rotation vectors (Taylor branch),
-angles near pi, every branch of Shepperd's method, and the rotation check's refusals.
+Independent implementations agree to a tolerance scaled by the magnitudes involved (all O(1) here), never to
+one ulp; edge cases: zero and tiny rotation vectors (Taylor branch), angles near pi, every branch of
+Shepperd's method, non-finite input, and the rotation check's refusals.
 """
 
 import numpy as np
 import pytest
+from scipy.linalg import expm
+from scipy.spatial.transform import Rotation
 
 from fawtgym.core import so3_kernels as k
 from fawtgym.core.frames import euler_to_rot, quat_to_rot, rot_to_euler, rot_to_quat
@@ -28,7 +31,11 @@ def test_exp_so3_row_equals_rodrigues_of_core_so3():
     out = np.empty((len(w), 3, 3))
     for i in range(len(w)):
         k.exp_so3_row(w[i], out[i])
-    np.testing.assert_allclose(out, exp_so3(w), rtol=0, atol=TOL)
+    reference = np.array([expm(hat(x)) for x in w])
+    np.testing.assert_allclose(out, reference, rtol=0, atol=TOL)
+    np.testing.assert_allclose(exp_so3(w[:50].reshape(2, 25, 3)), reference[:50].reshape(2, 25, 3, 3), rtol=0, atol=TOL)
+    k.exp_so3_row(np.array([np.inf, 0.0, 0.0]), out[0])
+    assert np.isnan(out[0]).all()
 
 
 def test_matrix_vector_helpers():
@@ -57,10 +64,17 @@ def test_euler_and_quaternion_rows_equal_core_frames():
         k.rot_to_euler_row(r[i], euler[i])
         k.rot_to_quat_row(r[i], quat[i])
         k.quat_to_rot_row(3.0 * quat[i], back[i])       # un-normalized input is normalized first
-    np.testing.assert_allclose(euler, rot_to_euler(r), rtol=0, atol=TOL)
-    np.testing.assert_allclose(quat, rot_to_quat(r), rtol=0, atol=TOL)
-    np.testing.assert_allclose(back, quat_to_rot(quat), rtol=0, atol=TOL)
+    scipy_rot = Rotation.from_matrix(r)
+    np.testing.assert_allclose(euler[:50], angles, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(euler[:, ::-1], scipy_rot.as_euler("ZYX"), rtol=0, atol=1e-12)
+    xyzw = scipy_rot.as_quat(canonical=False)
+    reference = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
+    reference *= np.where(reference[:, :1] < 0, -1.0, 1.0)
+    np.testing.assert_allclose(quat, reference, rtol=0, atol=1e-12)
     np.testing.assert_allclose(back, r, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(rot_to_euler(r), euler, rtol=0, atol=TOL)
+    np.testing.assert_allclose(rot_to_quat(r), quat, rtol=0, atol=TOL)
+    np.testing.assert_allclose(quat_to_rot(quat), back, rtol=0, atol=TOL)
 
 
 @pytest.mark.parametrize("bad", [2.0 * np.eye(3), np.diag([1.0, 1.0, -1.0]), np.zeros((3, 3)),

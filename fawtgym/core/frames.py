@@ -18,6 +18,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.so3_kernels import quat_to_rot_rows, rot_to_euler_rows, rot_to_quat_rows
+
 #: The half turn about x that maps MuJoCo's z-up world / FLU body onto NED / FRD.
 T_MJ_NED: NDArray[np.float64] = np.diag([1.0, -1.0, -1.0])
 #: The diagonal of T (vectors: ``v_ned = SIGN_MJ_NED * v_mj``) and its outer product
@@ -52,56 +54,22 @@ def quat_to_rot(q: ArrayLike) -> NDArray[np.float64]:
     The quaternion is normalized first; a zero quaternion raises ValueError.
     """
     q = np.asarray(q, dtype=float)
-    n = np.linalg.norm(q, axis=-1, keepdims=True)
+    n = np.linalg.norm(q, axis=-1)
     if np.any(n == 0) or not np.all(np.isfinite(n)):
         raise ValueError(f"quaternion must be finite and non-zero, got {q}")
-    w, x, y, z = np.moveaxis(q / n, -1, 0)
-    r = np.empty(q.shape[:-1] + (3, 3))
-    r[..., 0, 0] = 1 - 2 * (y * y + z * z)
-    r[..., 0, 1] = 2 * (x * y - w * z)
-    r[..., 0, 2] = 2 * (x * z + w * y)
-    r[..., 1, 0] = 2 * (x * y + w * z)
-    r[..., 1, 1] = 1 - 2 * (x * x + z * z)
-    r[..., 1, 2] = 2 * (y * z - w * x)
-    r[..., 2, 0] = 2 * (x * z - w * y)
-    r[..., 2, 1] = 2 * (y * z + w * x)
-    r[..., 2, 2] = 1 - 2 * (x * x + y * y)
-    return r
+    rows = np.ascontiguousarray(q.reshape(-1, 4))
+    out = np.empty((rows.shape[0], 3, 3))
+    quat_to_rot_rows(rows, out)        # one law: so3_kernels.quat_to_rot_row
+    return out.reshape(q.shape[:-1] + (3, 3))
 
 
 def rot_to_quat(r: ArrayLike) -> NDArray[np.float64]:
     """Rotation matrix (..., 3, 3) to unit quaternion (w, x, y, z) with w >= 0 (Shepperd's method)."""
     r = np.asarray(r, dtype=float)
-    batch = r.shape[:-2]
-    r = r.reshape(-1, 3, 3)
-    tr = np.trace(r, axis1=1, axis2=2)
-    diag = np.stack([tr, r[:, 0, 0], r[:, 1, 1], r[:, 2, 2]], axis=1)
-    k = np.argmax(diag, axis=1)
-    q = np.empty((r.shape[0], 4))
-    for case in range(4):
-        m = k == case
-        if not np.any(m):
-            continue
-        rr = r[m]
-        if case == 0:
-            s = 2.0 * np.sqrt(1.0 + tr[m])
-            q[m] = np.stack([0.25 * s, (rr[:, 2, 1] - rr[:, 1, 2]) / s,
-                             (rr[:, 0, 2] - rr[:, 2, 0]) / s, (rr[:, 1, 0] - rr[:, 0, 1]) / s], axis=1)
-        elif case == 1:
-            s = 2.0 * np.sqrt(1.0 + rr[:, 0, 0] - rr[:, 1, 1] - rr[:, 2, 2])
-            q[m] = np.stack([(rr[:, 2, 1] - rr[:, 1, 2]) / s, 0.25 * s,
-                             (rr[:, 0, 1] + rr[:, 1, 0]) / s, (rr[:, 0, 2] + rr[:, 2, 0]) / s], axis=1)
-        elif case == 2:
-            s = 2.0 * np.sqrt(1.0 + rr[:, 1, 1] - rr[:, 0, 0] - rr[:, 2, 2])
-            q[m] = np.stack([(rr[:, 0, 2] - rr[:, 2, 0]) / s, (rr[:, 0, 1] + rr[:, 1, 0]) / s,
-                             0.25 * s, (rr[:, 1, 2] + rr[:, 2, 1]) / s], axis=1)
-        else:
-            s = 2.0 * np.sqrt(1.0 + rr[:, 2, 2] - rr[:, 0, 0] - rr[:, 1, 1])
-            q[m] = np.stack([(rr[:, 1, 0] - rr[:, 0, 1]) / s, (rr[:, 0, 2] + rr[:, 2, 0]) / s,
-                             (rr[:, 1, 2] + rr[:, 2, 1]) / s, 0.25 * s], axis=1)
-    q *= np.where(q[:, :1] < 0, -1.0, 1.0)
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    return q.reshape(batch + (4,))
+    rows = np.ascontiguousarray(r.reshape(-1, 3, 3))
+    out = np.empty((rows.shape[0], 4))
+    rot_to_quat_rows(rows, out)        # one law: so3_kernels.rot_to_quat_row
+    return out.reshape(r.shape[:-2] + (4,))
 
 
 def quat_mj_to_rot_ned(q_mj: ArrayLike) -> NDArray[np.float64]:
@@ -134,10 +102,10 @@ def euler_to_rot(roll: ArrayLike, pitch: ArrayLike, yaw: ArrayLike) -> NDArray[n
 def rot_to_euler(r: ArrayLike) -> NDArray[np.float64]:
     """R (FRD -> NED) to Z-Y-X Euler angles (roll, pitch, yaw), shape (..., 3)."""
     r = np.asarray(r, dtype=float)
-    roll = np.arctan2(r[..., 2, 1], r[..., 2, 2])
-    pitch = np.arcsin(np.clip(-r[..., 2, 0], -1.0, 1.0))
-    yaw = np.arctan2(r[..., 1, 0], r[..., 0, 0])
-    return np.stack([roll, pitch, yaw], axis=-1)
+    rows = np.ascontiguousarray(r.reshape(-1, 3, 3))
+    out = np.empty((rows.shape[0], 3))
+    rot_to_euler_rows(rows, out)       # one law: so3_kernels.rot_to_euler_row
+    return out.reshape(r.shape[:-2] + (3,))
 
 
 # ---- the fan-array wind tunnel (FAWT) frame of Wang et al. (2024) Sec. 7.3 -------------------------------

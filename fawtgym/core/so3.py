@@ -13,6 +13,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.so3_kernels import exp_so3_rows
+
 _SMALL = 1e-8
 
 
@@ -37,16 +39,14 @@ def vee(m: ArrayLike) -> NDArray[np.float64]:
 
 
 def exp_so3(w: ArrayLike) -> NDArray[np.float64]:
-    """Rodrigues' formula exp(w^) for rotation vectors (..., 3); exact near zero (Taylor series)."""
+    """Rodrigues' formula exp(w^) for rotation vectors (..., 3); exact near zero (Taylor series).
+
+    One law: the row helper :func:`fawtgym.core.so3_kernels.exp_so3_row`, looped over the rows."""
     w = np.asarray(w, dtype=float)
-    th2 = np.sum(w * w, axis=-1)[..., None, None]
-    th = np.sqrt(th2)
-    small = th2 < _SMALL
-    safe = np.where(small, 1.0, th)
-    a = np.where(small, 1.0 - th2 / 6.0 + th2 * th2 / 120.0, np.sin(safe) / safe)
-    b = np.where(small, 0.5 - th2 / 24.0 + th2 * th2 / 720.0, (1.0 - np.cos(safe)) / (safe * safe))
-    k = hat(w)
-    return np.eye(3) + a * k + b * (k @ k)
+    rows = np.ascontiguousarray(w.reshape(-1, 3))
+    out = np.empty((rows.shape[0], 3, 3))
+    exp_so3_rows(rows, out)
+    return out.reshape(w.shape[:-1] + (3, 3))
 
 
 def exp_so3_floats(x0: float, x1: float, x2: float) -> tuple[float, ...]:

@@ -6,9 +6,10 @@ batch calls them per row: ``for i in range(n): exp_so3_row(h * w[i], r_step[i])`
 with ``@njit(cache=True)`` and inlined by numba into the kernels that call them; with
 ``NUMBA_DISABLE_JIT=1`` they run as plain Python.
 
-The batch-first numpy functions of :mod:`fawtgym.core.so3` and :mod:`fawtgym.core.frames` are the same
-laws for non-hot code; ``tests/test_core_so3_kernels.py`` pins that each row helper equals its numpy
-counterpart (to a tolerance scaled by the magnitudes involved) on random and edge-case inputs.
+The batch-first functions of :mod:`fawtgym.core.so3` and :mod:`fawtgym.core.frames` with a counterpart here
+(``exp_so3``, ``rot_to_euler``, ``quat_to_rot``, ``rot_to_quat``) call these helpers through the ``*_rows``
+loops at the end of this module, so each formula exists once; ``tests/test_core_so3_kernels.py`` checks them
+against independent references (scipy's Rotation, the defining identities).
 
 Conventions (DESIGN.md): R maps body FRD to world NED; quaternions are (w, x, y, z); Euler angles are
 Z-Y-X (roll, pitch, yaw) as PX4's ``matrix::Eulerf``.
@@ -63,6 +64,11 @@ def exp_so3_row(w: np.ndarray, out: np.ndarray) -> None:
     w^ w^ = w w^T - t^2 I is written out, so no hat matrix is formed.
     """
     t2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+    if not math.isfinite(t2):                 # NaN out, in compiled and in plain-Python runs alike
+        for j in range(3):
+            for k in range(3):
+                out[j, k] = math.nan
+        return
     if t2 < SMALL_ANGLE_SQ:
         a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
         b = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
@@ -159,3 +165,32 @@ def first_non_rotation(r: np.ndarray, tol: float) -> int:
         if rotation_defect_row(r[i]) > tol:
             return i
     return -1
+
+
+# ---- batch loops behind the numpy-facing functions of core.so3 / core.frames (one law each) ----------------
+@njit(cache=True)
+def exp_so3_rows(w: np.ndarray, out: np.ndarray) -> None:
+    """:func:`exp_so3_row` of each row of ``w`` (M, 3) into ``out`` (M, 3, 3)."""
+    for i in range(w.shape[0]):
+        exp_so3_row(w[i], out[i])
+
+
+@njit(cache=True)
+def rot_to_euler_rows(r: np.ndarray, out: np.ndarray) -> None:
+    """:func:`rot_to_euler_row` of each row of ``r`` (M, 3, 3) into ``out`` (M, 3)."""
+    for i in range(r.shape[0]):
+        rot_to_euler_row(r[i], out[i])
+
+
+@njit(cache=True)
+def quat_to_rot_rows(q: np.ndarray, out: np.ndarray) -> None:
+    """:func:`quat_to_rot_row` of each row of ``q`` (M, 4) into ``out`` (M, 3, 3)."""
+    for i in range(q.shape[0]):
+        quat_to_rot_row(q[i], out[i])
+
+
+@njit(cache=True)
+def rot_to_quat_rows(r: np.ndarray, out: np.ndarray) -> None:
+    """:func:`rot_to_quat_row` of each row of ``r`` (M, 3, 3) into ``out`` (M, 4)."""
+    for i in range(r.shape[0]):
+        rot_to_quat_row(r[i], out[i])
