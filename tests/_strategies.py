@@ -29,7 +29,7 @@ ALLOWED = (ValueError, TypeError, RuntimeError)
 ALLOWED_UPDATE = (*ALLOWED, FloatingPointError)
 #: a call that takes longer than this is a failure (hc_eso once ran ceil(dt / 0.005) Python substeps: dt = 1e6
 #: took about 50 minutes); SIGALRM turns the hang into a test failure naming the call
-CALL_SECONDS = 10.0
+CALL_SECONDS = 5.0
 
 settings.register_profile("ci", max_examples=25, deadline=None, derandomize=True, print_blob=True,
                           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
