@@ -7,13 +7,14 @@ at N = 1 and N = 3 (apart from the batch size the message names, see :func:`same
 
 Settings: the examples are derandomized (the same on every run, so CI is reproducible) and bounded
 (``max_examples``, ``deadline=None``) so that the whole property suite stays well under a minute on 2 cores.
-``--hypothesis-profile=deep`` searches further (random, 20x the examples) for local runs.
+``FAWTGYM_HYPOTHESIS_PROFILE=deep`` searches further (random, 20x the examples) for local runs.
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
+import os
 import re
 import signal
 from collections.abc import Callable, Iterator
@@ -39,7 +40,7 @@ settings.register_profile("ci", max_examples=25, deadline=None, derandomize=True
                           suppress_health_check=_SUPPRESS)
 settings.register_profile("deep", max_examples=500, deadline=None, derandomize=False, print_blob=True,
                           suppress_health_check=_SUPPRESS)
-settings.load_profile("ci")
+settings.load_profile(os.environ.get("FAWTGYM_HYPOTHESIS_PROFILE", "ci"))
 
 
 class CallTookTooLong(Exception):
