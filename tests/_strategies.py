@@ -36,8 +36,8 @@ CALL_SECONDS = 30.0
 
 #: function_scoped_fixture: the observer warm-up fixture is idempotent, harmless across examples
 _SUPPRESS = [HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.function_scoped_fixture]
-settings.register_profile("ci", max_examples=25, deadline=None, derandomize=True, print_blob=True,
-                          suppress_health_check=_SUPPRESS)
+settings.register_profile("ci", max_examples=25, deadline=None, derandomize=True, database=None, print_blob=True,
+                          suppress_health_check=_SUPPRESS)  # no example database: every run tries the same examples
 settings.register_profile("deep", max_examples=500, deadline=None, derandomize=False, print_blob=True,
                           suppress_health_check=_SUPPRESS)
 settings.load_profile(os.environ.get("FAWTGYM_HYPOTHESIS_PROFILE", "ci"))
