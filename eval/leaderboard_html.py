@@ -155,8 +155,8 @@ def _traces_figures(board: Mapping[str, Any], results: Path, folder: Path, scena
     plt = _plt()
     name = scenario["name"]
     agents = [a for a in board["agents"] if a in board["summaries"][name]]
-    traces = {a: read_traces(results, a, name) for a in agents}
-    traces = {a: t for a, t in traces.items() if t is not None}
+    read = {a: read_traces(results, a, name) for a in agents}
+    traces = {a: t for a, t in read.items() if t is not None}
     if not traces:
         return None, None
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
@@ -244,12 +244,11 @@ def _wind_psd_figure(board: Mapping[str, Any], results: Path, path: Path) -> boo
         model = make_wind(wind_spec if isinstance(wind_spec, str) else
                           {k: v for k, v in wind_spec.items() if k not in ("on_time", "off_time")})
         speed = float(np.linalg.norm(mean)) if np.linalg.norm(mean) > 0.1 else 0.0
-        ana = None
-        try:
-            fs = 1.0 / dt
-            ana = sum(analytic_psd(model, FAWT_HOVER_POINT_NED, np.abs(f[1:] + k * fs), speed) for k in range(-30, 31))
-        except TypeError:  # a model without an analytic spectrum
-            ana = None
+        ana: np.ndarray | None = None
+        fs = 1.0 / dt
+        aliases = [analytic_psd(model, FAWT_HOVER_POINT_NED, np.abs(f[1:] + k * fs), speed) for k in range(-30, 31)]
+        if all(a is not None for a in aliases):  # None: a model without an analytic spectrum
+            ana = np.sum([a for a in aliases if a is not None], axis=0)
         panels.append((name, f[1:], g[1:], ana, speed))
     if not panels:
         return False
@@ -297,10 +296,10 @@ def write_html(board: Mapping[str, Any], results: Path, folder: Path) -> Path:
                 ("failures", f"{ws['failures']}/{ws['n']}", "bad" if ws["failures"] else "good")])
     page.heading("Ranking")
     head, rows = ranked_rows(board)
-    classes = []
+    classes: list[list[str | None]] = []
     for i, agent in enumerate(board["ranking"]):
         s = board["summaries"][sc_name][agent]
-        row = [None] * len(head)
+        row: list[str | None] = [None] * len(head)
         row[0] = "good" if i == 0 else None
         row[3] = "bad" if s["failures"] else "good"
         b = board["beats_next"].get(agent)

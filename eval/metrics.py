@@ -181,7 +181,7 @@ class EpisodeRecorder:
         valid_slew = valid.copy()
         valid_slew[0] = False
         slew_counts = np.maximum(valid_slew.sum(axis=0), 1)
-        att_known = np.isfinite(np.where(valid, self.att_err, 0.0)).all(axis=0)
+        att_known = np.asarray(np.isfinite(np.where(valid, self.att_err, 0.0)).all(axis=0))
 
         def est_rmse(err: NDArray[np.float64]) -> NDArray[np.float64]:
             ok = valid & np.isfinite(err)
@@ -190,7 +190,7 @@ class EpisodeRecorder:
             return np.where(cnt > 0, out, np.nan)
 
         att = np.where(np.isfinite(self.att_err), self.att_err, 0.0)
-        m: dict[str, NDArray[np.float64]] = {
+        m: dict[str, NDArray[np.floating[Any]]] = {
             "pos_err_mean": mean(pos), "pos_err_rms": rms(pos), "pos_err_max": peak(pos),
             "att_err_mean": np.where(att_known, mean(att), np.nan),
             "att_err_rms": np.where(att_known, rms(att), np.nan),
@@ -220,7 +220,7 @@ class EpisodeRecorder:
             m["att_err_paper_schedule"] = np.where(complete, aa, np.nan) if aa is not None else np.full(self.n, np.nan)
         rows = []
         for i in range(self.n):
-            row = {key: _clean(float(v[i])) for key, v in m.items()}
+            row: dict[str, float | str | None] = {key: _clean(float(v[i])) for key, v in m.items()}
             row["failure"] = str(self.failure[i])
             if self.failure_message[i]:
                 row["failure_message"] = str(self.failure_message[i])

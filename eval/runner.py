@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from gymnasium import spaces
 
 from .scenarios import Scenario, scenario_from_mapping, table4_duty
 
@@ -107,8 +108,11 @@ def fly_cell(agent_name: str, scenario: Mapping[str, Any], seeds: Sequence[int],
             raise CellError(str(exc)) from exc
         obs, info = env.reset(seed=seeds)
         agent.reset(info)
-        rec = EpisodeRecorder(len(seeds), env.dt, env.max_steps, env.setpoint, env.single_action_space.low,
-                              env.single_action_space.high, env.hover_action()[0], record_hz)
+        space = env.single_action_space
+        if not isinstance(space, spaces.Box):
+            raise CellError(f"the env's action space must be a Box, got {type(space).__name__}")
+        rec = EpisodeRecorder(len(seeds), env.dt, env.max_steps, env.setpoint, space.low, space.high,
+                              env.hover_action()[0], record_hz)
         w_prev, w_cur = None, _wrench(info)
         ended_last = np.zeros(len(seeds), dtype=bool)
         for _ in range(env.max_steps):
@@ -132,7 +136,7 @@ def fly_cell(agent_name: str, scenario: Mapping[str, Any], seeds: Sequence[int],
             ended_last = terminated | truncated
             w_prev, w_cur = w_cur, _wrench(info)
         on, off = sc.fan_schedule
-        schedule = (sc.seconds, on, off) if table4_duty(sc) is not None else None
+        schedule = (sc.seconds, on, off) if table4_duty(sc) is not None and on is not None and off is not None else None
         episodes, traces = rec.finish(schedule)
     except CellError:
         raise
@@ -170,7 +174,8 @@ def _atomic_write(path: Path, write: Callable[[Any], None], binary: bool) -> Non
 def write_cell(out: Path, result: Mapping[str, Any], traces: Mapping[str, np.ndarray]) -> Path:
     """Write a cell (traces first, then the JSON that marks it finished), each atomically."""
     js, npz = cell_paths(out, result["agent"], result["scenario"]["name"])
-    _atomic_write(npz, lambda fh: np.savez_compressed(fh, **traces), binary=True)
+    arrays = dict(traces)
+    _atomic_write(npz, lambda fh: np.savez_compressed(fh, allow_pickle=False, **arrays), binary=True)
     _atomic_write(js, lambda fh: json.dump(result, fh, indent=1, allow_nan=False), binary=False)
     return js
 
@@ -299,8 +304,8 @@ def run_cells(out: Path, agents: Sequence[str], scenarios: Sequence[Scenario], s
             with cf.ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=ctx) as pool:
                 futures = {pool.submit(_job, job): job for job in jobs}
                 for fut in cf.as_completed(futures):
-                    exc = fut.exception()
-                    finished(futures[fut], exc if exc is not None else fut.result())
+                    error = fut.exception()
+                    finished(futures[fut], error if error is not None else fut.result())
                     bar.update(1)
     finally:
         bar.close()

@@ -23,6 +23,7 @@ from pathlib import Path
 from fawtgym.cli_parser import ArgumentParser
 
 from .runner import DEFAULT_RECORD_HZ
+from .scenarios import Scenario
 
 #: the quick leaderboard (the README's main command): (agents, scenarios, seeds); ranked on the first scenario
 QUICK = ("px4,px4+ffts_eso,px4+leso,px4+geso", "table4-50,fawt-50-steady,dryden-moderate", 3)
@@ -166,7 +167,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 1 if summary["errors"] else 0
 
 
-def check_agents(agents: Sequence[str], scenario: object) -> None:
+def check_agents(agents: Sequence[str], scenario: Scenario) -> None:
     """Build every agent once for a one-vehicle env of ``scenario`` (bad gains, parameters or plugins fail here,
     before any work, with the agent's one-line ValueError)."""
     from fawtgym.agents.spec import agent_action_type, make_agent

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import gymnasium as gym
 
 ENV_NAMESPACE = "fawtgym"
@@ -14,7 +16,7 @@ FAWT_DUTIES = (30, 40, 50, 60, 70)
 
 def register_envs() -> None:
     """Register (idempotently) fawtgym/Hover-v0 and the FAWT shortcut ids."""
-    specs = {f"{ENV_NAMESPACE}/Hover-v0": {}}
+    specs: dict[str, dict[str, Any]] = {f"{ENV_NAMESPACE}/Hover-v0": {}}
     for duty in FAWT_DUTIES:
         specs[f"{ENV_NAMESPACE}/HoverFAWT{duty}-v0"] = {"wind": f"fawt-{duty}"}
     for env_id, kwargs in specs.items():

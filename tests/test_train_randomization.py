@@ -87,14 +87,20 @@ def test_vehicle_draws_act_on_the_simulated_vehicle_only():
     s = still.mass_scale
     np.testing.assert_allclose(a_down, GRAVITY * (1.0 - 1.0 / s), rtol=0.05, atol=1e-3)
     assert np.ptp(s) > 0.05
-    # inertia: the row's own model copy holds the scaled tensor, the nominal model is untouched
-    spin = HoverBatchEnv(3, randomizer=Randomization(inertia=0.4).sampler())
-    spin.reset(seed=0)
-    body = spin.model.body("vehicle").id
-    for row in range(3):
-        np.testing.assert_allclose(spin._models[row].body_inertia[body],
-                                   spin.model.body_inertia[body] * spin.inertia_scale[row], rtol=1e-12)
-    assert all(m is not spin.model for m in spin._models)
+    # inertia: a constant external torque from rest spins each row up at tau / (s J) (no other torque acts at a
+    # level hover start: balanced rotors, no wind, no rate); a nominal env alongside keeps J (its model untouched)
+    tau = np.array([0.002, -0.003, 0.01])
+    rates = {}
+    for label, randomizer in (("randomized", Randomization(inertia=0.4).sampler()), ("nominal", None)):
+        spin = HoverBatchEnv(3, init_noise=0.0, randomizer=randomizer)
+        spin.reset(seed=0)
+        spin.set_external_wrench(np.zeros(3), tau)
+        rates[label] = spin.step(spin.hover_action())[4]["truth"]["angular_velocity"] / (tau * spin.dt)
+        scale = spin.inertia_scale if randomizer is not None else np.ones(3)
+        j = np.diag(spin.preset.inertia_matrix)
+        # 1e-4: the rotors' small speed-dependent reaction torques over the first step (measured 1.2e-5)
+        np.testing.assert_allclose(rates[label], 1.0 / (scale[:, None] * j[None, :]), rtol=1e-4, err_msg=label)
+    assert np.ptp(1.0 / (rates["randomized"][:, 2] * j[2])) > 0.05  # the rows got different inertias
 
 
 def test_bad_randomization_options():

@@ -143,6 +143,8 @@ class RowSampler:
     def _make_wind(self, duty: float) -> Any:
         from fawtgym.envs.wind import make_wind
 
+        if self._wind_options is None:
+            raise RuntimeError("RowSampler draws no duty (config.duty is None): there is no FAWT wind to make")
         return make_wind({**self._wind_options, "name": "fawt", "duty": duty})
 
     def __call__(self, rows: NDArray[np.intp], rngs: Sequence[np.random.Generator]) -> dict[str, Any]:

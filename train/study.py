@@ -90,7 +90,7 @@ def _mean_ci(values: list[float]) -> str:
     return fmt_ci(mean_ci(values).to_dict())
 
 
-def _diff_ci(a: list[float], b: list[float]) -> tuple[float | None, float | None, float | None]:
+def _diff_ci(a: list[float | None], b: list[float | None]) -> tuple[float | None, float | None, float | None]:
     """Mean(a) - mean(b) with a 95 % bootstrap interval (independent samples: different training seeds)."""
     from scipy import stats
 
@@ -231,7 +231,7 @@ def _answers(groups: dict[str, list[Path]], per_seed: Any) -> list[str]:
             fa, fb = sum(v is None for v in a), sum(v is None for v in b)
             if d is None:
                 verdict = "cannot say (too many failed training seeds)"
-            elif lo is None:
+            elif lo is None or hi is None:
                 verdict = f"difference {d:+.4f} m, too few seeds for an interval"
             elif hi < 0:
                 verdict = f"**yes**: state+eso - state = {d:+.4f} m [{lo:+.4f}, {hi:+.4f}]"

@@ -118,7 +118,15 @@ def _concat_final_obs(info: dict[str, Any], features: NDArray[np.float32], mask:
     info["final_obs"] = final
 
 
-def _box_concat(a: spaces.Box, b: spaces.Box) -> spaces.Box:
+def _as_box(space: spaces.Space[Any], what: str) -> spaces.Box:
+    """``space`` as a Box (the hover envs' spaces are Boxes); ValueError naming ``what`` for any other space."""
+    if not isinstance(space, spaces.Box):
+        raise ValueError(f"{what} must be a gymnasium Box, got {type(space).__name__}")
+    return space
+
+
+def _box_concat(a: spaces.Space[Any], b: spaces.Box) -> spaces.Box:
+    a = _as_box(a, "the observation space")
     return spaces.Box(np.concatenate([a.low, b.low]).astype(np.float32),
                       np.concatenate([a.high, b.high]).astype(np.float32), dtype=np.float32)
 
@@ -130,7 +138,7 @@ class NormalizedAction(VectorWrapper):
     def __init__(self, env: VectorEnv) -> None:
         super().__init__(env)
         base = _hover_env(env)
-        space = env.single_action_space
+        space = _as_box(env.single_action_space, "the action space")
         self.scale = ActionScale(space.low, space.high, base.hover_action()[0])
         self.single_action_space = spaces.Box(-1.0, 1.0, shape=space.shape, dtype=np.float32)
         self.action_space = batch_space(self.single_action_space, env.num_envs)
@@ -188,7 +196,7 @@ class ResidualAction(VectorWrapper):
         super().__init__(env)
         hover = _hover_env(env)
         self.agent = _build_agent(base, hover)
-        space = env.single_action_space
+        space = _as_box(env.single_action_space, "the action space")
         self.scale = ResidualScale(space.low, space.high, bound)
         self._starts = _EpisodeStarts(env)
         self.single_action_space = spaces.Box(-1.0, 1.0, shape=space.shape, dtype=np.float32)
@@ -253,7 +261,7 @@ class SingleNormalizedAction(gym.ActionWrapper):
     def __init__(self, env: gym.Env) -> None:
         super().__init__(env)
         base = _hover_env(env)
-        space = env.action_space
+        space = _as_box(env.action_space, "the action space")
         self.scale = ActionScale(space.low, space.high, base.hover_action())
         self.action_space = spaces.Box(-1.0, 1.0, shape=space.shape, dtype=np.float32)
 
@@ -289,7 +297,7 @@ class SingleResidualAction(gym.Wrapper):
         super().__init__(env)
         hover = _hover_env(env)
         self.agent = _build_agent(base, hover)
-        space = env.action_space
+        space = _as_box(env.action_space, "the action space")
         self.scale = ResidualScale(space.low, space.high, bound)
         self.action_space = spaces.Box(-1.0, 1.0, shape=space.shape, dtype=np.float32)
         self.features = _agent_features(self.agent, hover, clip) if features else None

@@ -13,16 +13,20 @@ import os
 import re
 import time
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import mujoco
 
 from fawtgym.cli_parser import ArgumentParser, positive_int
 
+if TYPE_CHECKING:
+    from fawtgym.envs.hover_env import HoverEnv
+
 #: MuJoCo's default <quality> (what the env's model overrides)
 MUJOCO_DEFAULT_QUALITY = '<quality offsamples="4" shadowsize="4096" numslices="28" numstacks="16"/>'
 
 
-def frames_per_second(env: object, frames: int, rounds: int) -> float:
+def frames_per_second(env: HoverEnv, frames: int, rounds: int) -> float:
     """Best of ``rounds`` of ``frames`` renders of the env's current state."""
     env.render()  # first frame: context and scene set-up, not timed
     best = float("inf")
@@ -34,7 +38,7 @@ def frames_per_second(env: object, frames: int, rounds: int) -> float:
     return frames / best
 
 
-def _make(width: int, height: int, default_quality: bool) -> object:
+def _make(width: int, height: int, default_quality: bool) -> HoverEnv:
     from fawtgym.envs.hover_env import HoverEnv
     from fawtgym.envs.mjcf import vehicle_mjcf
 
@@ -48,7 +52,10 @@ def _make(width: int, height: int, default_quality: bool) -> object:
     env.reset(seed=0)
     env.step(env.hover_action())
     env.render()
-    env._renderer.shadows = env._renderer.reflections = default_quality
+    renderer = env._renderer
+    if renderer is None:
+        raise RuntimeError("HoverEnv.render() made no renderer")
+    renderer.shadows = renderer.reflections = default_quality
     return env
 
 

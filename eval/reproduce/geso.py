@@ -28,6 +28,7 @@ import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -63,10 +64,11 @@ _DW_TERMS = ((1.0, 2.5 * np.pi, -3.0), (1.5, 2.0 * np.pi, 7.0), (2.0, 0.4 * np.p
 _DW_BIAS = 4.0
 
 
-def wind_torque(t: float | NDArray[np.float64]) -> NDArray[np.float64]:
+def wind_torque(t: ArrayLike) -> NDArray[np.float64]:
     """d_w(t) of eq. 48 [N m], the same on the three axes (Sec. VI-A)."""
     t = np.asarray(t, dtype=float)
-    return _DW_BIAS + sum(a * np.sin(w * t + p) for a, w, p in _DW_TERMS)
+    sines = sum(a * np.sin(w * t + p) for a, w, p in _DW_TERMS)
+    return np.asarray(_DW_BIAS + sines, dtype=np.float64)
 
 
 def desired(case: int, t: ArrayLike) -> tuple[NDArray[np.float64], ...]:
@@ -91,14 +93,15 @@ def desired(case: int, t: ArrayLike) -> tuple[NDArray[np.float64], ...]:
 
 
 def _plant_rhs(q: NDArray[np.float64], w: NDArray[np.float64], u: NDArray[np.float64], d: NDArray[np.float64],
-               j_true: NDArray[np.float64], j_true_inv: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
+               j_true: NDArray[np.floating[Any]], j_true_inv: NDArray[np.floating[Any]]
+               ) -> tuple[NDArray[np.float64], ...]:
     """Eq. 11 with the true inertia: q' = 1/2 q (x) [0, w], J w' = -w x J w + u + d."""
     return quat_derivative(q, w), (u + d - cross3(w, w @ j_true.T)) @ j_true_inv.T
 
 
 def simulate(t_end: float = 20.0, dt: float = 1e-3, substeps: int = 1, bandwidth: float = BANDWIDTH,
              inertia_error: float = INERTIA_ERROR, variants: Sequence[str] = VARIANTS,
-             cases: Sequence[int] = CASES, progress: Progress | None = None) -> dict[str, object]:
+             cases: Sequence[int] = CASES, progress: Progress | None = None) -> dict[str, Any]:
     """Run every (variant, case) in one batch; returns time series keyed by name.
 
     ``progress``, if given, is called with 1 after each of the ``round(t_end / dt) + 1`` control steps.
@@ -169,16 +172,16 @@ def _wrap(a: NDArray[np.float64]) -> NDArray[np.float64]:
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
-def rms_table(sim: dict[str, object], t_from: float = 0.0) -> list[dict[str, object]]:
+def rms_table(sim: dict[str, Any], t_from: float = 0.0) -> list[dict[str, Any]]:
     """Per (variant, case): RMS of the Euler-angle errors [deg], |omega_e| [rad/s] and estimation errors [N m]."""
     t = np.asarray(sim["t"])
     sel = t >= t_from
     rows = []
-    for i, (v, c) in enumerate(sim["pairs"]):  # type: ignore[arg-type]
+    for i, (v, c) in enumerate(sim["pairs"]):
         ang = np.degrees(_wrap(np.asarray(sim["euler"])[sel, i] - np.asarray(sim["euler_d"])[sel, i]))
         est = (np.asarray(sim["d_true"]) - np.asarray(sim["d_hat"]))[sel, i]
         we = np.asarray(sim["omega_e"])[sel, i]
-        row: dict[str, object] = {"variant": v, "case": c, "t_from": t_from}
+        row: dict[str, Any] = {"variant": v, "case": c, "t_from": t_from}
         for j, name in enumerate(("roll", "pitch", "yaw")):
             row[f"rms_{name}_deg"] = float(np.sqrt(np.mean(ang[:, j] ** 2)))
         row["rms_att_deg"] = float(np.sqrt(np.mean(np.sum(ang**2, axis=1))))
@@ -203,12 +206,12 @@ LOWFREQ_TOL, LOWFREQ_KAPPA = 0.01, 0.05
 _FIGS = {1: ("Figs. 5-7", "Fig. 8"), 2: ("Figs. 9-11", "Fig. 12")}
 
 
-def settling_times(sim: dict[str, object], band_deg: float = SETTLE_BAND_DEG) -> dict[tuple[str, int], float]:
+def settling_times(sim: dict[str, Any], band_deg: float = SETTLE_BAND_DEG) -> dict[tuple[str, int], float]:
     """Per (variant, case): the time after which the attitude error norm stays below ``band_deg`` [s]
     (``inf`` if it is outside the band at the end of the run)."""
     t = np.asarray(sim["t"])
     out: dict[tuple[str, int], float] = {}
-    for i, (v, c) in enumerate(sim["pairs"]):  # type: ignore[arg-type]
+    for i, (v, c) in enumerate(sim["pairs"]):
         ang = np.degrees(_wrap(np.asarray(sim["euler"])[:, i] - np.asarray(sim["euler_d"])[:, i]))
         outside = np.flatnonzero(np.linalg.norm(ang, axis=1) >= band_deg)
         if outside.size == 0:
@@ -220,17 +223,17 @@ def settling_times(sim: dict[str, object], band_deg: float = SETTLE_BAND_DEG) ->
     return out
 
 
-def window_claims(rows: list[dict[str, object]], window: str = "") -> list[C.Claim]:
+def window_claims(rows: list[dict[str, Any]], window: str = "") -> list[C.Claim]:
     """Sec. VI-A's orderings on one RMS table (one time window): per case, estimation error and tracking
     error fall as the GESO order rises, and every GESO improves on the controller alone."""
     P = C.SHI2018
     out = []
     tag = f" [{window}]" if window else ""
-    for c in sorted({int(r["case"]) for r in rows}):  # type: ignore[call-overload]
+    for c in sorted({int(r["case"]) for r in rows}):
         by = {r["variant"]: r for r in rows if r["case"] == c}
         gesos = [v for v in VARIANTS[1:] if v in by]
-        est = [float(by[v]["rms_est_err"]) for v in gesos]  # type: ignore[arg-type]
-        att = [float(by[v]["rms_att_deg"]) for v in gesos]  # type: ignore[arg-type]
+        est = [float(by[v]["rms_est_err"]) for v in gesos]
+        att = [float(by[v]["rms_att_deg"]) for v in gesos]
         figs_att, fig_est = _FIGS.get(c, ("", ""))
         if len(gesos) >= 2:
             verdict, reason = C.decreasing_verdict(est, gesos)
@@ -242,7 +245,7 @@ def window_claims(rows: list[dict[str, object]], window: str = "") -> list[C.Cla
                                ", ".join(f"{v}: {a:.4g} deg" for v, a in zip(gesos, att, strict=True)),
                                "RMS attitude error strictly falls GESO-1 > GESO-2 > GESO-3", verdict, reason))
         if "none" in by and gesos:
-            base = float(by["none"]["rms_att_deg"])  # type: ignore[arg-type]
+            base = float(by["none"]["rms_att_deg"])
             verdict, reason = C.count_verdict([a < base for a in att], gesos)
             out.append(C.Claim(P, figs_att, f"Case {c}: every GESO improves on the controller without GESO{tag}",
                                "yes", f"without: {base:.4g} deg", "RMS attitude error of each GESO below the "
@@ -250,7 +253,7 @@ def window_claims(rows: list[dict[str, object]], window: str = "") -> list[C.Cla
     return out
 
 
-def check_claims(rows: list[dict[str, object]],
+def check_claims(rows: list[dict[str, Any]],
                  settle: Mapping[float, Mapping[tuple[str, int], float]] | None = None, t_end: float = math.nan,
                  bode: bool = True) -> list[tuple[str, bool, str]]:
     """The paper's claims tested on one RMS table: (claim, holds, numbers), holds = verdict ``reproduced``.
@@ -369,7 +372,7 @@ def bode_claims(omegas: Sequence[float] | None = None) -> list[C.Claim]:
     return out
 
 
-def paper_claims(steady_rows: list[dict[str, object]], full_rows: list[dict[str, object]],
+def paper_claims(steady_rows: list[dict[str, Any]], full_rows: list[dict[str, Any]],
                  settle: Mapping[float, Mapping[tuple[str, int], float]] | None, steady_from: float,
                  t_end: float) -> list[C.Claim]:
     """Shi, Wu and Chou 2018, Sec. IV-C (Table 2, Fig. 3, eqs. 37-38) and Sec. VI-A (Figs. 5-12), with verdicts.
@@ -391,7 +394,7 @@ def paper_claims(steady_rows: list[dict[str, object]], full_rows: list[dict[str,
     return out
 
 
-def _figures(sim: dict[str, object], out: Path) -> list[Path]:
+def _figures(sim: dict[str, Any], out: Path) -> list[Path]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -399,13 +402,13 @@ def _figures(sim: dict[str, object], out: Path) -> list[Path]:
 
     t = np.asarray(sim["t"])
     pairs = sim["pairs"]
-    for c in sorted({p[1] for p in pairs}):  # type: ignore[union-attr]
+    for c in sorted({p[1] for p in pairs}):
         fig, axs = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
-        idx = [i for i, p in enumerate(pairs) if p[1] == c]  # type: ignore[arg-type, index]
+        idx = [i for i, p in enumerate(pairs) if p[1] == c]
         for j, name in enumerate(("phi", "theta", "psi")):
             axs[j].plot(t, np.degrees(np.asarray(sim["euler_d"])[:, idx[0], j]), "k--", lw=1, label="desired")
             for i in idx:
-                axs[j].plot(t, np.degrees(np.asarray(sim["euler"])[:, i, j]), lw=1, label=pairs[i][0])  # type: ignore[index]
+                axs[j].plot(t, np.degrees(np.asarray(sim["euler"])[:, i, j]), lw=1, label=pairs[i][0])
             axs[j].set_ylabel(f"{name} [deg]")
             axs[j].grid(True, alpha=0.3)
         axs[0].legend(ncol=5, fontsize=8)
@@ -417,10 +420,10 @@ def _figures(sim: dict[str, object], out: Path) -> list[Path]:
         fig, axs = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
         for j, name in enumerate(("x", "y", "z")):
             for i in idx:
-                if pairs[i][0] == "none":  # type: ignore[index]
+                if pairs[i][0] == "none":
                     continue
                 err = np.asarray(sim["d_true"])[:, i, j] - np.asarray(sim["d_hat"])[:, i, j]
-                axs[j].plot(t, err, lw=1, label=pairs[i][0])  # type: ignore[index]
+                axs[j].plot(t, err, lw=1, label=pairs[i][0])
             axs[j].set_ylabel(f"d_{name} error [N m]")
             axs[j].grid(True, alpha=0.3)
         axs[0].legend(fontsize=8)
@@ -443,11 +446,11 @@ def _figures(sim: dict[str, object], out: Path) -> list[Path]:
     fig.tight_layout()
     fig.savefig(out / "geso_bode.png", dpi=100)
     plt.close(fig)
-    return [out / f"geso_case{c}_{kind}.png" for c in sorted({p[1] for p in pairs})  # type: ignore[union-attr]
+    return [out / f"geso_case{c}_{kind}.png" for c in sorted({p[1] for p in pairs})
             for kind in ("attitude", "estimation")] + [out / "geso_bode.png"]
 
 
-def _md_table(rows: list[dict[str, object]]) -> list[str]:
+def _md_table(rows: list[dict[str, Any]]) -> list[str]:
     lines = ["| case | variant | roll [deg] | pitch [deg] | yaw [deg] | attitude [deg] | omega_e [rad/s] | "
              "d estimation [N m] | trivial d_hat = 0: RMS of d [N m] |",
              "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]

@@ -97,7 +97,7 @@ def run(t_end: float = 60.0, h: float = 0.01, seed: int = 0, centered_noise: boo
     if not (t_end > 0 and h > 0 and t_end / h >= 10):
         raise ValueError(f"need t_end > 0, h > 0 and at least 10 steps, got t_end={t_end}, h={h}")
     rng = np.random.default_rng(seed)
-    t = np.arange(int(round(t_end / h)) + 1) * h
+    t = np.arange(int(round(t_end / h)) + 1, dtype=np.float64) * h
     r_true, w_true = simulate_truth(t)
     sigma_true = disturbance_torque(t) @ np.linalg.inv(J).T
     w_mat = va.wahba_weight(E_VECTORS, MORSE_K)
@@ -105,7 +105,7 @@ def run(t_end: float = 60.0, h: float = 0.01, seed: int = 0, centered_noise: boo
     offset = 0.5 if centered_noise else 0.0
     r_hat, w_hat, s_hat = R_HAT0[None].copy(), OMEGA_HAT0[None].copy(), SIGMA_HAT0[None].copy()
     n = t.size
-    out = {k: np.zeros((n, 3)) for k in ("omega_err", "sigma_err", "att_err_vec")}
+    out: dict[str, NDArray[np.float64]] = {k: np.zeros((n, 3)) for k in ("omega_err", "sigma_err", "att_err_vec")}
     for k in ("morse", "att_angle", "triv_att_angle", "triv_omega_err"):
         out[k] = np.zeros(n)
     out["triv_sigma_err"] = np.linalg.norm(sigma_true, axis=1)   # the estimate sigma_hat = 0

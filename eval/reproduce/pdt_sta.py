@@ -33,9 +33,10 @@ import dataclasses
 import math
 import pathlib
 from collections.abc import Sequence
+from typing import Any, TypedDict
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_ivp
 
 from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
@@ -47,8 +48,19 @@ from fawtgym.observers.gibbs import gibbs_matrix, gibbs_rate, omega_from_gibbs, 
 from fawtgym.observers.quest import quest
 from fawtgym.observers.stsmo import GibbsSTSMO
 
+
 # ---- Example 1 and Table 1 inputs (the paper's numbers) -------------------------------------------
-EX1 = dict(t_c=0.5, x0=(-2.0, 1.0), kappa1=1.0, eta=5.0, kappa2=8.0)
+class Example1(TypedDict):
+    """The parameters of Example 1 (Sec. 3)."""
+
+    t_c: float
+    x0: tuple[float, float]
+    kappa1: float
+    eta: float
+    kappa2: float
+
+
+EX1: Example1 = {"t_c": 0.5, "x0": (-2.0, 1.0), "kappa1": 1.0, "eta": 5.0, "kappa2": 8.0}
 EX1_CLAIMS = dict(t1=0.2062, kappa2_min=11.4155, t_e=1.3268)
 J_TABLE1 = np.diag([0.05, 0.05, 0.02])
 G0 = np.array([0.11, 0.09, 0.11])
@@ -134,8 +146,9 @@ class Sec5Result:
     w_norm: NDArray[np.float64] | None = None
 
 
-def simulate_truth(t: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def simulate_truth(t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Gibbs vector g(t) and omega(t) of the truth (eqs. 47, 49) on the grid t."""
+    t = np.asarray(t, dtype=np.float64)
 
     def rhs(tt: float, x: NDArray) -> NDArray:
         g, w = x[:3], x[3:]
@@ -172,7 +185,8 @@ def run_case(case: Sec5Case, ts: float = 1e-4, t_f: float = 3.0, omega_source: s
     ``progress``, if given, is called with 1 after each of the ``round(t_f / ts)`` observer steps.
     """
     n = int(round(t_f / ts))
-    t, g, w = truth if truth is not None else (np.arange(n + 1) * ts, *simulate_truth(np.arange(n + 1) * ts))
+    grid = np.arange(n + 1, dtype=np.float64) * ts
+    t, g, w = truth if truth is not None else (grid, *simulate_truth(grid))
     y = quest_measurements(g, case.noise, seed)
     # eq. 43's t_e, on the integration grid as the paper's 1.3268 s (Euler steps then end on it exactly)
     t_sw = math.floor(P.early_switch_time(case.t_c, 5.0, NOISE_BOUND) / ts + 1e-9) * ts if case.early else case.t_c
@@ -334,8 +348,10 @@ def example1(n_check: int = 400) -> dict[str, float]:
     out = dict(t1=t1, x2_t1=cross[0].x2, kappa2_min_ours=lo_ours, kappa2_min_rounded_t1=lo_paper,
                satisfies_30=float(k2 * tc >= abs(x0[1])))
     for label, (e, k) in dict(a=(5.0, 8.0), b=(5.0, 12.0), c=(8.0, 8.0)).items():
-        ok, tt, xx = P.first_crossing_in_ptc(x0, tc, e, k)
-        out[f"fig3{label}_t1"], out[f"fig3{label}_x2_t1"], out[f"fig3{label}_in_X"] = tt, xx, float(ok)
+        ok, t1_fig, x2_fig = P.first_crossing_in_ptc(x0, tc, e, k)  # None: no crossing before t_c (NaN here)
+        out[f"fig3{label}_t1"] = math.nan if t1_fig is None else t1_fig
+        out[f"fig3{label}_x2_t1"] = math.nan if x2_fig is None else x2_fig
+        out[f"fig3{label}_in_X"] = float(ok)
     tun_g = P.tune_algorithm1(x0, tc, eta, k2, strategy="gain")
     tun_r = P.tune_algorithm1(x0, tc, eta, k2, strategy="rate")
     out.update(alg1_gain_kappa2=tun_g.kappa2, alg1_rate_eta=tun_r.eta)
@@ -567,7 +583,7 @@ def paper_claims(result: dict[str, object]) -> list[C.Claim]:
 # ---- main ----------------------------------------------------------------------------------------
 def run_all(out: pathlib.Path, quick: bool = False, omega_source: str = "forcing", figures: bool = True,
             seed: int = 0, ts: float | None = None, t_f: float | None = None,
-            seeds: Sequence[int] | None = None, show_progress: bool = False) -> dict[str, object]:
+            seeds: Sequence[int] | None = None, show_progress: bool = False) -> dict[str, Any]:
     """Everything; writes CSV/Markdown/figures into ``out`` and returns the numbers.
 
     ``ts`` / ``t_f``: Sec. 5 step and horizon (default: the paper's 1e-4 s and 3 s; quick 1e-3 s and 2 s).
@@ -578,15 +594,16 @@ def run_all(out: pathlib.Path, quick: bool = False, omega_source: str = "forcing
     out.mkdir(parents=True, exist_ok=True)
     ex = example1()
     with open(out / "example1.csv", "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["quantity", "paper", "ours"])
-        w.writerow(["t1 [s]", EX1_CLAIMS["t1"], f"{ex['t1']:.6f}"])
-        w.writerow(["kappa2 lower bound (36), our t1", EX1_CLAIMS["kappa2_min"], f"{ex['kappa2_min_ours']:.4f}"])
-        w.writerow(["kappa2 lower bound (36), t1 rounded to 0.2062", EX1_CLAIMS["kappa2_min"],
-                    f"{ex['kappa2_min_rounded_t1']:.4f}"])
-        w.writerow(["t_e (43) [s], ell = sqrt(3)*0.02", EX1_CLAIMS["t_e"], f"{ex['t_e']:.4f}"])
+        writer = csv.writer(fh)
+        writer.writerow(["quantity", "paper", "ours"])
+        writer.writerow(["t1 [s]", EX1_CLAIMS["t1"], f"{ex['t1']:.6f}"])
+        writer.writerow(["kappa2 lower bound (36), our t1", EX1_CLAIMS["kappa2_min"],
+                         f"{ex['kappa2_min_ours']:.4f}"])
+        writer.writerow(["kappa2 lower bound (36), t1 rounded to 0.2062", EX1_CLAIMS["kappa2_min"],
+                         f"{ex['kappa2_min_rounded_t1']:.4f}"])
+        writer.writerow(["t_e (43) [s], ell = sqrt(3)*0.02", EX1_CLAIMS["t_e"], f"{ex['t_e']:.4f}"])
         for k, v in ex.items():
-            w.writerow([k, "", f"{v:.6g}"])
+            writer.writerow([k, "", f"{v:.6g}"])
     ts = ts if ts is not None else (QUICK_TS if quick else PAPER_TS)
     t_f = t_f if t_f is not None else (2.0 if quick else 3.0)
     if not (ts > 0 and t_f > 1.5 + 0.25 and t_f / ts >= 100):
@@ -716,10 +733,10 @@ def reproduce(argv: Sequence[str] | None = None) -> C.StudyOutcome:
     res = run_all(pathlib.Path(ns.out), ns.quick, ns.omega, not ns.no_figures, ns.seed, ns.ts, ns.t_final, ns.seeds,
                   show_progress=not ns.no_progress)
     sweep = res["seed_sweep"]
-    n_sw = len(next(iter(sweep.values()))) if sweep else 0  # type: ignore[union-attr]
+    n_sw = len(next(iter(sweep.values()))) if sweep else 0
     settings = (f"Sec. 5 at T_s = {res['ts']:g} s, t_f = {res['t_f']:g} s, noise seed {ns.seed}"
                 + (f"; Figs. 8-9 decided over {n_sw} noise seeds" if n_sw else "; no seed sweep"))
-    return C.StudyOutcome(res["claims"], res["figures"], pathlib.Path(ns.out) / "summary.md", settings)  # type: ignore[arg-type]
+    return C.StudyOutcome(res["claims"], res["figures"], pathlib.Path(ns.out) / "summary.md", settings)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

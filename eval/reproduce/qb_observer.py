@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import PchipInterpolator
 from scipy.linalg import sqrtm
 from scipy.optimize import minimize_scalar
@@ -61,7 +61,7 @@ K_V = 1.0  #: hover velocity damping [1/s]
 
 
 # ------------------------------------------------------------------------- Fig. 3 ----
-def fig3_disturbance(t: NDArray[np.float64] | float) -> NDArray[np.float64]:
+def fig3_disturbance(t: ArrayLike) -> NDArray[np.float64]:
     """World-x disturbance force of Fig. 3 [N] (amplitudes chosen here; shapes and times from the paper)."""
     t = np.asarray(t, dtype=float)
     d = np.zeros_like(t)
@@ -119,7 +119,7 @@ def simulate_fig7(gain_file: str | Path | QBGain | None, t_end: float = 50.0, dt
 
     f, R = m * GRAVITY, np.eye(3)
     obs.reset(meas(p, R, f, 0.0), thrust=f)
-    t_out = np.arange(1, n_steps + 1) * dt
+    t_out = np.arange(1, n_steps + 1, dtype=np.float64) * dt
     # integral of d over each control step: trapezoid on `substeps` sub-intervals, left limits at jumps
     ta = (np.arange(n_steps)[:, None] * substeps + np.arange(substeps)[None, :]) * h
     d_int = 0.5 * h * (fig3_disturbance(ta) + fig3_disturbance(ta + h - 1e-12)).sum(axis=1)
@@ -552,7 +552,7 @@ def design_for(preset: str, mu: float, out: Path, solver: str | None = None, qui
 
     v = make_vehicle(preset)
     grid = QUICK_GRID if quick else np.geomspace(0.05, 20.0, 24)
-    g = design_uav_gain(v.mass, v.inertia_matrix, mu, alphas=grid, solver=solver, vehicle=v.name)
+    g = design_uav_gain(v.mass, v.inertia_matrix, mu, alphas=[float(a) for a in grid], solver=solver, vehicle=v.name)
     out.mkdir(parents=True, exist_ok=True)
     path = g.save(out / f"qb_gain_{v.name}_mu{str(mu).replace('.', 'p')}.npz")
     print(f"designed QB gain for {v.name} (m = {v.mass} kg): mu = {mu:g}, alpha = {g.alpha:.4g}, "

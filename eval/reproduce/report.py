@@ -322,10 +322,10 @@ def write_report(runs: Sequence[StudyRun], out: Path, command: str, wall: float,
     page.heading("Claims our runs contradict", 2)
     md += ["## Claims our runs contradict", ""]
     if contradicted:
-        h, rows, cls = _claim_rows(contradicted, with_paper=True)
+        h, rows, claim_cls = _claim_rows(contradicted, with_paper=True)
         page.paragraph(f"{len(contradicted)} claims get the verdict **not**; they also appear in their paper's "
                        "table below.")
-        page.table(h, rows, cell_classes=cls, numeric_auto=False)
+        page.table(h, rows, cell_classes=claim_cls, numeric_auto=False)
         md += [*_md_table(h, rows), ""]
     else:
         page.paragraph("None: no claim checked in this run is contradicted.")
@@ -357,8 +357,8 @@ def write_report(runs: Sequence[StudyRun], out: Path, command: str, wall: float,
                 continue
             t = C.tally(r.claims)
             page.paragraph(", ".join(f"{v}: {t[v]}" for v in C.VERDICTS))
-            h, rows, cls = _claim_rows(r.claims)
-            page.table(h, rows, cell_classes=cls, numeric_auto=False)
+            h, rows, claim_cls = _claim_rows(r.claims)
+            page.table(h, rows, cell_classes=claim_cls, numeric_auto=False)
             md += [*_md_table(h, rows), ""]
             figs = _figures(r, out)
             for rel, cap in figs:

@@ -425,8 +425,9 @@ def with_noisy_cases_of(base: StudyResult, other: StudyResult) -> StudyResult:
     """``base`` with the results of its noisy cases replaced by ``other``'s (the same trajectories and horizon,
     flown with another noise seed); the noise-free cases are deterministic and stay as they are."""
     idx_b = _cases(base, True)
-    idx_o = [_idx(other, base.trajectories[i], True) for i in idx_b]
-    if any(j is None for j in idx_o) or other.t.shape != base.t.shape:
+    found = [_idx(other, base.trajectories[i], True) for i in idx_b]
+    idx_o = [j for j in found if j is not None]
+    if len(idx_o) != len(found) or other.t.shape != base.t.shape:
         raise ValueError("the other run must fly the same noisy trajectories over the same horizon")
 
     def sub(d: dict[str, NDArray[np.float64]], o: dict[str, NDArray[np.float64]]) -> dict[str, NDArray[np.float64]]:

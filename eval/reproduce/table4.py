@@ -254,12 +254,12 @@ def paper_claims(results: Mapping[tuple[str, int], Mapping[str, Any]], duties: S
                 n_fail = sum(1 for f in cell["failures"] if f)
                 n = len(cell["failures"])
                 verdict = C.REPRODUCED if n_fail == n else C.PARTLY if n_fail else C.NOT
-                ours = "Failed!" if n_fail == n else f"held hover in {n - n_fail} of {n} seeds"
+                outcome = "Failed!" if n_fail == n else f"held hover in {n - n_fail} of {n} seeds"
                 reason = _failure_text(cell)
                 if n_fail < n:
                     held = [float(v) for v, f in zip(cell[pos_key], cell["failures"], strict=True) if not f]
                     reason += f"; where it held, its position error was {C.fmt(float(np.mean(held)))} m"
-                out.append(C.Claim(P, "Table 4", statement, "Failed!", ours, crit, verdict, reason))
+                out.append(C.Claim(P, "Table 4", statement, "Failed!", outcome, crit, verdict, reason))
                 continue
             statement = f"{d} % duty: {label} time-averaged {qty} error"
             paper_txt = f"{paper:.4f} {unit}"
@@ -293,11 +293,11 @@ def paper_claims(results: Mapping[tuple[str, int], Mapping[str, Any]], duties: S
             out.append(C.unchecked(P, where, statement, f"{100 * r_p:.0f} %", red_crit, skip.format(d=d)))
             continue
         (sb, b), (se, e) = _value(results, BASELINE, d, pos_key), _value(results, eso_column, d, pos_key)
-        if se != "ok":
+        if se != "ok" or e is None:
             out.append(C.Claim(P, where, statement, f"{100 * r_p:.0f} %", "observer run failed", red_crit, C.NOT,
                                f"our {eso_label} run did not hold the hover"))
             continue
-        if sb != "ok":
+        if sb != "ok" or b is None:
             out.append(C.Claim(P, where, statement, f"{100 * r_p:.0f} %", "PX4 failed, observer held", red_crit,
                                C.PARTLY, "the ordering holds but the reduction is not a number: our PX4 run failed"))
             continue
@@ -451,7 +451,7 @@ def evaluate(results: Mapping[tuple[str, Any], Mapping[str, Any]], duties: Seque
     lines.append("")
     lines.append("### The paper's claims, checked on our numbers")
     att_key = key.replace("position", "attitude")
-    table_duties = [d for d in duties if d in PAPER_TABLE4]
+    table_duties = [int(d) for d in duties if d in PAPER_TABLE4]  # the table's duties are whole percents
     for c in paper_claims(results, table_duties, eso_column, key, att_key):
         if c.verdict != C.UNCHECKED:
             lines.append(f"- {c.where}: {c.statement}: {c.our_value} (paper {c.paper_value}): **{c.verdict}** "

@@ -203,4 +203,6 @@ def failure_fraction(failures: Sequence[str]) -> tuple[int, int, float, float, f
 
     k, n = sum(1 for f in failures if f), len(failures)
     est = failure_rate(k, n)
+    if est.value is None or est.low is None or est.high is None:
+        raise ValueError("a failure fraction needs at least one seed, got none")
     return k, n, float(est.value), float(est.low), float(est.high)

@@ -76,9 +76,8 @@ class AirframePreset(VehiclePreset):
 
 def iris() -> AirframePreset:
     """The Iris of PX4 SITL airframe 10016 ``none_iris`` (see the module docstring for every number)."""
-    hubs = [None] * 4
-    for motor, (px, py, _) in enumerate(PX4_ROTORS):
-        hubs[PX4_MOTOR_TO_ROTOR[motor]] = (px, py)
+    by_rotor = {PX4_MOTOR_TO_ROTOR[motor]: (px, py) for motor, (px, py, _) in enumerate(PX4_ROTORS)}
+    hubs = [by_rotor[rotor] for rotor in range(4)]
     arm = float(np.mean([math.hypot(px, py) for px, py, _ in PX4_ROTORS]))
     return AirframePreset(
         name="iris", mass=1.545, inertia=(0.029125, 0.029125, 0.055225), arm_length=arm,

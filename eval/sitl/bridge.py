@@ -260,6 +260,8 @@ class Px4Bridge:
         return False
 
     def _write_log(self, rows: list[list[float]]) -> None:
+        if self._log_dir is None:
+            raise RuntimeError("the bridge has no log_dir to write the truth log to")
         self._log_dir.mkdir(parents=True, exist_ok=True)
         with open(self._log_dir / "truth.csv", "w", newline="") as fh:
             w = csv.writer(fh)

@@ -51,6 +51,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
@@ -139,6 +140,8 @@ class Replay:
         if self.policy:
             from fawtgym.agents.sb3_agent import run_scenario
 
+            if spec.target is None:
+                raise ValueError(f"agent {spec.name!r} names no training run (sb3:RUN)")
             scenario = run_scenario(spec.target)
             trained, self.trained_rate = str(scenario.vehicle), float(scenario.control_rate)
             if trained != self.preset.name:
@@ -149,15 +152,19 @@ class Replay:
         self.agent = make_agent(spec, self.env)
         # who gives the attitude set point and collective thrust of a motors agent: the PX4 cascade, or a residual
         # policy's PX4 base
-        self._attitude_agent = self.agent if hasattr(type(self.agent), "attitude_setpoint") else \
+        # duck-typed (checked below): a PX4 cascade or a residual policy's PX4 base
+        self._attitude_agent: Any = self.agent if hasattr(type(self.agent), "attitude_setpoint") else \
             getattr(self.agent, "base", None)
         if self.action_type != "ctbr" and not (hasattr(type(self._attitude_agent), "attitude_setpoint")
                                                 and hasattr(type(self._attitude_agent), "collective_thrust")):
             raise ValueError(f"agent {spec.name!r} commands motors and exposes no attitude set point; replay sends "
                              "SET_ATTITUDE_TARGET, so it flies PX4-cascade agents (px4, px4+<observer>), ctbr "
                              "agents and policies (ctbr, or residual on a PX4 base)")
-        self._obs_low = self.env.observation_space.low.astype(float)
-        self._obs_high = self.env.observation_space.high.astype(float)
+        obs_space = self.env.observation_space
+        if not isinstance(obs_space, spaces.Box):
+            raise ValueError(f"the env's observation space must be a Box, got {type(obs_space).__name__}")
+        self._obs_low = obs_space.low.astype(float)
+        self._obs_high = obs_space.high.astype(float)
         # one step on the env's own start state before any link is open: the first call of a policy (torch's lazy
         # initialisation) or an observer took ~0.4 s, a hole in the setpoint stream when the agent takes over; the
         # first telemetry tick resets the agent again
@@ -224,9 +231,15 @@ class Replay:
             self.last[kind] = msg
             self.last_time[kind] = time.monotonic()
 
+    def _autopilot(self) -> tuple[int, int]:
+        """(system, component) ids of the autopilot; SitlError before its first heartbeat."""
+        if self.target is None:
+            raise SitlError("no heartbeat from an autopilot yet")
+        return self.target
+
     def _command(self, command: int, *params: float) -> None:
         p = [float(x) for x in params] + [0.0] * (7 - len(params))
-        sysid, compid = self.target
+        sysid, compid = self._autopilot()
         self._send(self.conn.mav.command_long_encode(sysid, compid, command, 0, *p))
 
     def _garbage_note(self) -> str:
@@ -314,7 +327,8 @@ class Replay:
     def _fly(self) -> None:
         self._wait(f"no heartbeat from an autopilot on {self.connect}", self.connect_timeout,
                    lambda: self.target is not None)
-        self.log(f"autopilot {self.target[0]}/{self.target[1]} ({'ArduPilot' if self.autopilot == 3 else 'PX4'})")
+        sysid, compid = self._autopilot()
+        self.log(f"autopilot {sysid}/{compid} ({'ArduPilot' if self.autopilot == 3 else 'PX4'})")
         if self.policy and self.trained_rate != self.rate:
             self.log(f"note: the policy was trained at {self.trained_rate:g} Hz and flies at {self.rate:g} Hz "
                      f"(--rate)")
@@ -343,7 +357,7 @@ class Replay:
         distance = float(np.linalg.norm(self.hover_point - start))
         ramp = distance / self.climb_speed
         self._first = True
-        self._command_state = None
+        self._command_state: tuple[float, NDArray[np.float64]] | None = None
 
         def climb_sp(t: float) -> NDArray[np.float64]:
             return start + (self.hover_point - start) * min(1.0, t / ramp) if ramp > 0 else self.hover_point
@@ -388,8 +402,8 @@ class Replay:
             attitude, rates, thrust = target(k * self.dt)
             boot_ms = int((now - t0) * 1000)
             fields = C.attitude_target_fields(attitude=attitude, body_rates=rates, thrust=thrust,
-                                              time_boot_ms=boot_ms, target_system=self.target[0],
-                                              target_component=self.target[1])
+                                              time_boot_ms=boot_ms, target_system=self._autopilot()[0],
+                                              target_component=self._autopilot()[1])
             self._send(self.conn.mav.set_attitude_target_encode(**fields))
             self.sent_setpoints.append(now)
             k += 1
@@ -414,12 +428,13 @@ class Replay:
             applied = {"thrust": self.preset.mass * 9.80665, "torque": np.zeros(3)}
         else:
             applied = {"thrust": self._command_state[0], "torque": self._command_state[1]}
-        info = {"measurement": meas, "applied": applied, "setpoint": np.asarray(setpoint, dtype=float)}
+        setpoint_ned = np.asarray(setpoint, dtype=float)
+        info = {"measurement": meas, "applied": applied, "setpoint": setpoint_ned}
         if self._first:
             self.agent.reset(info, seed=0)
             self._first = False
             self._last_action = np.asarray(self.env.hover_action(), dtype=float)
-        obs = self.observation(meas, info["setpoint"], self._last_action) if self.policy else None
+        obs = self.observation(meas, setpoint_ned, self._last_action) if self.policy else None
         action = np.asarray(self.agent.act(obs, info), dtype=float).reshape(-1)
         if not np.all(np.isfinite(action)):
             raise SitlError(f"agent {self.agent_name!r} returned a non-finite action {action.tolist()}")

@@ -221,7 +221,7 @@ def contradictions(scales: dict[str, object], preset: VehiclePreset) -> list[str
     for key, what in (("estimate", str(scales.get("estimate_source", ""))), ("hover", "the hover phase"),
                       ("param", str(scales.get("param_source", "")))):
         s = scales.get(key)
-        if s is not None and abs(float(s) - 1.0) > CONTRADICTION:  # type: ignore[arg-type]
+        if isinstance(s, (int, float)) and abs(float(s) - 1.0) > CONTRADICTION:
             out.append(f"the log contradicts vehicle {preset.name!r}: {what} needs {float(s):.2f} x the preset's "
                        f"rotor thrust to hold m = {preset.mass:g} kg (check the mass, thrust curve or preset)")
     return out

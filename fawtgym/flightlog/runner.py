@@ -133,7 +133,7 @@ def observe(log: FlightLog | str | Path, observers: Sequence[str], vehicle: str 
                 raise FlightLogError(f"observer {name!r} failed at t = {grid[k]:.2f} s of the log at --rate {rate:g} "
                                      f"Hz ({' '.join(str(exc).split())}); a higher --rate (smaller step) or another "
                                      "observer may help") from None
-        channels = frozenset(obs.channels) if runs else observer_class(name).channels
+        channels = frozenset(obs.channels) if obs is not None else observer_class(name).channels
         kept = [arr for ch, arr in (("force", force_out), ("torque", torque_out)) if ch in channels]
         bad = estimated & ~np.all(np.isfinite(np.concatenate(kept, axis=1)), axis=1)
         if bad.any():

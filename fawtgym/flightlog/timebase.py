@@ -10,6 +10,8 @@ are not estimated.  Attitude is held as a rotation matrix (no interpolation on S
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -26,8 +28,8 @@ def make_grid(t_start: float, t_end: float, rate: float) -> NDArray[np.float64]:
     return t_start + np.arange(n) / rate
 
 
-def hold(t_samples: NDArray[np.float64], values: NDArray[np.float64],
-         grid: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+def hold(t_samples: NDArray[np.float64], values: NDArray[Any],
+         grid: NDArray[np.float64]) -> tuple[NDArray[Any], NDArray[np.bool_]]:
     """Sample-and-hold ``values`` (K, ...) taken at ``t_samples`` (K,) onto ``grid`` (M,).
 
     Returns (held values (M, ...), valid (M,)): ``valid`` is False before the first sample (those rows

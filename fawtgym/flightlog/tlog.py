@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from collections import defaultdict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -82,7 +83,8 @@ def _unwrap32(x: np.ndarray, period: float) -> np.ndarray:
     return x + jumps * period
 
 
-def _topics(rows: dict[str, list[tuple[float, object]]]) -> dict[str, Topic]:
+def _topics(rows: dict[str, list[tuple[float, Any]]]) -> dict[str, Topic]:
+    """PX4 topics from MAVLink messages (pymavlink messages are untyped: ``Any``) by kind, with their receive times."""
     boot: dict[str, np.ndarray] = {}
     recv: dict[str, np.ndarray] = {}
     for kind, items in rows.items():
@@ -131,11 +133,11 @@ def _topics(rows: dict[str, list[tuple[float, object]]]) -> dict[str, Topic]:
             out["actuator_motors"] = Topic("actuator_motors", times(k), {f"control[{i}]": act[:, i] for i in range(4)})
     if "HEARTBEAT" in rows:
         k = "HEARTBEAT"
-        base = field(k, "base_mode").astype(int)
+        base_mode = field(k, "base_mode").astype(int)
         custom = field(k, "custom_mode").astype(np.int64)
         nav = [PX4_MODES.get((int(c >> 16) & 0xFF, int(c >> 24) & 0xFF), -1) for c in custom]
         out["vehicle_status"] = Topic("vehicle_status", times(k), {
-            "arming_state": np.where(base & ARMED_FLAG, 2, 1), "nav_state": np.array(nav, dtype=np.int64)})
+            "arming_state": np.where(base_mode & ARMED_FLAG, 2, 1), "nav_state": np.array(nav, dtype=np.int64)})
     if "EXTENDED_SYS_STATE" in rows:
         k = "EXTENDED_SYS_STATE"
         out["vehicle_land_detected"] = Topic("vehicle_land_detected", times(k),
