@@ -62,6 +62,11 @@ def real_number(value: Any, name: str) -> float:
     return float(value)
 
 
+#: the longest episode [s]: step counters are int64 and times float64 (1 ns resolution kept to ~1e6 s); a longer
+#: "episode" is a typo, not a flight
+MAX_EPISODE_SECONDS = 1e6
+
+
 def positive_number(value: Any, name: str) -> float:
     """A finite number > 0, else ValueError naming ``name`` and the value."""
     v = real_number(value, name)
@@ -94,10 +99,13 @@ def check_setpoint(value: Any, n: int | None = None) -> NDArray[np.float64]:
 
     The floor is z_NED = 0 (NED z points down), so z must be < 0.  A set point just above the floor is allowed
     (the SITL plant starts resting on the ground; the env then ends the episode with a ground contact).
-    Returns (3,) or (n, 3).
+    Shapes broadcast as numpy's do: (3,) and (1, 3) are every row's set point (at every batch size, the single
+    env included), (n, 3) one per row.  Returns (3,) or (n, 3).
     """
-    shapes = "(3,)" if n is None else f"(3,) or ({n}, 3)"
+    shapes = "(3,) or (1, 3)" if n is None else f"(3,), (1, 3) or ({n}, 3)"
     sp = _real_array(value, "setpoint", f"3 finite NED coordinates [m] of shape {shapes}")
+    if sp.shape == (1, 3) and n != 1:
+        sp = sp[0]
     if sp.shape != (3,) and (n is None or sp.shape != (n, 3)) or not np.all(np.isfinite(sp)):
         raise ValueError(f"setpoint must be 3 finite NED coordinates [m] of shape {shapes}, got {value!r}")
     if np.any(sp[..., 2] >= 0.0):
@@ -219,6 +227,9 @@ def hover_options(vehicle: Any = "s500", wind: Any = "calm", action_type: Any = 
     physics_dt = 1.0 / physics_rate
     dt = n_substeps * physics_dt
     episode_seconds = positive_number(episode_seconds, "episode_seconds")
+    if episode_seconds > MAX_EPISODE_SECONDS:
+        raise ValueError(f"episode_seconds must be at most {MAX_EPISODE_SECONDS:g} s (about "
+                         f"{MAX_EPISODE_SECONDS / 86400:.0f} days of simulated flight), got {episode_seconds!r}")
     max_position_error = positive_number(max_position_error, "max_position_error")
     sp = FAWT_HOVER_POINT_NED.copy() if setpoint is None else check_setpoint(setpoint)
     return HoverOptions(

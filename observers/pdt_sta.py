@@ -206,7 +206,7 @@ class PdtStaAttitudeObserver(Observer):
         _measured_attitude_rows(sf, mag, self._ref_unit, self.weights, self.gravity, self._min_field, R_q, valid)
         if not valid.all():
             raise ValueError("cannot initialize pdt_sta: accelerometer/magnetometer give no attitude "
-                             f"(rows {np.nonzero(~valid)[0].tolist()}: |a| < 0.2 g, weak field or parallel)")
+                             f"(first at row {int(np.argmin(valid))}: |a| < 0.2 g, weak field or parallel)")
         self.core.reset(np.zeros((n, 3)), rows=rows)
         self.anchor = np.ascontiguousarray(write_rows(self.anchor, R_q, rows))
         self.quest_valid = write_rows(self.quest_valid, valid, rows)

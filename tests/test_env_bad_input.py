@@ -37,6 +37,7 @@ BAD_OPTIONS = [
     ({"sensors": {"base": "mocap_imu", "gyro_sigma": 0.1}}, r"unknown sensors field\(s\) \['gyro_sigma'\]"),
     ({"sensors": {"gyro_density": "a"}}, r"sensors field 'gyro_density' must be a real number, got 'a'"),
     ({"setpoint": [0.0, 0.0, 0.5]}, r"setpoint z must be above the floor"),
+    ({"episode_seconds": 1e300}, r"episode_seconds must be at most 1e\+06 s"),
     ({"setpoint": [0.0, 0.0, 0.0]}, r"setpoint z must be above the floor \(z_NED < 0"),
     ({"setpoint": [0.0, np.nan, -1.0]}, r"setpoint must be 3 finite NED coordinates"),
     ({"setpoint": ["a", 0.0, -1.0]}, r"setpoint must be 3 finite NED coordinates"),
@@ -156,3 +157,17 @@ def test_batch_env_deepcopy_and_pickle_continue_identically(action_type):
         for (o1, r1, *_), (o2, r2, *_) in zip(ref, got, strict=True):
             np.testing.assert_array_equal(o1, o2)
             np.testing.assert_array_equal(r1, r2)
+
+
+@pytest.mark.parametrize("n", [None, 1, 3])
+def test_a_1x3_setpoint_is_every_rows_setpoint_at_every_batch_size(n):
+    """(1, 3) broadcasts as numpy's shapes do: every row's set point, for the single env and at every N."""
+    sp = [[0.1, 1.4, -1.2]]
+    env = HoverEnv(setpoint=sp) if n is None else HoverBatchEnv(n, setpoint=sp)
+    try:
+        env.reset(seed=0)
+        np.testing.assert_array_equal(np.broadcast_to(env.setpoint, (n or 1, 3)), np.repeat(sp, n or 1, axis=0))
+        env.reset(seed=0, options={"setpoint": [[0.2, 1.5, -1.0]]})
+        np.testing.assert_array_equal(np.broadcast_to(env.setpoint, (n or 1, 3))[-1], [0.2, 1.5, -1.0])
+    finally:
+        env.close()
