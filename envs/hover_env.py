@@ -201,7 +201,7 @@ class HoverEnv(gym.Env):
     """
 
     @property
-    def metadata(self) -> dict[str, Any]:  # type: ignore[override]
+    def metadata(self) -> dict[str, Any]:
         """``render_modes`` and ``render_fps``: one frame per control step, so a video plays in real time.
 
         An instance property (not a class dict) so that the frame rate follows this env's control

@@ -30,7 +30,7 @@ _EYE = np.eye(3)
 # row functions (used inside the observer kernels)
 # --------------------------------------------------------------------------------------------------
 @njit(cache=True)
-def gibbs_to_rot_row(g0, g1, g2, R):  # type: ignore[no-untyped-def]
+def gibbs_to_rot_row(g0, g1, g2, R):
     """R = D(g)^T = ((1 - g.g) I + 2 g g^T + 2 [g x]) / (1 + g.g) (eq. 45, transposed) into R (3, 3)."""
     gg = g0 * g0 + g1 * g1 + g2 * g2
     d, m = 1.0 - gg, 1.0 + gg
@@ -40,7 +40,7 @@ def gibbs_to_rot_row(g0, g1, g2, R):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def omega_row(g0, g1, g2, d0, d1, d2):  # type: ignore[no-untyped-def]
+def omega_row(g0, g1, g2, d0, d1, d2):
     """omega = 2 Gamma(g)^-1 g' = 2 (g' - g x g') / (1 + g.g) (eq. 80) of one row."""
     m = 1.0 + (g0 * g0 + g1 * g1 + g2 * g2)
     return (2.0 * (d0 - (g1 * d2 - g2 * d1)) / m, 2.0 * (d1 - (g2 * d0 - g0 * d2)) / m,
@@ -48,7 +48,7 @@ def omega_row(g0, g1, g2, d0, d1, d2):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def rot_to_gibbs_row(R, den_floor, max_norm):  # type: ignore[no-untyped-def]
+def rot_to_gibbs_row(R, den_floor, max_norm):
     """g of D = R^T: 2 vee(R) / (1 + tr R) = tan(theta/2) axis, with 1 + tr R floored at ``den_floor`` and the
     result clipped to norm ``max_norm`` (a half turn has no Gibbs vector)."""
     den = 1.0 + (R[0, 0] + R[1, 1] + R[2, 2])
@@ -61,19 +61,19 @@ def rot_to_gibbs_row(R, den_floor, max_norm):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _gibbs_to_rot_rows(g, R):  # type: ignore[no-untyped-def]
+def _gibbs_to_rot_rows(g, R):
     for i in range(g.shape[0]):
         gibbs_to_rot_row(g[i, 0], g[i, 1], g[i, 2], R[i])
 
 
 @njit(cache=True)
-def _omega_rows(g, gd, w):  # type: ignore[no-untyped-def]
+def _omega_rows(g, gd, w):
     for i in range(g.shape[0]):
         w[i, 0], w[i, 1], w[i, 2] = omega_row(g[i, 0], g[i, 1], g[i, 2], gd[i, 0], gd[i, 1], gd[i, 2])
 
 
 @njit(cache=True)
-def _rot_to_gibbs_rows(R, g):  # type: ignore[no-untyped-def]
+def _rot_to_gibbs_rows(R, g):
     for i in range(R.shape[0]):
         g[i, 0], g[i, 1], g[i, 2] = rot_to_gibbs_row(R[i], 0.0, np.inf)
 

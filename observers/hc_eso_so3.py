@@ -89,7 +89,7 @@ class HcEsoGains:
 # row functions
 # --------------------------------------------------------------------------------------------------
 @njit(cache=True)
-def hc_eso_rates_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, p, q, psi, s):  # type: ignore[no-untyped-def]
+def hc_eso_rates_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, p, q, psi, s):
     """P and Q of eq. 30 for one row into ``p``, ``q`` (3,), with Psi (eq. 29) and s_L (eq. 22) into ``psi``, ``s``.
 
     ``r_hat``, ``l`` (3, 3); ``w`` = Omega_hat, ``sigma_hat``, ``o`` = Omega^m, ``tau`` (3,); ``c`` =
@@ -142,7 +142,7 @@ def hc_eso_rates_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, p, q, psi, s):
 
 
 @njit(cache=True)
-def hc_eso_step_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, h, scratch):  # type: ignore[no-untyped-def]
+def hc_eso_step_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, h, scratch):
     """One Lie-Euler step of eq. 30 of size h of one row, in place: R_hat <- R_hat exp(h Omega_hat^x),
     Omega_hat <- Omega_hat + h P, sigma_hat <- sigma_hat + h Q (P, Q at the start of the step).
     ``scratch``: (6, 3, 3) work space (rows 0-3)."""
@@ -160,7 +160,7 @@ def hc_eso_step_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, h, scratch):  #
 
 
 @njit(cache=True)
-def gain_matrix_row(use_attitude, sf, mag, att, E, EW, U, L):  # type: ignore[no-untyped-def]
+def gain_matrix_row(use_attitude, sf, mag, att, E, EW, U, L):
     """L = (E W) (U^m)^T (Lemma 2) of one row into ``L``, U^m into ``U`` (3, 3): from the measured attitude
     (U^m = (R^m)^T E) or from the IMU (:func:`vector_attitude.imu_body_vectors_row`).  Returns that function's
     status (0: usable)."""
@@ -180,13 +180,13 @@ def gain_matrix_row(use_attitude, sf, mag, att, E, EW, U, L):  # type: ignore[no
 
 
 @njit(cache=True)
-def _rates_rows(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, p, q, psi, s):  # type: ignore[no-untyped-def]
+def _rates_rows(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, p, q, psi, s):
     for i in range(r_hat.shape[0]):
         hc_eso_rates_row(r_hat[i], w[i], sigma_hat[i], l[i], o[i], tau[i], J, J_inv, c, p[i], q[i], psi[i], s[i])
 
 
 @njit(cache=True)
-def _step_rows(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, h):  # type: ignore[no-untyped-def]
+def _step_rows(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, h):
     scratch = np.empty((6, 3, 3))
     for i in range(r_hat.shape[0]):
         hc_eso_step_row(r_hat[i], w[i], sigma_hat[i], l[i], o[i], tau[i], J, J_inv, c, h, scratch)
@@ -194,7 +194,7 @@ def _step_rows(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, h):  # type: ignore[
 
 @njit(cache=True)
 def _update_rows(r_hat, w, sigma_hat, l, o, tau, use_attitude, sf, mag, att, rate, J, J_inv, E, EW, c, h, steps,
-                 out, l_new, o_new):  # type: ignore[no-untyped-def]
+                 out, l_new, o_new):
     """One observer update of every row from the state (``r_hat``, ``w``, ``sigma_hat``) and the held L, Omega^m
     (``l``, ``o``), none of them written: ``steps`` Lie-Euler substeps of size h, the held L propagated by
     exp(h (Omega^m)^x) between them, into ``out`` (N, 21): force (0) | torque J sigma_hat | R_hat (9) | Omega_hat |

@@ -39,7 +39,7 @@ _Y_MAX = 1e3
 
 
 @njit(cache=True)
-def measured_attitude_row(sf, mag, ref, weights, gravity, min_field, body, q, g, R):  # type: ignore[no-untyped-def]
+def measured_attitude_row(sf, mag, ref, weights, gravity, min_field, body, q, g, R):
     """QUEST attitude (eqs. 56-66) of one row from the accelerometer ``sf`` and the magnetometer ``mag`` against
     the unit references ``ref`` (2, 3) into ``R`` (3, 3) (scratch ``body`` (2, 3), ``q`` (4,), ``g`` (3,)).
 
@@ -63,7 +63,7 @@ def measured_attitude_row(sf, mag, ref, weights, gravity, min_field, body, q, g,
 
 
 @njit(cache=True)
-def _mat_t_mul_row(A, B, out):  # type: ignore[no-untyped-def]
+def _mat_t_mul_row(A, B, out):
     """out = A^T B (3 x 3; core.so3_kernels has A B only)."""
     for i in range(3):
         for j in range(3):
@@ -71,14 +71,14 @@ def _mat_t_mul_row(A, B, out):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _measured_attitude_rows(sf, mag, ref, weights, gravity, min_field, R, valid):  # type: ignore[no-untyped-def]
+def _measured_attitude_rows(sf, mag, ref, weights, gravity, min_field, R, valid):
     body, q, g = np.empty((2, 3)), np.empty(4), np.empty(3)
     for i in range(sf.shape[0]):
         valid[i] = measured_attitude_row(sf[i], mag[i], ref, weights, gravity, min_field, body, q, g, R[i])
 
 
 @njit(cache=True)
-def _pdt_sta_rows(sf, mag, tau, dt, k, anchor, x1, x2, t, state, est, valid):  # type: ignore[no-untyped-def]
+def _pdt_sta_rows(sf, mag, tau, dt, k, anchor, x1, x2, t, state, est, valid):
     """One update of every row into ``state`` (N, 16): anchor R_a (9) | g_hat | g_hat' | t, and ``est`` (N, 30):
     force (0) | torque (0) | R_hat (9) | omega_hat | R_q (9) | g_hat, and ``valid`` (N,) (the inputs are not
     written).

@@ -163,7 +163,7 @@ def discretize(gain: QBGain, dt: float) -> tuple[NDArray[np.float64], ...]:
 
 
 @njit(cache=True)
-def _estimate_row(x, R, mass, J_inv, force, torque, velocity, omega, derivs):  # type: ignore[no-untyped-def]
+def _estimate_row(x, R, mass, J_inv, force, torque, velocity, omega, derivs):
     """The estimate of one row from its state x = (p_lin, p_ang, d_f, d_tau, d', ...) (eqs. 35, 42) and attitude R:
     force d_f (world NED), torque R^T d_tau (body FRD), velocity p_lin / m, Omega = J^-1 R^T p_ang."""
     for k in range(3):
@@ -180,7 +180,7 @@ def _estimate_row(x, R, mass, J_inv, force, torque, velocity, omega, derivs):  #
 
 
 @njit(cache=True)
-def _estimate_rows(x, R, mass, J_inv, out):  # type: ignore[no-untyped-def]
+def _estimate_rows(x, R, mass, J_inv, out):
     """:func:`_estimate_row` of every row into ``out`` (N, 12 + n_d): force | torque | velocity | Omega | d', ..."""
     for i in range(x.shape[0]):
         o = out[i]
@@ -195,7 +195,7 @@ def _estimate_views(out: NDArray[np.float64]) -> ObserverEstimate:
 
 @njit(cache=True)
 def _qb_rows(x, y_prev, R_prev, R, velocity, rate, specific_force, thrust, torque, mass, gravity, J, J_inv,
-             stacked, x_out, y_out, out):  # type: ignore[no-untyped-def]
+             stacked, x_out, y_out, out):
     """One update of every row: u_k (eq. 52) with Rbar = (R_prev + R) / 2, y_{k+1} (eq. 54), then
     x_{k+1} = Phi x_k + Gu u_k + Gy0 y_k + Gy1 (y_{k+1} - y_k) as one product [x, u, y_prev, y] @ ``stacked``
     (:func:`discretize`), and the estimate into ``out`` (:func:`_estimate_rows`)."""

@@ -120,7 +120,7 @@ def uav_model(r: int = PAPER_ORDER, q1_scale: float = Q1_SCALE, q2: ArrayLike | 
 
 # ------------------------------------------------- mapping to the env's signals (batch-first) ----
 @njit(cache=True)
-def momentum_input_row(mass, gravity, R, thrust, torque, u):  # type: ignore[no-untyped-def]
+def momentum_input_row(mass, gravity, R, thrust, torque, u):
     """u = m g' + R' w_a (eq. 52) of one row into ``u`` (6,): world force m g e3 - f R e3, world torque R tau_a."""
     for k in range(3):
         u[k] = -thrust * R[k, 2]
@@ -129,7 +129,7 @@ def momentum_input_row(mass, gravity, R, thrust, torque, u):  # type: ignore[no-
 
 
 @njit(cache=True)
-def momentum_output_row(mass, J, R, velocity, omega, specific_force, thrust, y):  # type: ignore[no-untyped-def]
+def momentum_output_row(mass, J, R, velocity, omega, specific_force, thrust, y):
     """y of eq. 54 (typos corrected) of one row into ``y`` (9,): (m v, R J Omega, f_ext = R (m a_sf + f e3)).
 
     The accelerometer measures ``a_sf = (f_a + R^T f_ext) / m`` (eq. 53) with ``f_a = -f e3``."""
@@ -144,13 +144,13 @@ def momentum_output_row(mass, J, R, velocity, omega, specific_force, thrust, y):
 
 
 @njit(cache=True)
-def _momentum_input_rows(mass, gravity, R, thrust, torque, u):  # type: ignore[no-untyped-def]
+def _momentum_input_rows(mass, gravity, R, thrust, torque, u):
     for i in range(R.shape[0]):
         momentum_input_row(mass, gravity, R[i], thrust[i], torque[i], u[i])
 
 
 @njit(cache=True)
-def _momentum_output_rows(mass, J, R, velocity, omega, specific_force, thrust, y):  # type: ignore[no-untyped-def]
+def _momentum_output_rows(mass, J, R, velocity, omega, specific_force, thrust, y):
     for i in range(R.shape[0]):
         momentum_output_row(mass, J, R[i], velocity[i], omega[i], specific_force[i], thrust[i], y[i])
 

@@ -56,7 +56,7 @@ class QuestResult:
 # the row kernel
 # --------------------------------------------------------------------------------------------------
 @njit(cache=True)
-def _profile(b, r, a, f0, f1, f2):  # type: ignore[no-untyped-def]
+def _profile(b, r, a, f0, f1, f2):
     """B (eq. 61) and z (eq. 62) with weights a_i / sum a (eq. 63), the references flipped componentwise by
     (f0, f1, f2) (+-1: a rotation by pi about an axis, or the identity).  Returns (B row-major 9, z 3)."""
     sa = 0.0
@@ -84,7 +84,7 @@ def _profile(b, r, a, f0, f1, f2):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _newton_lambda(a1, b1, c1, rho, d1):  # type: ignore[no-untyped-def]
+def _newton_lambda(a1, b1, c1, rho, d1):
     """lambda_max: Newton-Raphson on Shuster's characteristic equation of K (eq. 58), started from 1,
     (l^2 - a1)(l^2 - b1) - c1 l + c1 rho - d1 = 0 (quadratic convergence: usually 2-4 iterations)."""
     lam = 1.0
@@ -100,7 +100,7 @@ def _newton_lambda(a1, b1, c1, rho, d1):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _gibbs_solve(b, r, a, f0, f1, f2):  # type: ignore[no-untyped-def]
+def _gibbs_solve(b, r, a, f0, f1, f2):
     """Eqs. 57-65 in the frame of the references flipped by (f0, f1, f2): (g0, g1, g2, lambda_max, ok); ok is
     False where eq. 65 is ill-conditioned (|det M| <= 1e-9 or |g| > 10; g is then meaningless)."""
     B00, B01, B02, B10, B11, B12, B20, B21, B22, z0, z1, z2 = _profile(b, r, a, f0, f1, f2)
@@ -144,7 +144,7 @@ def _gibbs_solve(b, r, a, f0, f1, f2):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _eigh_quaternion(b, r, a):  # type: ignore[no-untyped-def]
+def _eigh_quaternion(b, r, a):
     """The last resort, eq. 64: the eigenvector of K for its largest eigenvalue, (w, x, y, z) with w >= 0, and
     that eigenvalue."""
     B00, B01, B02, B10, B11, B12, B20, B21, B22, z0, z1, z2 = _profile(b, r, a, 1.0, 1.0, 1.0)
@@ -166,7 +166,7 @@ _FLIPS = ((1.0, -1.0, -1.0), (-1.0, 1.0, -1.0), (-1.0, -1.0, 1.0))
 
 
 @njit(cache=True)
-def quest_row(b, r, a, q, g):  # type: ignore[no-untyped-def]
+def quest_row(b, r, a, q, g):
     """QUEST (eqs. 57-66) of one attitude: unit vectors ``b``, ``r`` (n, 3), weights ``a`` (n,) > 0 -> writes the
     (w, x, y, z) quaternion of R into ``q`` (4,) and the Gibbs vector of D = R^T into ``g`` (3,); returns
     lambda_max.  Preconditions (not checked): finite unit vectors, >= 2 non-collinear pairs.
@@ -210,7 +210,7 @@ def quest_row(b, r, a, q, g):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _quest_rows(b, r, a, R, q, g, lam):  # type: ignore[no-untyped-def]
+def _quest_rows(b, r, a, R, q, g, lam):
     """:func:`quest_row` over the rows of b (N, n, 3); r and a have N rows or one (shared by every row)."""
     for i in range(R.shape[0]):
         ri = r[i] if r.shape[0] > 1 else r[0]

@@ -34,7 +34,7 @@ from .predefined_sta import check_params, switch_and_gain_times
 
 
 @njit(cache=True)
-def stsmo_row(x1, x2, t, y, u, w, J, J_inv, p, dt, x1_out, x2_out):  # type: ignore[no-untyped-def]
+def stsmo_row(x1, x2, t, y, u, w, J, J_inv, p, dt, x1_out, x2_out):
     """One step of eqs. 75-77 (or 81-82) of one row: state g_hat = ``x1`` (3,), g_hat' = ``x2`` (3,) at time ``t``,
     the Gibbs measurement ``y`` (eq. 79) and torque ``u`` held over ``dt``, the angular velocity ``w`` of eq. 76
     -> the new state in ``x1_out``, ``x2_out`` (may be ``x1``, ``x2``).  ``p`` = :attr:`GibbsSTSMO.params`
@@ -97,7 +97,7 @@ def stsmo_row(x1, x2, t, y, u, w, J, J_inv, p, dt, x1_out, x2_out):  # type: ign
 
 
 @njit(cache=True)
-def _stsmo_rows(x1, x2, t, y, u, w, use_w, J, J_inv, p, dt, x1_out, x2_out):  # type: ignore[no-untyped-def]
+def _stsmo_rows(x1, x2, t, y, u, w, use_w, J, J_inv, p, dt, x1_out, x2_out):
     """:func:`stsmo_row` over the rows; ``w`` the given omega (``use_w``) or omega_hat of eq. 80.  Returns the
     first row whose new state is not finite, or -1."""
     bad = -1

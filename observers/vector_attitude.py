@@ -171,7 +171,7 @@ IMU_VECTOR_ERRORS = ("specific force has (near) zero length; cannot use it as a 
 
 
 @njit(cache=True)
-def imu_body_vectors_row(f, m, U):  # type: ignore[no-untyped-def]
+def imu_body_vectors_row(f, m, U):
     """U^m (3, 3) of one row into ``U``: columns -f/|f| (the gravity direction), m/|m| and their normalized cross
     product.  Returns 0, or 1, 2, 3 (:data:`IMU_VECTOR_ERRORS`) where a direction has length < 1e-9."""
     n = math.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
@@ -193,7 +193,7 @@ def imu_body_vectors_row(f, m, U):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _imu_body_vectors_rows(f, m, U):  # type: ignore[no-untyped-def]
+def _imu_body_vectors_rows(f, m, U):
     for i in range(f.shape[0]):
         code = imu_body_vectors_row(f[i], m[i], U[i])
         if code:
