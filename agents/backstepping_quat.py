@@ -21,16 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.frames import quat_to_rot
-from fawtgym.core.so3 import hat
-
-
-def cross3(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``a x b`` for (..., 3) arrays (explicit components: much cheaper than numpy.cross on small batches)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return out
+from fawtgym.core.so3 import cross, hat
 
 
 def quat_multiply(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
@@ -39,7 +30,7 @@ def quat_multiply(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
     b = np.asarray(b, dtype=float)
     out = np.empty(np.broadcast_shapes(a.shape, b.shape))
     out[..., 0] = a[..., 0] * b[..., 0] - a[..., 1] * b[..., 1] - a[..., 2] * b[..., 2] - a[..., 3] * b[..., 3]
-    out[..., 1:] = a[..., :1] * b[..., 1:] + b[..., :1] * a[..., 1:] + cross3(a[..., 1:], b[..., 1:])
+    out[..., 1:] = a[..., :1] * b[..., 1:] + b[..., :1] * a[..., 1:] + cross(a[..., 1:], b[..., 1:])
     return out
 
 
@@ -55,7 +46,7 @@ def quat_derivative(q: ArrayLike, omega: ArrayLike) -> NDArray[np.float64]:
     w = np.asarray(omega, dtype=float)
     out = np.empty(np.broadcast_shapes(q.shape, w.shape[:-1] + (4,)))
     out[..., 0] = -0.5 * np.sum(q[..., 1:] * w, axis=-1)
-    out[..., 1:] = 0.5 * (q[..., :1] * w + cross3(q[..., 1:], w))
+    out[..., 1:] = 0.5 * (q[..., :1] * w + cross(q[..., 1:], w))
     return out
 
 
@@ -125,7 +116,7 @@ class QuaternionBackstepping:
         c_wd_dot = np.einsum("...ij,...j->...i", c_db, np.asarray(omega_d_dot, float))
         qve_dot = 0.5 * (np.einsum("...ij,...j->...i", hat(qve), omega_e) + q0e * omega_e)  # eq. 16
         jw = omega @ j.T
-        n_term = ((cross3(omega_e, c_wd) - c_wd_dot) @ j.T - cross3(omega, jw)
+        n_term = ((cross(omega_e, c_wd) - c_wd_dot) @ j.T - cross(omega, jw)
                   + (self.k1 * qve_dot) @ j.T + qve)  # eq. 45
         omega_tilde = omega_e + self.k1 * qve  # eq. 43
         u = -n_term - self.k2 * omega_tilde

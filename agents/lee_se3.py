@@ -26,9 +26,7 @@ import dataclasses
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.so3 import hat, log_so3, vee
-
-from .backstepping_quat import cross3 as cross
+from fawtgym.core.so3 import cross, hat, log_so3, vee
 
 _E3 = np.array([0.0, 0.0, 1.0])
 

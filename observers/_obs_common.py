@@ -1,15 +1,12 @@
 """Small helpers shared by the Wang et al. (2024) observers (FFTS-ESO, LESO, FxTSDO, STO).
 
 Not an observer itself (the leading underscore keeps it out of the auto-import/registry).  The row helpers
-(``*_row``) are compiled and called by the observers' kernels per row.  ``floats`` / ``single_inputs`` serve the
-N = 1 float paths that remain in other observers (qb, pdt_sta, hc_eso; issue 14 removes them there) and go
-with the last of those paths.
+(``*_row``) are compiled and called by the observers' kernels per row.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 
 import numpy as np
 from numba import njit
@@ -76,47 +73,3 @@ def known_angular_acceleration_row(omega: NDArray[np.float64], torque: NDArray[n
     m2 = jw0 * omega[1] - jw1 * omega[0] + torque[2]
     for j in range(3):
         out[j] = inertia_inv[j, 0] * m0 + inertia_inv[j, 1] * m1 + inertia_inv[j, 2] * m2
-
-
-_I1 = [1, 2, 0]
-_I2 = [2, 0, 1]
-
-
-def cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """a x b over the last axis (..., 3); a lean replacement for np.cross on small batches."""
-    return a[..., _I1] * b[..., _I2] - a[..., _I2] * b[..., _I1]
-
-
-def floats(x: object) -> list[float]:
-    """All entries of ``x`` as a flat list of Python floats (the N = 1 fast paths; one call for a float64 ndarray).
-
-    Raises what ``np.asarray(x, dtype=float)`` raises for input that is not numeric.
-    """
-    if type(x) is np.ndarray and x.dtype.char == "d":
-        return x.ravel().tolist()
-    return np.asarray(x, dtype=float).ravel().tolist()
-
-
-_SIZES = {"position": 3, "velocity": 3, "attitude": 9, "angular_velocity": 3, "specific_force": 3, "gyro": 3,
-          "magnetometer": 3}
-
-
-def single_inputs(measurement: Mapping[str, object], keys: tuple[str, ...], thrust: object, torque: object,
-                  dt: object) -> tuple[list[list[float]], float, list[float]] | None:
-    """The N = 1 fast paths' inputs as Python floats: ``([floats per key], thrust, torque)``.
-
-    Returns None unless the step is a well-formed, finite single-vehicle step (keys present with sizes
-    3 / 9, one thrust, three torques, a finite positive ``dt``); the caller then takes its general path,
-    which raises the usual errors.
-    """
-    try:
-        values = [floats(measurement[k]) for k in keys]
-        fl = floats(thrust)
-        tq = floats(torque)
-    except (KeyError, ValueError, TypeError):
-        return None
-    if (len(fl) != 1 or len(tq) != 3 or any(len(v) != _SIZES[k] for k, v in zip(keys, values, strict=True))
-            or not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0)
-            or not math.isfinite(sum(sum(v) for v in values) + fl[0] + sum(tq))):
-        return None
-    return values, fl[0], tq

@@ -254,24 +254,6 @@ class Observer:
                     f"{who}: the {channel} estimate diverged (row {row} has a non-finite entry); the state is left "
                     "as before this update (check dt, the gains and the measurement)")
 
-    # ---- shared input checks ----------------------------------------------------------
-    @staticmethod
-    def _inputs(measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike,
-                dt: float) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.float64], NDArray[np.float64]]:
-        """Legacy input checks of observers that still override :meth:`update` (no batch size, no dt bound)."""
-        if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
-        meas = batch_measurement(measurement)
-        f = np.atleast_1d(np.asarray(thrust, dtype=float))
-        tau = np.asarray(torque, dtype=float)
-        tau = tau[None, :] if tau.ndim == 1 else tau
-        if tau.shape[-1] != 3:
-            raise ValueError(f"torque must have shape (3,) or (N, 3), got {tau.shape}")
-        for label, arr in (("thrust", f), ("torque", tau)):
-            if not np.all(np.isfinite(arr)):
-                raise ValueError(f"{label} contains non-finite values: {arr}")
-        return meas, f, tau
-
 
 _REAL_KINDS = "iuf"    # numpy dtype kinds accepted as real numbers (bool "b" and complex "c" are refused)
 

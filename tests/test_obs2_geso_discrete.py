@@ -8,8 +8,7 @@ import scipy.signal
 from _tolerance import assert_same_law
 from scipy.integrate import solve_ivp
 
-from fawtgym.agents.backstepping_quat import cross3
-from fawtgym.core.so3 import exp_so3
+from fawtgym.core.so3 import cross, exp_so3
 from fawtgym.observers import make_observer
 from fawtgym.observers.geso import GesoFilter
 
@@ -116,9 +115,9 @@ def _rigid_body_run(obs, steps=400, dt=0.004, n=1, seed=0):
         for _ in range(sub):  # RK2 substeps, inputs held
             phi, td = dist(t + h / 2)
             a = G * np.array([0, 0, 1.0]) - (f[:, None] * R[..., :, 2]) / MASS + phi / MASS
-            wd = (cross3(w @ J.T, w) + tau + td) @ j_inv.T
+            wd = (cross(w @ J.T, w) + tau + td) @ j_inv.T
             w_mid = w + h / 2 * wd
-            wd = (cross3(w_mid @ J.T, w_mid) + tau + td) @ j_inv.T
+            wd = (cross(w_mid @ J.T, w_mid) + tau + td) @ j_inv.T
             R = R @ exp_so3(h * w_mid)
             v, w = v + h * a, w + h * wd
             t += h

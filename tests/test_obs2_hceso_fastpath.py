@@ -12,10 +12,9 @@ import numpy as np
 import pytest
 
 import fawtgym  # noqa: F401  (registers the env ids)
-from fawtgym.agents.backstepping_quat import cross3
 from fawtgym.agents.px4_agent import PX4Agent
 from fawtgym.core.measurement import EARTH_FIELD_NED, batch_measurement
-from fawtgym.core.so3 import exp_so3
+from fawtgym.core.so3 import cross, exp_so3
 from fawtgym.observers import make_observer
 
 G = 9.80665
@@ -90,7 +89,7 @@ def test_tumbling_body_with_varying_dt():
         tau = -0.08 * w + 0.01 * np.array([math.sin(3 * t), 0.0, math.cos(2 * t)])
         tau_d = np.array([0.03 * math.sin(0.5 * t), 0.02, -0.015 * math.cos(0.3 * t)])
         for _ in range(4):
-            w = w + dt / 4 * ((cross3(w[None] @ J_QUAD.T, w[None])[0] + tau + tau_d) @ j_inv.T)
+            w = w + dt / 4 * ((cross(w[None] @ J_QUAD.T, w[None])[0] + tau + tau_d) @ j_inv.T)
             r = r @ exp_so3(dt / 4 * w)
         t += dt
         a = obs.update(_meas(r, w, rng, 0.02), 0.0, tau, dt)

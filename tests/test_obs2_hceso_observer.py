@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 from _tolerance import HC_ESO_COND, assert_same_law
 
-from fawtgym.agents.backstepping_quat import cross3
 from fawtgym.core.measurement import EARTH_FIELD_NED
-from fawtgym.core.so3 import exp_so3, hat, log_so3, orthogonality_error
+from fawtgym.core.so3 import cross, exp_so3, hat, log_so3, orthogonality_error
 from fawtgym.observers import make_observer
 from fawtgym.observers import vector_attitude as va
 from fawtgym.observers.hc_eso_so3 import HcEsoGains, hc_eso_rates, hc_eso_step
@@ -93,7 +92,7 @@ def _synthetic(obs, tau_d, t_end=6.0, dt=0.01, n=1, seed=0):
     for _ in range(int(round(t_end / dt))):
         tau = -0.05 * w
         for _ in range(sub):  # semi-implicit Lie-Euler substeps, torque held
-            w = w + h * ((cross3(w @ J_QUAD.T, w) + tau + tau_d) @ j_inv.T)
+            w = w + h * ((cross(w @ J_QUAD.T, w) + tau + tau_d) @ j_inv.T)
             r = r @ exp_so3(h * w)
         out.append(obs.update(_meas(r, w), np.zeros(n), tau, dt))
     return out, r, w
@@ -132,7 +131,7 @@ def test_batch_equals_separate_runs():
         for k in range(30):
             tau = -0.05 * w
             for _ in range(4):
-                w = w + 0.0025 * ((cross3(w @ J_QUAD.T, w) + tau + tau_d) @ np.linalg.inv(J_QUAD).T)
+                w = w + 0.0025 * ((cross(w @ J_QUAD.T, w) + tau + tau_d) @ np.linalg.inv(J_QUAD).T)
                 r = r @ exp_so3(0.0025 * w)
             e = obs.update(_meas(r, w), np.zeros(1), tau, 0.01)
             assert_same_law(e.torque[0], batch[k].torque[i], scale=scale, steps=k + 1, cond=HC_ESO_COND,

@@ -35,13 +35,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.agents.backstepping_quat import (
     QuaternionBackstepping,
-    cross3,
     euler_rates_to_body,
     euler_to_quat,
     quat_derivative,
 )
 from fawtgym.cli_parser import ArgumentParser, check_output_dir, nonnegative_float, positive_float
 from fawtgym.core.frames import quat_to_rot, rot_to_euler
+from fawtgym.core.so3 import cross
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce.progress import Progress, add_flag, bar, tick
 from fawtgym.observers import make_observer
@@ -96,7 +96,7 @@ def _plant_rhs(q: NDArray[np.float64], w: NDArray[np.float64], u: NDArray[np.flo
                j_true: NDArray[np.floating[Any]], j_true_inv: NDArray[np.floating[Any]]
                ) -> tuple[NDArray[np.float64], ...]:
     """Eq. 11 with the true inertia: q' = 1/2 q (x) [0, w], J w' = -w x J w + u + d."""
-    return quat_derivative(q, w), (u + d - cross3(w, w @ j_true.T)) @ j_true_inv.T
+    return quat_derivative(q, w), (u + d - cross(w, w @ j_true.T)) @ j_true_inv.T
 
 
 def simulate(t_end: float = 20.0, dt: float = 1e-3, substeps: int = 1, bandwidth: float = BANDWIDTH,

@@ -18,8 +18,7 @@ import dataclasses
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.so3 import exp_so3
-from fawtgym.observers._obs_common import cross
+from fawtgym.core.so3 import cross, exp_so3
 
 MASS = 4.34
 INERTIA = np.diag([0.0820, 0.0845, 0.1377])

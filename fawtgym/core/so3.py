@@ -7,9 +7,6 @@ and a projection back onto SO(3) (polar decomposition via SVD) for inputs that d
 
 from __future__ import annotations
 
-import math
-from collections.abc import Sequence
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -31,6 +28,17 @@ def hat(w: ArrayLike) -> NDArray[np.float64]:
     return out
 
 
+def cross(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+    """``a x b`` over the last axis of (..., 3) arrays, broadcast (explicit components: much cheaper than
+    ``numpy.cross`` on small batches); the row kernels use :func:`fawtgym.core.so3_kernels.cross_row`."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
 def vee(m: ArrayLike) -> NDArray[np.float64]:
     """Inverse of :func:`hat` applied to the skew part: (..., 3, 3) -> (..., 3)."""
     m = np.asarray(m, dtype=float)
@@ -47,32 +55,6 @@ def exp_so3(w: ArrayLike) -> NDArray[np.float64]:
     out = np.empty((rows.shape[0], 3, 3))
     exp_so3_rows(rows, out)
     return out.reshape(w.shape[:-1] + (3, 3))
-
-
-def exp_so3_floats(x0: float, x1: float, x2: float) -> tuple[float, ...]:
-    """:func:`exp_so3` of one rotation vector in plain floats (the N = 1 fast paths), row-major 9: the same
-    formulas and threshold, ``I + a x^ + b x^ x^`` with ``x^ x^ = x x^T - |x|^2 I`` (NaN where those give NaN)."""
-    t2 = x0 * x0 + x1 * x1 + x2 * x2
-    if t2 < _SMALL:
-        a, b = 1.0 - t2 / 6.0 + t2 * t2 / 120.0, 0.5 - t2 / 24.0 + t2 * t2 / 720.0
-    elif t2 == math.inf:  # numpy's sin(inf) is NaN (math.sin raises): NaN, as the batched exponential
-        return (math.nan,) * 9
-    else:
-        t = math.sqrt(t2)
-        a, b = math.sin(t) / t, (1.0 - math.cos(t)) / (t * t)
-    b01, b02, b12 = b * (x0 * x1), b * (x0 * x2), b * (x1 * x2)
-    return (1.0 + b * (-(x2 * x2) - x1 * x1), -a * x2 + b01, a * x1 + b02,
-            a * x2 + b01, 1.0 + b * (-(x2 * x2) - x0 * x0), -a * x0 + b12,
-            -a * x1 + b02, a * x0 + b12, 1.0 + b * (-(x1 * x1) - x0 * x0))
-
-
-def matmul33_floats(a: Sequence[float], b: Sequence[float]) -> tuple[float, ...]:
-    """Product of two 3 x 3 matrices given row-major as 9 floats (the N = 1 fast paths)."""
-    a00, a01, a02, a10, a11, a12, a20, a21, a22 = a
-    b00, b01, b02, b10, b11, b12, b20, b21, b22 = b
-    return (a00 * b00 + a01 * b10 + a02 * b20, a00 * b01 + a01 * b11 + a02 * b21, a00 * b02 + a01 * b12 + a02 * b22,
-            a10 * b00 + a11 * b10 + a12 * b20, a10 * b01 + a11 * b11 + a12 * b21, a10 * b02 + a11 * b12 + a12 * b22,
-            a20 * b00 + a21 * b10 + a22 * b20, a20 * b01 + a21 * b11 + a22 * b21, a20 * b02 + a21 * b12 + a22 * b22)
 
 
 def log_so3(r: ArrayLike) -> NDArray[np.float64]:
