@@ -395,7 +395,7 @@ class GESO(Observer):
     then lags by dt/2).  ``"foh"`` (default): u* held (the applied thrust/torque averaged over the
     step, its state-dependent part at the mean of the two measurements), y linear between the
     previous and the new measurement, which the update receives anyway; at 100-250 Hz this is
-    several times more accurate (tests/test_obs2_geso_discrete.py).
+    several times more accurate (tests/test_geso_discrete.py).
 
     ``states``: ``"velocity"`` (N, 3) and ``"force_derivatives"`` (N, n-1, 3) for the force
     channel; ``"angular_velocity"`` (N, 3) and ``"torque_derivatives"`` (N, n-1, 3) for the

@@ -298,7 +298,7 @@ class HcEsoSO3(Observer):
     #: the update holds the measured vectors and rate over dt (the vectors propagated with the held rate), so the
     #: estimate lags the sample by up to dt: the paper's simulation samples at 100 Hz (Sec. 6, h = 0.01 s); 0.1 s
     #: is 10 of its samples and 20 substeps, at which a constant torque is still recovered to 2e-8 N m (the
-    #: synthetic run of tests/test_obs2_hceso_observer.py, 6 s)
+    #: synthetic run of tests/test_hc_eso_observer.py, 6 s)
     max_dt = 0.1
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, alpha: float = 0.85,

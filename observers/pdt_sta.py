@@ -156,7 +156,7 @@ class PdtStaAttitudeObserver(Observer):
     channels = frozenset()
     required_keys = (SPECIFIC_FORCE, MAGNETOMETER)
     #: the STA phase (eq. 77 after t_c) is forward Euler, whose discrete chattering band grows with dt (like
-    #: kappa1 dt^(1/2) in g_hat): on a 0.22 rad/s rotation with exact vectors (tests/test_obs2_pdt_attitude.py's
+    #: kappa1 dt^(1/2) in g_hat): on a 0.22 rad/s rotation with exact vectors (tests/test_pdt_sta_observer.py's
     #: slow rotation, default gains) the rate error after t_c is 0.03 rad/s at 5 ms, 0.13 at 20 ms (0.6 of the
     #: signal) and 0.31 at 50 ms (worse than omega_hat = 0); 20 ms (50 Hz) is the bound
     max_dt = 0.02

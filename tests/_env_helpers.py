@@ -1,6 +1,6 @@
 """Shared test helper: run observers on the hover env's measurements at its control rate.
 
-Used by tests/test_obs2_geso_env.py and tests/test_obs2_hceso_env.py (not a test module itself).
+Used by tests/test_geso_env.py and tests/test_hc_eso_env.py (not a test module itself).
 """
 
 from __future__ import annotations

@@ -32,9 +32,10 @@ def _layered(name: str) -> bool:
 
 NAMES = observer_names()
 #: hc_eso integrates each update with the previous sample held (its new sample is read by the next update), so an
-#: absurd sample diverges one update later; tests/test_obs2_hceso_fastpath.py checks that case
+#: absurd sample diverges one update later; tests/test_hc_eso_tumbling_and_errors.py checks that case
 #: pdt_sta is gyroless: it reads only the accelerometer and the magnetometer, as directions (normalized)
-NO_RATE_DIVERGENCE = {"hc_eso": "hc_eso holds the previous sample over the step: tested in test_obs2_hceso_fastpath.py",
+NO_RATE_DIVERGENCE = {"hc_eso": "hc_eso holds the previous sample over the step: tested in "
+                                "test_hc_eso_tumbling_and_errors.py",
                       "pdt_sta": "pdt_sta reads no rate and normalizes its vectors: an absurd sample cannot diverge it"}
 LAYERED = [n for n in NAMES if _layered(n)]
 #: the observers an absurd rate/position sample diverges in one update, and those that read the attitude

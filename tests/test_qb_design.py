@@ -180,7 +180,7 @@ def test_jmu_normalization(small_sweep):
 
 def test_sweep_tradeoff_and_line_search(small_sweep):
     """Fig. 4 shape (interior minimum, then growth) and Fig. 6 monotonicity (the r = 3 UAV model is
-    checked in test_obs2_qb_observer and the long reproduction)."""
+    checked in test_qb_observer and the long reproduction)."""
     pr, sw = small_sweep
     assert not sw.failed
     a = qd.anchors_from_sweep(sw)

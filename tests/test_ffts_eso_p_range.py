@@ -8,7 +8,7 @@ With a fixed floor eps = 1e-12 the regularised fractional power has the slope ep
 
 import numpy as np
 import pytest
-from test_obs1_observers import MASS, J, _rigid_body
+from test_ffts_eso_and_baselines import MASS, J, _rigid_body
 
 from fawtgym.agents.spec import FFTS_ESO_FLIGHT_GAINS
 from fawtgym.observers.ffts_eso import FFTSESO
