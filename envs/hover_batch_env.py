@@ -150,6 +150,7 @@ from .step_kernels import (
     FAILURES,
     REWARD_TERMS,
     action_motor_controls,
+    applied_wrench,
     clip_actions,
     ctbr_substep,
     finish_step,
@@ -289,7 +290,7 @@ class HoverBatchEnv(VectorEnv):
 
         p = self.preset
         self._hull = np.ascontiguousarray(hull_points(p))
-        self._alloc_t = allocation_matrix(p).T
+        self._alloc_t = np.ascontiguousarray(allocation_matrix(p).T)
         self._rotor_pos = np.ascontiguousarray(p.rotor_positions)
         self._hover = hover_action(p, self.action_type)
         self._rate_loop = RateLoop(p, self.physics_dt, n) if action_type == "ctbr" else None
@@ -680,10 +681,12 @@ class HoverBatchEnv(VectorEnv):
         ``_torque`` are replaced, never written in place, so they are handed out as they are)."""
         if meas is None:
             meas = self.sensor.measure_trusted(self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
-        f_torque = self._applied @ self._alloc_t
+        n = self.num_envs
+        thrust, torque = np.empty(n), np.empty((n, 3))
+        applied_wrench(self._applied, self._alloc_t, thrust, torque)
         return {
             "measurement": meas,
-            "applied": {"thrust": f_torque[:, 0].copy(), "torque": f_torque[:, 1:].copy(),
+            "applied": {"thrust": thrust, "torque": torque,
                         "rotor_thrusts": self._applied.copy(), "motor_speeds": self.rotor_speeds.copy()},
             "truth": {M.POSITION: self._pos.copy(), M.VELOCITY: self._vel.copy(), M.ATTITUDE: self._rot.copy(),
                       M.ANGULAR_VELOCITY: self._omega.copy(), "wind": self._wind_com,
