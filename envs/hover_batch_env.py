@@ -319,6 +319,7 @@ class HoverBatchEnv(VectorEnv):
         self._no_rows, self._all_rows = np.zeros(n, dtype=bool), np.ones(n, dtype=bool)
         self._failure_code = np.zeros(n, dtype=np.int8)
         self._no_failure = np.full(n, "", dtype="<U14")
+        self._failure: NDArray[np.str_] = self._no_failure.copy()
         self._t_end = _MJ_T0 + self.n_substeps * self.physics_dt  # MuJoCo time after a control step's rollout
         self.time = np.zeros(n)
 
@@ -539,8 +540,8 @@ class HoverBatchEnv(VectorEnv):
         self._last_action_prev = self._last_action
         if any_reset:
             self._reset_rows(np.flatnonzero(resetting))
-            points = None  # the reset rows moved: sample points anew
-        self._update_disturbance(codes != DIVERGED if n_ended else self._all_rows, points)
+        # the wind sample points of finish_step, unless reset rows moved (then sampled anew)
+        self._update_disturbance(codes != DIVERGED if n_ended else self._all_rows, None if any_reset else points)
         info = self._info(action_clipped)
         obs, reward, terms = self._observation_and_reward(info["measurement"], clipped, self._last_action_prev)
         self._last_action = clipped
@@ -677,8 +678,8 @@ class HoverBatchEnv(VectorEnv):
 
     def _info(self, action_clipped: NDArray[np.bool_],
               meas: dict[str, NDArray[np.float64]] | None = None) -> dict[str, Any]:
-        """The step's ``info`` (module docstring): fresh arrays only (``_wind_com``, ``_failure``, ``_force`` and
-        ``_torque`` are replaced, never written in place, so they are handed out as they are)."""
+        """The step's ``info`` (module docstring): fresh arrays only (``_wind_com`` and ``_failure`` are replaced by
+        every step, never written in place, so they are handed out as they are; the other state is copied)."""
         if meas is None:
             meas = self.sensor.measure_trusted(self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
         n = self.num_envs
