@@ -150,7 +150,6 @@ from .step_kernels import (
     FAILURES,
     REWARD_TERMS,
     action_motor_controls,
-    applied_wrench,
     clip_actions,
     ctbr_substep,
     finish_step,
@@ -682,12 +681,10 @@ class HoverBatchEnv(VectorEnv):
         every step, never written in place, so they are handed out as they are; the other state is copied)."""
         if meas is None:
             meas = self.sensor.measure_trusted(self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
-        n = self.num_envs
-        thrust, torque = np.empty(n), np.empty((n, 3))
-        applied_wrench(self._applied, self._alloc_t, thrust, torque)
+        f_torque = self._applied @ self._alloc_t
         return {
             "measurement": meas,
-            "applied": {"thrust": thrust, "torque": torque,
+            "applied": {"thrust": f_torque[:, 0].copy(), "torque": f_torque[:, 1:].copy(),
                         "rotor_thrusts": self._applied.copy(), "motor_speeds": self.rotor_speeds.copy()},
             "truth": {M.POSITION: self._pos.copy(), M.VELOCITY: self._vel.copy(), M.ATTITUDE: self._rot.copy(),
                       M.ANGULAR_VELOCITY: self._omega.copy(), "wind": self._wind_com,

@@ -166,22 +166,6 @@ def action_motor_controls(clipped: NDArray[np.float64], omega_min: float, omega_
 
 
 @njit(cache=True)
-def applied_wrench(applied: NDArray[np.float64], alloc_t: NDArray[np.float64], thrust: NDArray[np.float64],
-                   torque: NDArray[np.float64]) -> None:  # pragma: no cover - jitted
-    """Rotor thrusts (N, 4) -> collective thrust (N,) [N] and body torque (N, 3) FRD [N m] through the allocation
-    ``[T, tau] = A f`` (``alloc_t`` (4, 4) = A transposed, :func:`fawtgym.envs.motors.allocation_matrix`)."""
-    for i in range(applied.shape[0]):
-        for c in range(4):
-            x = 0.0
-            for r in range(4):
-                x += applied[i, r] * alloc_t[r, c]
-            if c == 0:
-                thrust[i] = x
-            else:
-                torque[i, c - 1] = x
-
-
-@njit(cache=True)
 def ctbr_substep(collective: NDArray[np.float64], rate_sp: NDArray[np.float64], state: NDArray[np.float64],
                  final: NDArray[np.float64], first: bool, t_end: float, physics_dt: float,
                  loop: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
