@@ -125,14 +125,15 @@ from mujoco import rollout
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
+from fawtgym.core.arrays import as_f64
 from fawtgym.core.frames import SIGN_MJ_NED, rot_ned_to_quat_mj
 from fawtgym.core.so3 import exp_so3
 
-from .aero import AeroModel
+from .aero import AeroModel, aero_wrench_rows
 from .ctbr import MAX_RATES, RateLoop
 from .mjcf import hull_points, vehicle_mjcf
 from .motors import allocation_matrix, decay_factors, substep_times
-from .observation import OBS_SIZE, hover_observation, observation_bounds, observation_rows
+from .observation import OBS_SIZE, hover_observation, observation_bounds
 from .options import (
     INIT_SPREAD,
     check_actions,
@@ -141,18 +142,18 @@ from .options import (
     hover_action,
     hover_action_space,
     hover_options,
+    raise_action_not_finite,
 )
 from .sensors_batch import BatchSensorModel
 from .step_kernels import (
     DIVERGED,
     FAILURES,
     REWARD_TERMS,
-    advance_clock,
+    action_motor_controls,
     clip_actions,
     ctbr_substep,
-    hover_reward,
-    motor_controls,
-    read_states,
+    finish_step,
+    observe_and_reward,
     states_to_ned,
     wind_points,
 )
@@ -288,7 +289,7 @@ class HoverBatchEnv(VectorEnv):
 
         p = self.preset
         self._hull = np.ascontiguousarray(hull_points(p))
-        self._alloc_t = allocation_matrix(p).T
+        self._alloc_t = np.ascontiguousarray(allocation_matrix(p).T)
         self._rotor_pos = np.ascontiguousarray(p.rotor_positions)
         self._hover = hover_action(p, self.action_type)
         self._rate_loop = RateLoop(p, self.physics_dt, n) if action_type == "ctbr" else None
@@ -300,7 +301,7 @@ class HoverBatchEnv(VectorEnv):
         self._obs_high = self.single_observation_space.high.astype(float)
         k = self.n_substeps
         self._decay_up, self._decay_down = decay_factors(p, substep_times(self.dt, k))  # (K + 1,): motors.lag_thrusts
-        self._omega_min, self._omega_span = p.omega_min, p.omega_max - p.omega_min
+        self._omega_min, self._omega_span = float(p.omega_min), float(p.omega_max - p.omega_min)
         self._k_thrust = float(p.k_thrust)
         if self._qfrc_col != 4:  # motor_controls writes [4 rotor thrusts, qfrc_applied 6]
             raise RuntimeError(f"the vehicle model must have 4 actuators, got {self._qfrc_col}")
@@ -316,6 +317,9 @@ class HoverBatchEnv(VectorEnv):
         self._n_autoreset = 0  # rows of _autoreset set
         self._no_rows, self._all_rows = np.zeros(n, dtype=bool), np.ones(n, dtype=bool)
         self._failure_code = np.zeros(n, dtype=np.int8)
+        self._no_failure = np.full(n, "", dtype="<U14")
+        self._failure: NDArray[np.str_] = self._no_failure.copy()
+        self._t_end = _MJ_T0 + self.n_substeps * self.physics_dt  # MuJoCo time after a control step's rollout
         self.time = np.zeros(n)
 
     # ---- public helpers -------------------------------------------------------------------
@@ -397,6 +401,7 @@ class HoverBatchEnv(VectorEnv):
         self._accel[rows] = 0.0
         self._steps[rows] = 0
         self.time[rows] = 0.0
+        self._failure = self._failure.copy()  # handed out in the last info: replaced, not written in place
         self._failure[rows] = ""
         self._failure_code[rows] = 0
         self.sensor.reset_rows(rows, sensor_rngs)
@@ -496,39 +501,46 @@ class HoverBatchEnv(VectorEnv):
                                                  NDArray[np.bool_], dict[str, Any]]:
         if self._row_rngs is None:
             raise RuntimeError("HoverBatchEnv.step() called before reset(): call reset() first")
-        a = check_actions(actions, (self.num_envs, 4), self._act_low, self._act_high, "actions", ~self._autoreset)
+        a = check_actions(actions, (self.num_envs, 4), self._act_low, self._act_high, "actions", finite=False)
         return self._step(a)
 
-    def _step(self, a: NDArray[np.float64]) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_],
-                                                    NDArray[np.bool_], dict[str, Any]]:
-        """One control step of every row with checked actions ``a`` (N, 4) float64 (:func:`check_actions`)."""
+    def _step(self, a: NDArray[np.float64], name: str = "actions") -> tuple[
+            NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
+        """One control step of every row with actions ``a`` (N, 4) C-contiguous float64 of checked shape and type
+        (:func:`check_actions` with ``finite=False``: a non-finite entry of a stepping row raises here, before
+        anything changes, naming ``name[row, entry]``, or ``name[entry]`` if ``name`` is HoverEnv's ``"action"``)."""
         n = self.num_envs
         resetting = self._autoreset
-        stepping = ~resetting
         any_reset = self._n_autoreset > 0
+        stepping = ~resetting if any_reset else self._all_rows
         clipped, action_clipped = np.empty((n, 4)), np.empty(n, dtype=bool)
-        clip_actions(a, self._act_low, self._act_high, stepping, self._hover, clipped, action_clipped)
+        bad = clip_actions(a, self._act_low, self._act_high, stepping, self._hover, clipped, action_clipped)
+        if bad >= 0:
+            row, entry = divmod(bad, 4)
+            idx = (entry,) if name == "action" else (row, entry)
+            raise_action_not_finite(a[0] if name == "action" else a, idx, name, self._act_low, self._act_high)
         if self._rate_loop is None:
-            ref = clipped * self._omega_span + self._omega_min
-            motor_controls(ref, self.rotor_speeds, self._k_thrust, self._decay_up, self._decay_down,
-                           self._force + self.external_force, self._torque + self.external_torque, self._ctrl,
-                           self._applied)
+            action_motor_controls(clipped, self._omega_min, self._omega_span, self.rotor_speeds, self._k_thrust,
+                                  self._decay_up, self._decay_down, self._force, self.external_force, self._torque,
+                                  self.external_torque, self._ctrl, self._applied)
             final, diverged = self._rollout_rows(self._mj_state, self._ctrl, self._out), self._no_rows
-            t_end = _MJ_T0 + self.n_substeps * self.physics_dt
+            t_end = self._t_end
         else:
             final, diverged = self._run_ctbr(clipped)
             t_end = _MJ_T0 + self.physics_dt
         codes = self._failure_code
-        read_states(final, t_end, self.physics_dt, self.dt, stepping,
-                    diverged, self._mj_state, self._pos, self._vel, self._rot, self._omega, self._accel, self._hull,
-                    self._setpoint, self.max_position_error, codes)
         terminated, truncated = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
-        n_ended = advance_clock(stepping, self.dt, self.max_steps, codes, self.time, self._steps, terminated, truncated)
-        self._failure = FAILURES[codes]
+        points = np.empty((n, 5, 3))
+        n_ended = finish_step(final, t_end, self.physics_dt, self.dt, stepping, diverged, self._mj_state, self._pos,
+                              self._vel, self._rot, self._omega, self._accel, self._hull, self._setpoint,
+                              self.max_position_error, codes, self.max_steps, self.time, self._steps, terminated,
+                              truncated, self._rotor_pos, points)
+        self._failure = FAILURES[codes] if n_ended else self._no_failure.copy()  # a fresh array (not mutated later)
         self._last_action_prev = self._last_action
         if any_reset:
             self._reset_rows(np.flatnonzero(resetting))
-        self._update_disturbance(codes != DIVERGED if n_ended else self._all_rows)
+        # the wind sample points of finish_step, unless reset rows moved (then sampled anew)
+        self._update_disturbance(codes != DIVERGED if n_ended else self._all_rows, None if any_reset else points)
         info = self._info(action_clipped)
         obs, reward, terms = self._observation_and_reward(info["measurement"], clipped, self._last_action_prev)
         self._last_action = clipped
@@ -638,15 +650,22 @@ class HoverBatchEnv(VectorEnv):
 
     def _aero_wrench(self, wind: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The aero wrench of every row in ``wind`` (N, 5, 3), scaled by the rows' drag draws (if any)."""
-        force, torque = self.aero.wrench(self._rot, self._vel, self._omega, self.rotor_speeds, wind)
+        aero = self.aero  # its law's kernel on the env's own state arrays (AeroModel.wrench checks other callers')
+        n = self.num_envs
+        force, torque = np.empty((n, 3)), np.empty((n, 3))
+        if aero_wrench_rows(self._rot, self._vel, self._omega, self.rotor_speeds, as_f64(wind, "wind"),
+                            aero.rotor_positions, aero.cop, aero.body_drag, aero.k_d, aero.k_r, force, torque) >= 0:
+            aero.wrench(self._rot, self._vel, self._omega, self.rotor_speeds, wind)  # raises, naming the inputs
         if self._drag_scaled:  # the wrench is linear in the three drag coefficients (module docstring)
             force, torque = force * self.drag_scale[:, None], torque * self.drag_scale[:, None]
         return force, torque
 
-    def _update_disturbance(self, rows: NDArray[np.bool_]) -> None:
-        """Wind at [CoM, hubs] and the aero wrench for the next step (rows not diverged); the external wrench is
-        added where the wrench is applied and reported, so a new one acts from the next step on."""
-        points = self._wind_points()
+    def _update_disturbance(self, rows: NDArray[np.bool_], points: NDArray[np.float64] | None = None) -> None:
+        """Wind at [CoM, hubs] (``points`` (N, 5, 3), if the caller has them) and the aero wrench for the next step
+        (rows not diverged); the external wrench is added where the wrench is applied and reported, so a new one
+        acts from the next step on."""
+        if points is None:
+            points = self._wind_points()
         wind = self.wind.step(self.time, self.dt, points, self._vel)
         force, torque = self._aero_wrench(wind)
         if rows is self._all_rows or rows.all():
@@ -658,19 +677,21 @@ class HoverBatchEnv(VectorEnv):
 
     def _info(self, action_clipped: NDArray[np.bool_],
               meas: dict[str, NDArray[np.float64]] | None = None) -> dict[str, Any]:
+        """The step's ``info`` (module docstring): fresh arrays only (``_wind_com`` and ``_failure`` are replaced by
+        every step, never written in place, so they are handed out as they are; the other state is copied)."""
         if meas is None:
-            meas = self.sensor.measure(self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
+            meas = self.sensor.measure_trusted(self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
         f_torque = self._applied @ self._alloc_t
         return {
             "measurement": meas,
             "applied": {"thrust": f_torque[:, 0].copy(), "torque": f_torque[:, 1:].copy(),
                         "rotor_thrusts": self._applied.copy(), "motor_speeds": self.rotor_speeds.copy()},
             "truth": {M.POSITION: self._pos.copy(), M.VELOCITY: self._vel.copy(), M.ATTITUDE: self._rot.copy(),
-                      M.ANGULAR_VELOCITY: self._omega.copy(), "wind": self._wind_com.copy(),
+                      M.ANGULAR_VELOCITY: self._omega.copy(), "wind": self._wind_com,
                       "force": self._force + self.external_force, "torque": self._torque + self.external_torque},
-            "setpoint": self.setpoint.copy(),
+            "setpoint": self._setpoint.copy(),
             "action_clipped": action_clipped,
-            "failure": self._failure.copy(),
+            "failure": self._failure,
             "time": self.time.copy(),
         }
 
@@ -682,12 +703,11 @@ class HoverBatchEnv(VectorEnv):
         n = self.num_envs
         pos, vel, att, rate = meas[M.POSITION], meas[M.VELOCITY], meas[M.ATTITUDE], meas[M.ANGULAR_VELOCITY]
         obs = np.empty((n, OBS_SIZE), dtype=np.float32)
-        if observation_rows(pos, vel, att, rate, self._setpoint, action, self._obs_low, self._obs_high, obs) >= 0:
-            hover_observation(meas, self._setpoint, action, self._obs_low, self._obs_high)  # raises, naming the entry
         reward, terms = np.empty(n), np.empty((6, n))
         prev = self._last_action if prev_action is None else prev_action
-        hover_reward(pos, vel, att, rate, self._setpoint, action, prev, self._reward_w,
-                     self._failure_code != 0, reward, terms)
+        if observe_and_reward(pos, vel, att, rate, self._setpoint, action, prev, self._obs_low, self._obs_high,
+                              self._reward_w, self._failure_code, obs, reward, terms) >= 0:
+            hover_observation(meas, self._setpoint, action, self._obs_low, self._obs_high)  # raises, naming the entry
         return obs, reward, {"pos": terms[0], "vel": terms[1], "att": terms[2], "rate": terms[3], "action": terms[4],
                              "failure": terms[5]}  # REWARD_TERMS
 

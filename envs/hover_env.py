@@ -320,8 +320,8 @@ class HoverEnv(gym.Env):
     def step(self, action: ArrayLike) -> tuple[NDArray[np.float32], float, bool, bool, dict]:
         if self._batch._row_rngs is None:
             raise RuntimeError("HoverEnv.step() called before reset(): call reset() first")
-        a = check_actions(action, (4,), self._act_low, self._act_high, "action")
-        obs, reward, terminated, truncated, info = self._batch._step(a[None])
+        a = check_actions(action, (4,), self._act_low, self._act_high, "action", finite=False)
+        obs, reward, terminated, truncated, info = self._batch._step(a[None], "action")
         obs, info = self._single(obs, info)
         return obs, float(reward[0]), bool(terminated[0]), bool(truncated[0]), info
 

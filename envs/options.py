@@ -259,24 +259,34 @@ def check_reset_options(options: Any, n: int | None = None
 
 
 def check_actions(actions: Any, shape: tuple[int, ...], low: NDArray[np.float64], high: NDArray[np.float64],
-                  name: str = "actions", rows: NDArray[np.bool_] | None = None) -> NDArray[np.float64]:
-    """Actions of exactly ``shape`` of real numbers (no bool, no complex), finite; returned as a float64 copy.
+                  name: str = "actions", rows: NDArray[np.bool_] | None = None,
+                  finite: bool = True) -> NDArray[np.float64]:
+    """Actions of exactly ``shape`` of real numbers (no bool, no complex), finite; returned as float64 (a copy
+    unless ``finite`` is False: then the input itself if it is C-contiguous float64 already).
 
     Finite values outside [low, high] are the caller's to clip (and flag); NaN/inf raise naming the entry
-    (only in the ``rows`` (N,) that step, if given: a row that autoresets ignores its action).
+    (only in the ``rows`` (N,) that step, if given: a row that autoresets ignores its action).  ``finite=False``
+    leaves that test to a kernel in front of which the caller calls :func:`raise_action_not_finite`.
     """
     a = np.asarray(actions)
     if a.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {a.shape}")
     if a.dtype.kind not in "iuf":
         raise ValueError(f"{name} must be real numbers (int or float), got dtype {a.dtype}")
+    if not finite:
+        return np.ascontiguousarray(a, dtype=np.float64)
     a = a.astype(np.float64, copy=True)
     bad = ~np.isfinite(a)
     if rows is not None:
         bad &= rows[:, None]
     if bad.any():
-        idx = tuple(int(x) for x in np.argwhere(bad)[0])
-        where = ", ".join(map(str, idx))
-        raise ValueError(f"{name}[{where}] is {a[idx]}; every action entry must be finite "
-                         f"(bounds {low.tolist()} .. {high.tolist()})")
+        raise_action_not_finite(a, tuple(int(x) for x in np.argwhere(bad)[0]), name, low, high)
     return a
+
+
+def raise_action_not_finite(a: NDArray[np.float64], idx: tuple[int, ...], name: str, low: NDArray[np.float64],
+                            high: NDArray[np.float64]) -> None:
+    """The ValueError of a non-finite action entry ``a[idx]`` (the same text wherever it is found)."""
+    where = ", ".join(map(str, idx))
+    raise ValueError(f"{name}[{where}] is {a[idx]}; every action entry must be finite "
+                     f"(bounds {low.tolist()} .. {high.tolist()})")

@@ -118,6 +118,7 @@ class BatchSensorModel:
         self.gyro_bias = np.zeros((self.n, 3))
         self.accel_bias = np.zeros((self.n, 3))
         self._count = np.zeros(self.n, dtype=np.int64)
+        self._no_noise = np.zeros((self.n, 21))  # exact sensors: the kernel reads zero normals (never written)
         self._pose = {M.POSITION: np.zeros((self.n, 3)), M.VELOCITY: np.zeros((self.n, 3)),
                       M.ATTITUDE: np.broadcast_to(np.eye(3), (self.n, 3, 3)).copy()}
         self.rng = np.random.default_rng(0)
@@ -169,8 +170,16 @@ class BatchSensorModel:
         Every array handed out is a fresh C-contiguous array.
         """
         n = self.n
-        z = self.rng.standard_normal((n, 21)) if self.noisy else np.zeros((n, 21))
+        z = self.rng.standard_normal((n, 21)) if self.noisy else self._no_noise
         return self._measure(None, z, t, position, velocity, rotation, angular_velocity, acceleration)
+
+    def measure_trusted(self, t: NDArray[np.float64], position: NDArray[np.float64], velocity: NDArray[np.float64],
+                        rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],
+                        acceleration: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
+        """:meth:`measure` for a caller whose inputs are its own C-contiguous float64 arrays of the right shapes (the
+        env's state): the same law and noise stream, without the input conversion and shape checks."""
+        z = self.rng.standard_normal((self.n, 21)) if self.noisy else self._no_noise
+        return self._measure(None, z, t, position, velocity, rotation, angular_velocity, acceleration, trusted=True)
 
     def measure_rows(self, rows: NDArray[np.intp], rngs: list[np.random.Generator], t: NDArray[np.float64],
                      position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
@@ -189,16 +198,18 @@ class BatchSensorModel:
 
     def _measure(self, rows: NDArray[np.intp] | None, z: NDArray[np.float64], t: NDArray[np.float64],
                  position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
-                 angular_velocity: NDArray[np.float64], acceleration: NDArray[np.float64]
+                 angular_velocity: NDArray[np.float64], acceleration: NDArray[np.float64], trusted: bool = False
                  ) -> dict[str, NDArray[np.float64]]:
-        """The kernel on ``rows`` (None: every row, the model's own state in place; else their state, written back)."""
+        """The kernel on ``rows`` (None: every row, the model's own state in place; else their state, written back);
+        ``trusted``: the inputs are C-contiguous float64 of the right shapes (not checked)."""
         every = rows is None
         n = self.n if rows is None else rows.size
-        position, velocity = as_f64(position, "position"), as_f64(velocity, "velocity")
-        rotation, angular_velocity = as_f64(rotation, "rotation"), as_f64(angular_velocity, "angular_velocity")
-        acceleration = as_f64(acceleration, "acceleration")
-        if position.shape != (n, 3) or velocity.shape != (n, 3) or rotation.shape != (n, 3, 3) \
-                or angular_velocity.shape != (n, 3) or acceleration.shape != (n, 3):
+        if not trusted:
+            position, velocity = as_f64(position, "position"), as_f64(velocity, "velocity")
+            rotation, angular_velocity = as_f64(rotation, "rotation"), as_f64(angular_velocity, "angular_velocity")
+            acceleration = as_f64(acceleration, "acceleration")
+        if not trusted and (position.shape != (n, 3) or velocity.shape != (n, 3) or rotation.shape != (n, 3, 3)
+                            or angular_velocity.shape != (n, 3) or acceleration.shape != (n, 3)):
             raise ValueError(f"sensor inputs must be position, velocity, angular_velocity, acceleration (N, 3) and "
                              f"rotation (N, 3, 3) with N = {n}; got {position.shape}, {velocity.shape}, "
                              f"{angular_velocity.shape}, {acceleration.shape}, {rotation.shape}")

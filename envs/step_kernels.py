@@ -27,6 +27,7 @@ from fawtgym.core.so3_kernels import quat_to_rot_row
 
 from .ctbr import rate_loop_rows
 from .motors import lag_thrusts
+from .observation import observation_rows
 
 #: failure codes of :func:`read_states` -> ``info["failure"]`` names (index = code)
 FAILURES = np.array(["", "diverged", "ground_contact", "out_of_bounds"], dtype="<U14")
@@ -61,9 +62,18 @@ def states_to_ned(states: NDArray[np.float64], pos: NDArray[np.float64], vel: ND
 @njit(cache=True)
 def clip_actions(a: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64],
                  stepping: NDArray[np.bool_], hover: NDArray[np.float32], clipped: NDArray[np.float64],
-                 flagged: NDArray[np.bool_]) -> None:  # pragma: no cover - jitted
+                 flagged: NDArray[np.bool_]) -> int:  # pragma: no cover - jitted
     """The applied actions: finite actions (N, 4) clipped to [low, high] (``flagged`` rows where that changed an
-    entry); a row not stepping (it autoresets) applies the hover action and is not flagged."""
+    entry); a row not stepping (it autoresets) applies the hover action and is not flagged.
+
+    Returns -1; or, before writing anything, ``4 * row + entry`` of the first non-finite action of a stepping row
+    (the caller raises, :func:`fawtgym.envs.options.raise_action_not_finite`).
+    """
+    for i in range(a.shape[0]):
+        if stepping[i]:
+            for j in range(4):
+                if not math.isfinite(a[i, j]):
+                    return 4 * i + j
     for i in range(a.shape[0]):
         flagged[i] = False
         for j in range(4):
@@ -74,6 +84,7 @@ def clip_actions(a: NDArray[np.float64], low: NDArray[np.float64], high: NDArray
             clipped[i, j] = x
             if x != a[i, j]:
                 flagged[i] = True
+    return -1
 
 
 @njit(cache=True)
@@ -130,6 +141,28 @@ def motor_controls(ref: NDArray[np.float64], speeds: NDArray[np.float64], k_thru
         for s in range(k):  # NED/FRD -> MuJoCo world z-up / body FLU
             ctrl[i, s, 4], ctrl[i, s, 5], ctrl[i, s, 6] = force[i, 0], -force[i, 1], -force[i, 2]
             ctrl[i, s, 7], ctrl[i, s, 8], ctrl[i, s, 9] = torque[i, 0], -torque[i, 1], -torque[i, 2]
+
+
+@njit(cache=True)
+def action_motor_controls(clipped: NDArray[np.float64], omega_min: float, omega_span: float,
+                          speeds: NDArray[np.float64], k_thrust: float, decay_up: NDArray[np.float64],
+                          decay_down: NDArray[np.float64], force: NDArray[np.float64],
+                          external_force: NDArray[np.float64], torque: NDArray[np.float64],
+                          external_torque: NDArray[np.float64], ctrl: NDArray[np.float64],
+                          applied: NDArray[np.float64]) -> None:  # pragma: no cover - jitted
+    """``action_type="motors"``: clipped actions (N, 4) in [0, 1] -> speed references
+    ``omega_min + u (omega_max - omega_min)``, then :func:`motor_controls` with the held wrench = aero + external
+    (force world NED, torque body FRD)."""
+    n = clipped.shape[0]
+    ref = np.empty((n, 4))
+    held_force, held_torque = np.empty((n, 3)), np.empty((n, 3))
+    for i in range(n):
+        for r in range(4):
+            ref[i, r] = clipped[i, r] * omega_span + omega_min
+        for c in range(3):
+            held_force[i, c] = force[i, c] + external_force[i, c]
+            held_torque[i, c] = torque[i, c] + external_torque[i, c]
+    motor_controls(ref, speeds, k_thrust, decay_up, decay_down, held_force, held_torque, ctrl, applied)
 
 
 @njit(cache=True)
@@ -257,3 +290,40 @@ def hover_reward(pos: NDArray[np.float64], vel: NDArray[np.float64], att: NDArra
         else:
             terms[5, i] = 0.0
             reward[i] = math.exp(-(t_pos + t_vel + t_rate + t_action + t_att))
+
+
+@njit(cache=True)
+def finish_step(final: NDArray[np.float64], t_end: float, physics_dt: float, dt: float,
+                stepping: NDArray[np.bool_], diverged_before: NDArray[np.bool_], mj_state: NDArray[np.float64],
+                pos: NDArray[np.float64], vel: NDArray[np.float64], rot: NDArray[np.float64],
+                omega: NDArray[np.float64], accel: NDArray[np.float64], hull: NDArray[np.float64],
+                setpoint: NDArray[np.float64], max_position_error: float, failure: NDArray[np.int8],
+                max_steps: int, time: NDArray[np.float64], steps: NDArray[np.int64], terminated: NDArray[np.bool_],
+                truncated: NDArray[np.bool_], rotor_pos: NDArray[np.float64],
+                points: NDArray[np.float64]) -> int:  # pragma: no cover - jitted
+    """After a control step's rollout: :func:`read_states`, :func:`advance_clock` and the next wind sample points
+    (:func:`wind_points`), in one call.  Returns the number of rows that ended."""
+    read_states(final, t_end, physics_dt, dt, stepping, diverged_before, mj_state, pos, vel, rot, omega, accel, hull,
+                setpoint, max_position_error, failure)
+    ended = advance_clock(stepping, dt, max_steps, failure, time, steps, terminated, truncated)
+    wind_points(pos, rot, rotor_pos, points)
+    return ended
+
+
+@njit(cache=True)
+def observe_and_reward(pos: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.float64],
+                       rate: NDArray[np.float64], setpoint: NDArray[np.float64], action: NDArray[np.float64],
+                       prev_action: NDArray[np.float64], obs_low: NDArray[np.float64], obs_high: NDArray[np.float64],
+                       weights: NDArray[np.float64], failure: NDArray[np.int8], obs: NDArray[np.float32],
+                       reward: NDArray[np.float64], terms: NDArray[np.float64]) -> int:  # pragma: no cover - jitted
+    """The observation (:func:`fawtgym.envs.observation.observation_rows`) and the reward with its terms
+    (:func:`hover_reward`; a row fails where ``failure`` != 0) from measurements, in one call.  Returns -1, or
+    ``19 * row + entry`` of the first non-finite observation entry (nothing else is computed; the caller raises)."""
+    bad = observation_rows(pos, vel, att, rate, setpoint, action, obs_low, obs_high, obs)
+    if bad >= 0:
+        return bad
+    failed = np.empty(pos.shape[0], dtype=np.bool_)
+    for i in range(pos.shape[0]):
+        failed[i] = failure[i] != 0
+    hover_reward(pos, vel, att, rate, setpoint, action, prev_action, weights, failed, reward, terms)
+    return -1

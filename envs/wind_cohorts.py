@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .wind import WindModel
-from .wind.base import CalmWind
+from .wind.base import DT_MAX, CalmWind
 from .wind.fawt import FawtWind
 from .wind.outdoor import DrydenWind
 
@@ -48,6 +48,13 @@ class BatchWind:
         self._last: tuple[NDArray[np.intp], Sequence[int], Sequence[np.random.SeedSequence]] = (
             np.zeros(0, dtype=np.intp), [], [])  # (rows, seed ints, seeds) of the last reset_rows
 
+    def _fresh(self) -> WindModel:
+        """A pristine copy of the template that shares the template's gust-filter step-matrix table (a cache of
+        matrices computed from the filter's constants only, :class:`~fawtgym.envs.wind.dryden_discrete.StepTable`):
+        its bins are computed once per env instead of once per episode, with the same values."""
+        table = getattr(getattr(self.template, "process", None), "table", None)
+        return copy.deepcopy(self.template, {} if table is None else {id(table): table})
+
     @staticmethod
     def _seed(ints: Sequence[int], seeds: Sequence[np.random.SeedSequence]) -> np.random.SeedSequence:
         # one row: exactly the single env's wind seed; several: all rows' seed integers pooled
@@ -74,7 +81,7 @@ class BatchWind:
             return
         if self.shared:
             if self.model is None or rows.size == self.n:
-                self.model = copy.deepcopy(self.template)
+                self.model = self._fresh()
                 self.model.reset(self.n, seed=self._seed(ints, seeds))
                 return
             process = getattr(self.model, "process", None)
@@ -90,7 +97,7 @@ class BatchWind:
         for c in self.cohorts:
             c[2] &= ~np.isin(c[1], rows)
         self.cohorts = [c for c in self.cohorts if c[2].any()]
-        model = copy.deepcopy(self.template)
+        model = self._fresh()
         model.reset(rows.size, seed=self._seed(ints, seeds))
         self._started = [[model, rows.copy(), np.ones(rows.size, dtype=bool)]]
         self.cohorts.append(self._started[0])
@@ -112,7 +119,7 @@ class BatchWind:
         # the shared model goes on for the other rows: a k-row copy takes the restarted rows' fresh filter state
         # (reset_rows drew it) one step forward, with noise from the rows' pooled wind seed, and hands it back
         if self._scratch is None:
-            self._scratch = copy.deepcopy(self.template)
+            self._scratch = self._fresh()
         scratch = self._scratch
         scratch.reset(rows.size, seed=self._seed(ints, seeds))
         process = getattr(self.model, "process", None)  # a gust filter's state (Dryden, FAWT turbulence)
@@ -130,7 +137,9 @@ class BatchWind:
         """Wind (N, K, 3) at ``points`` (N, K, 3); ``times`` (N,) are the rows' episode times."""
         if self.shared:
             assert self.model is not None  # reset_rows made it
-            return self.model.step(float(times[0]), dt, points, velocity)
+            if 0.0 < dt <= DT_MAX:  # the env's own arrays (float64, shapes and time checked): no re-validation
+                return self.model.step_trusted(float(times[0]), dt, points, velocity)
+            return self.model.step(float(times[0]), dt, points, velocity)  # raises, naming dt
         out = np.empty(points.shape)
         for model, rows, alive in self.cohorts:  # one call per cohort (rows that reset together)
             live = rows[alive]

@@ -82,6 +82,13 @@ class WindModel(abc.ABC):
         ``vehicle_velocity_ned`` (N, 3) sets the frozen-turbulence airspeed of the gust filters.
         """
 
+    def step_trusted(self, t: float, dt: float, points_ned: NDArray[np.float64],
+                     vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
+        """:meth:`step` for a caller whose inputs already pass :func:`check_step` and :func:`check_points` (float
+        ``t`` and ``dt``, C-contiguous float64 arrays of the right shapes: the env's own state); a model may skip
+        those checks here (the same law; non-finite values are still found by its kernel).  Default: :meth:`step`."""
+        return self.step(t, dt, points_ned, vehicle_velocity_ned)
+
 
 def check_n(n: Any) -> int:
     """The number of fields of ``reset``: a positive int (ValueError naming it otherwise)."""
@@ -101,6 +108,10 @@ class CalmWind(WindModel):
         check_step(t, dt)
         points, _ = check_points(points_ned, vehicle_velocity_ned, self.n)
         return np.zeros(points.shape)
+
+    def step_trusted(self, t: float, dt: float, points_ned: NDArray[np.float64],
+                     vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.zeros(points_ned.shape)
 
 
 _WIND_REGISTRY: dict[str, Callable[..., WindModel]] = {"calm": CalmWind}

@@ -292,6 +292,11 @@ class FawtWind(WindModel):
         """Wind (N, K, 3) NED at ``points_ned`` (N, K, 3) at time ``t`` (advanced by ``dt``); point 0 is the CoM."""
         check_step(t, dt)
         points, velocity = check_points(points_ned, vehicle_velocity_ned, self.n, finite=False)
+        return self.step_trusted(t, dt, points, velocity)
+
+    def step_trusted(self, t: float, dt: float, points: NDArray[np.float64],
+                     velocity: NDArray[np.float64]) -> NDArray[np.float64]:
+        """:meth:`step` without the input checks (:meth:`WindModel.step_trusted`); the kernel finds non-finite ones."""
         level = self.schedule.advance(t - dt, t, self.level)
         turbulent = self.turbulence and level > 0.0
         proc = self.process

@@ -5,8 +5,9 @@ One process, interleaved rounds, best round kept (least disturbed by other load 
 * ``closed loop``: env (s500, ``fawt-50``, ``mocap_imu`` sensors, 1 kHz physics) + ``PX4ObserverAgent("ffts_eso")``,
   one vehicle; real-time factor = simulated seconds / wall seconds;
 * its parts: the env stepping alone (hover action) and the agent + observer alone (on a recorded
-  measurement), as real-time factors of the same simulated time, and the PX4 agent without its
-  observer (the cascade's own share);
+  measurement batched as (1, ...) arrays), as real-time factors of the same simulated time, and the PX4 agent
+  without its observer (the cascade's own share); and the agent + observer on the single env's own info
+  (unbatched arrays, what the closed loop hands it: the agent's input conversion included);
 * the agent + observer vectorized over N vehicles (batch-first), as aggregate vehicle-seconds per
   wall second.  Target: closed loop >= 100x real time on one core.
 
@@ -88,6 +89,18 @@ def _time_agent(env: Any, agent: Any, steps: int, n: int) -> tuple[float, float]
     t0, c0 = time.perf_counter(), time.process_time()
     for _ in range(steps):
         agent.act(None, binfo)
+    return time.perf_counter() - t0, time.process_time() - c0
+
+
+def _time_agent_single_info(env: Any, agent: Any, steps: int) -> tuple[float, float]:
+    """The agent + observer on the single env's own info (unbatched (3,)-shaped arrays, as the closed loop hands
+    it over), on a recorded step."""
+    obs, info = env.reset(seed=0)
+    agent.reset(info)
+    obs, _, _, _, info = env.step(env.unwrapped.hover_action())
+    t0, c0 = time.perf_counter(), time.process_time()
+    for _ in range(steps):
+        agent.act(obs, info)
     return time.perf_counter() - t0, time.process_time() - c0
 
 
@@ -181,6 +194,7 @@ def measure(steps: int = 1000, rounds: int = 3, control_rate: float = 200.0,
     jobs = {"closed": (lambda: _time_closed_loop(env, agent, steps), sim),
             "env": (lambda: _time_env(env, steps), sim),
             "agent": (lambda: _time_agent(env, agent, steps, 1), sim),
+            "agent_info": (lambda: _time_agent_single_info(env, agent, steps), sim),
             "px4": (lambda: _time_agent(env, px4, steps, 1), sim),
             "batch": (lambda: _time_agent(env, agent, nb, batch), batch * nb / control_rate)}
     # warm-up: the compiled kernels load (or compile) on their first call; that is not part of any timing
@@ -217,6 +231,7 @@ def main(argv: Sequence[str] | None = None) -> int:
           "(simulated s per wall s | per CPU s of this process):")
     rows = (("closed loop, 1 vehicle", "closed"), ("  env stepping alone", "env"),
             ("  agent + observer alone", "agent"), ("    of it, PX4 alone (no observer)", "px4"),
+            ("  agent + observer on the env's single info", "agent_info"),
             (f"agent + observer, N = {args.batch} (aggregate)", "batch"))
     for label, key in rows:
         print(f"  {label:<42s} {r[key]['wall']:8.1f}x | {r[key]['cpu']:8.1f}x")
