@@ -4,7 +4,8 @@ One process, interleaved rounds, best round kept (least disturbed by other load 
 
 * ``closed loop``: env (s500, ``fawt-50``, ``mocap_imu`` sensors, 1 kHz physics) + ``PX4ObserverAgent("ffts_eso")``,
   one vehicle; real-time factor = simulated seconds / wall seconds;
-* its parts: the env stepping alone (hover action) and the agent + observer alone (on a recorded
+* its parts: the env stepping alone (the closed loop's own recorded actions, the same trajectory) and the
+  agent + observer alone (on a recorded
   measurement batched as (1, ...) arrays), as real-time factors of the same simulated time, and the PX4 agent
   without its observer (the cascade's own share); and the agent + observer on the single env's own info
   (unbatched arrays, what the closed loop hands it: the agent's input conversion included);
@@ -36,6 +37,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from fawtgym.cli_parser import ArgumentParser, positive_float, positive_int
 
@@ -56,24 +58,34 @@ def _agent(env: Any) -> Any:
     return PX4ObserverAgent.for_env(env, observer="ffts_eso", observer_kwargs=FLIGHT_GAINS)
 
 
-def _time_closed_loop(env: Any, agent: Any, steps: int) -> tuple[float, float]:
+def _time_closed_loop(env: Any, agent: Any, steps: int,
+                      record: list[Any] | None = None) -> tuple[float, float]:
+    """The closed loop from ``reset(seed=0)``; ``record`` (a list) receives each action and whether the episode
+    ended after it (for :func:`_time_env`)."""
     obs, info = env.reset(seed=0)
     agent.reset(info)
     t0, c0 = time.perf_counter(), time.process_time()
     for _ in range(steps):
-        obs, _, term, trunc, info = env.step(agent.act(obs, info))
+        action = agent.act(obs, info)
+        obs, _, term, trunc, info = env.step(action)
+        if record is not None:
+            record.append((np.array(action, copy=True), term or trunc))  # the agent may reuse its buffer
         if term or trunc:
             obs, info = env.reset()
             agent.reset(info)
     return time.perf_counter() - t0, time.process_time() - c0
 
 
-def _time_env(env: Any, steps: int) -> tuple[float, float]:
-    a = env.unwrapped.hover_action()
+def _time_env(env: Any, actions: list[Any]) -> tuple[float, float]:
+    """The env alone flying the closed loop's own recorded actions from the same seed: the same trajectory
+    (the env is deterministic), so the same work per step -- not a fixed hover action, with which the vehicle
+    drifts out of its box in FAWT-50 wind within ~100 steps and the rest would time a terminated env."""
     env.reset(seed=0)
     t0, c0 = time.perf_counter(), time.process_time()
-    for _ in range(steps):
-        env.step(a)
+    for action, ended in actions:
+        env.step(action)
+        if ended:
+            env.reset()
     return time.perf_counter() - t0, time.process_time() - c0
 
 
@@ -132,20 +144,26 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int) -> dict[str, tu
     agent = _agent(env)
     steps = max(vehicle_steps // n, 5)
 
+    recorded: list[NDArray[np.float64]] = []  # the closed loop's actions (the first run's): the env-alone job's
+
     def closed() -> tuple[float, float]:
         obs, info = env.reset(seed=0)
         agent.reset(info)
         t0, c0 = time.perf_counter(), time.process_time()
         for _ in range(steps):
-            obs, _, _, _, info = env.step(agent.act(obs, info))
+            action = agent.act(obs, info)
+            obs, _, _, _, info = env.step(action)
+            if len(recorded) < steps:
+                recorded.append(np.array(action, copy=True))  # the agent may reuse its output buffer
         return time.perf_counter() - t0, time.process_time() - c0
 
-    def alone(e: Any) -> tuple[float, float]:
+    def alone(e: Any, actions: Sequence[NDArray[np.float64]] | None = None) -> tuple[float, float]:
+        """The env alone: the closed loop's recorded actions (the same trajectory), or the hover action (calm)."""
         a = e.hover_action()
         e.reset(seed=0)
         t0, c0 = time.perf_counter(), time.process_time()
-        for _ in range(steps):
-            e.step(a)
+        for k in range(steps):
+            e.step(a if actions is None else actions[k])
         return time.perf_counter() - t0, time.process_time() - c0
 
     def physics() -> tuple[float, float]:
@@ -162,7 +180,7 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int) -> dict[str, tu
             return time.perf_counter() - t0, time.process_time() - c0
 
     sim = n * steps / control_rate
-    return {"closed": (closed, sim), "env": (lambda: alone(env), sim), "physics": (physics, sim),
+    return {"closed": (closed, sim), "env": (lambda: alone(env, recorded), sim), "physics": (physics, sim),
             "calm": (lambda: alone(calm), n * steps / 100.0)}
 
 
@@ -191,8 +209,9 @@ def measure(steps: int = 1000, rounds: int = 3, control_rate: float = 200.0,
     px4 = PX4Agent.for_env(env)
     sim = steps / control_rate
     nb = max(steps // 10, 10)
-    jobs = {"closed": (lambda: _time_closed_loop(env, agent, steps), sim),
-            "env": (lambda: _time_env(env, steps), sim),
+    recorded: list[Any] = []
+    jobs = {"closed": (lambda: _time_closed_loop(env, agent, steps, recorded if not recorded else None), sim),
+            "env": (lambda: _time_env(env, recorded), sim),
             "agent": (lambda: _time_agent(env, agent, steps, 1), sim),
             "agent_info": (lambda: _time_agent_single_info(env, agent, steps), sim),
             "px4": (lambda: _time_agent(env, px4, steps, 1), sim),
