@@ -62,9 +62,9 @@ def real_number(value: Any, name: str) -> float:
     return float(value)
 
 
-#: the longest episode [s]: step counters are int64 and times float64 (1 ns resolution kept to ~1e6 s); a longer
-#: "episode" is a typo, not a flight
-MAX_EPISODE_SECONDS = 1e6
+#: the longest episode [s] (about 32 years: the SITL bridge's "never ends"): the step counter stays far inside
+#: int64 and float64 times keep sub-microsecond resolution; a longer "episode" (1e300) is a typo, not a flight
+MAX_EPISODE_SECONDS = 1e9
 
 
 def positive_number(value: Any, name: str) -> float:
@@ -229,7 +229,7 @@ def hover_options(vehicle: Any = "s500", wind: Any = "calm", action_type: Any = 
     episode_seconds = positive_number(episode_seconds, "episode_seconds")
     if episode_seconds > MAX_EPISODE_SECONDS:
         raise ValueError(f"episode_seconds must be at most {MAX_EPISODE_SECONDS:g} s (about "
-                         f"{MAX_EPISODE_SECONDS / 86400:.0f} days of simulated flight), got {episode_seconds!r}")
+                         f"{MAX_EPISODE_SECONDS / 3.156e7:.0f} years of simulated flight), got {episode_seconds!r}")
     max_position_error = positive_number(max_position_error, "max_position_error")
     sp = FAWT_HOVER_POINT_NED.copy() if setpoint is None else check_setpoint(setpoint)
     return HoverOptions(
