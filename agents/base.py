@@ -95,10 +95,11 @@ def applied_from_info(info: Mapping[str, Any], n: int, default_thrust: float) ->
         return np.full(n, float(default_thrust)), np.zeros((n, 3))
     thrust = np.asarray(applied["thrust"], dtype=float)
     torque = np.asarray(applied["torque"], dtype=float)
-    if thrust.shape != (n,):
-        thrust = np.broadcast_to(thrust.reshape(-1), (n,)).copy()
+    if thrust.shape != (n,):  # a scalar / (1,) of the single env: a view when it already holds n values
+        thrust = thrust.reshape(n) if thrust.size == n else np.broadcast_to(thrust.reshape(-1), (n,)).copy()
     if torque.shape != (n, 3):
-        torque = np.broadcast_to(torque.reshape(-1, 3), (n, 3)).copy()
+        torque = (torque.reshape(n, 3) if torque.size == 3 * n
+                  else np.broadcast_to(torque.reshape(-1, 3), (n, 3)).copy())
     return thrust, torque
 
 
