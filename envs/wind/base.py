@@ -13,6 +13,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core.arrays import as_f64
@@ -143,3 +144,17 @@ def make_wind(spec: str | WindModel | Mapping[str, Any] | None) -> WindModel:
             raise ValueError(f"unknown wind {spec!r}; valid names: {wind_names()}")
         return _WIND_REGISTRY[spec]()
     raise TypeError(f"wind must be a name, a WindModel or a mapping, got {type(spec).__name__}")
+
+
+@njit(cache=True)
+def row_inputs_finite(points: NDArray[np.float64], velocity: NDArray[np.float64], i: int) -> bool:
+    """Inside a wind kernel: whether row ``i``'s sample points (N, K, 3) and velocity (N, 3) are all finite (the
+    kernels then return -2 before changing anything, and Python raises :func:`raise_not_finite`'s message)."""
+    for p in range(points.shape[1]):
+        for c in range(3):
+            if not math.isfinite(points[i, p, c]):
+                return False
+    for c in range(3):
+        if not math.isfinite(velocity[i, c]):
+            return False
+    return True

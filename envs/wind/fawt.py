@@ -55,7 +55,7 @@ from numpy.typing import NDArray
 from fawtgym.core.checks import check_flag
 from fawtgym.core.frames import FAWT_ORIGIN_NED, R_FAWT_TO_NED
 
-from .base import WindModel, check_n, check_points, check_step, is_real, raise_not_finite
+from .base import WindModel, check_n, check_points, check_step, is_real, raise_not_finite, row_inputs_finite
 from .dryden import FORMS, V_FLOOR, DrydenParams
 from .dryden_process import DrydenProcess, Seed, gust_row_step, step_bin
 from .schedule import DEFAULT_SPIN_TAU, FanSchedule
@@ -206,11 +206,7 @@ def fawt_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], s
     """
     n, n_pts = points.shape[0], points.shape[1]
     for i in range(n):  # pass 1: inputs finite, each row's Dryden bin filled
-        for p in range(n_pts):
-            if not (math.isfinite(points[i, p, 0]) and math.isfinite(points[i, p, 1])
-                    and math.isfinite(points[i, p, 2])):
-                return -2
-        if not (math.isfinite(velocity[i, 0]) and math.isfinite(velocity[i, 1]) and math.isfinite(velocity[i, 2])):
+        if not row_inputs_finite(points, velocity, i):
             return -2
         if turbulent:
             factor, _ = profile_point(points[i, 0, 0] - _OX, _OY - points[i, 0, 1], _OZ - points[i, 0, 2],
