@@ -127,13 +127,13 @@ def test_agent_batch_first_and_errors() -> None:
 
 def test_short_fawt_study_ordering() -> None:
     """One duty, one seed of the Table 4 study: the FFTS-ESO feedforward lowers the error."""
-    from fawtgym.eval.reproduce.table4 import _cell_value, run_cell
+    from fawtgym.eval.reproduce.table4 import cell_value, run_cell
 
     cells = {c: run_cell(c, 50, [0], hover_seconds=10.0, fan_on=1.0, fan_off=10.0)
              for c in ("px4", "px4+ffts_eso")}
-    base = _cell_value(cells["px4"], "mean_position_error")
-    eso = _cell_value(cells["px4+ffts_eso"], "mean_position_error")
+    base = cell_value(cells["px4"], "mean_position_error")
+    eso = cell_value(cells["px4+ffts_eso"], "mean_position_error")
     assert base is not None and eso is not None  # both held hover
     assert eso < 0.6 * base
-    phi = _cell_value(cells["px4+ffts_eso"], "mean_attitude_error")
+    phi = cell_value(cells["px4+ffts_eso"], "mean_attitude_error")
     assert phi is not None and 0.0 < phi < 0.1

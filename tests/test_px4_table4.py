@@ -76,26 +76,21 @@ def test_seed_and_duty_parsing() -> None:
             table4.parse_duties(bad)
 
 
-def _resolved(argv):
-    parser = table4._parser()
-    args = parser.parse_args(argv)
-    table4._resolve(args, parser)
-    return args
-
-
 def test_defaults_fly_the_paper_schedule_and_explicit_flags_win_over_quick() -> None:
-    args = _resolved([])
+    """The command line as ``fawtgym reproduce table4`` resolves it (:func:`table4.parse_args`)."""
+    args = table4.parse_args([])
+    assert args.columns == ["px4", "px4+ffts_eso"] and args.argv == []
     assert (args.hover_seconds, args.fan_on, args.fan_off) == table4.PAPER_SCHEDULE
     assert args.duties == [30, 40, 50, 60, 70] and args.seeds == [0, 1, 2, 3, 4]
     assert args.assumptions.observer_inputs == "commanded" and args.assumptions.pose_latency > 0
-    quick = _resolved(["--quick"])
+    quick = table4.parse_args(["--quick"])
     assert (quick.hover_seconds, quick.fan_on, quick.fan_off) == table4.QUICK_SCHEDULE
     assert quick.duties == [50] and quick.seeds == [0, 1]
-    mixed = _resolved(["--quick", "--duties", "45,65", "--seeds", "1000-1002", "--hover-seconds", "90"])
+    mixed = table4.parse_args(["--quick", "--duties", "45,65", "--seeds", "1000-1002", "--hover-seconds", "90"])
     assert mixed.duties == [45, 65] and mixed.seeds == [1000, 1001, 1002] and mixed.hover_seconds == 90.0
     assert mixed.fan_on == 5.0  # the flag not given keeps the quick value
-    assert _resolved(["--quick", "--paper-schedule"]).hover_seconds == 210.0
-    ideal = _resolved(["--applied-inputs"]).assumptions
+    assert table4.parse_args(["--quick", "--paper-schedule"]).hover_seconds == 210.0
+    ideal = table4.parse_args(["--applied-inputs"]).assumptions
     assert (ideal.observer_inputs, ideal.pose_latency, ideal.thrust_model_error) == ("applied", 0.0, 0.0)
 
 

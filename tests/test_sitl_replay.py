@@ -165,23 +165,27 @@ def test_thrust_sent_is_the_cascade_set_point_even_when_its_own_rate_loop_satura
     """Found by the hand test against PX4 v1.14.0: the replay derived the thrust from the cascade's motor commands;
     the observer's torque estimate (PX4 flies the rates, so our rate loop's torque never acts) saturated our
     allocator, which cut the collective: the thrust sent stayed at 0.68 while the vehicle sank 1.3 m and the
-    cascade's set point asked for full thrust.  The thrust sent must be the cascade's collective set point."""
+    cascade's set point asked for full thrust.  The thrust sent must be the cascade's collective set point, and it
+    is the observer's known thrust input of the next tick.  Driven through ``Replay.command``, the step the flight
+    loop runs on every telemetry tick."""
     from fawtgym.eval.sitl import convert as C
 
     replay = Replay("udp:127.0.0.1:9", "px4+ffts_eso", hover_point=[1.5, 0.0, -1.5], origin=ORIGIN)
-    hover = C.px4_thrust(replay.preset, replay.preset.mass * 9.80665)
-    replay._first, replay._command_state = True, None
+    hover_collective = replay.preset.mass * 9.80665
+    hover = C.px4_thrust(replay.preset, hover_collective)
+    replay.begin_flight()
+    known = replay.known_inputs
+    assert known["thrust"] == hover_collective and np.array_equal(known["torque"], np.zeros(3))
     sent = []
     for k in range(100):  # 1 s at 100 Hz: 1 m below the set point, sinking, spinning hard in roll
         meas = {"position": np.array([1.5, 0.0, -0.5 + 0.008 * k]), "velocity": np.array([0.0, 0.0, 0.8]),
                 "attitude": np.eye(3), "angular_velocity": np.array([4.0, 0.0, 0.0]),
                 "specific_force": np.array([0.0, 0.0, -9.0]), "gyro": np.array([4.0, 0.0, 0.0]),
                 "magnetometer": np.array([0.21, 0.01, 0.43]), "time": np.asarray(0.01 * k)}
-        replay._measurement = lambda meas=meas: meas
-        attitude, rates, thrust = replay._agent_target(replay.hover_point)
-        assert rates is None and attitude.shape == (3, 3)
+        cmd = replay.command(meas, replay.hover_point)
+        assert cmd.body_rates is None and cmd.attitude is not None and cmd.attitude.shape == (3, 3)
         collective = float(replay.agent.collective_thrust[0])
-        assert thrust == pytest.approx(C.px4_thrust(replay.preset, collective), abs=1e-12)
-        assert replay._command_state[0] == pytest.approx(collective)  # the observer's known thrust input
-        sent.append(thrust)
+        assert cmd.thrust == pytest.approx(C.px4_thrust(replay.preset, collective), abs=1e-12)
+        assert replay.known_inputs["thrust"] == pytest.approx(collective)  # the observer's known thrust input
+        sent.append(cmd.thrust)
     assert np.mean(sent[50:]) > hover + 0.1, f"sinking 1 m low: thrust {np.mean(sent[50:]):.3f}, hover {hover:.3f}"

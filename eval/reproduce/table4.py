@@ -177,7 +177,7 @@ def schedule_averages(trace: np.ndarray, dt: float, hover: float, fan_on: float,
     return out
 
 
-def _cell_value(cell: Mapping[str, Any], key: str) -> float | None:
+def cell_value(cell: Mapping[str, Any], key: str) -> float | None:
     """Seed-averaged metric, or None if any seed failed (the paper's "Failed!")."""
     if any(cell["failures"]):
         return None
@@ -205,7 +205,7 @@ def _value(results: Mapping[tuple[str, int], Mapping[str, Any]], column: str, du
     cell = results.get((column, duty))
     if cell is None or key not in cell:
         return "absent", None
-    v = _cell_value(cell, key)
+    v = cell_value(cell, key)
     if v is None:
         return "failed", None
     return ("ok", v) if math.isfinite(v) else ("absent", None)
@@ -400,7 +400,7 @@ def evaluate(results: Mapping[tuple[str, Any], Mapping[str, Any]], duties: Seque
     """
     lines: list[str] = ["### Goals (project, issue 13)"]
     ok_all = True
-    pos = {(c, d): _cell_value(results[(c, d)], key) for (c, d) in results}
+    pos = {(c, d): cell_value(results[(c, d)], key) for (c, d) in results}
 
     def ratio_line(col: str, d: int, paper: float) -> bool:
         ours = pos.get((col, d))
@@ -528,9 +528,9 @@ def write_report(results: Mapping[tuple[str, Any], Mapping[str, Any]], duties: S
     for d in duties:
         p = PAPER_TABLE4.get(d)  # type: ignore[call-overload]
         row = [_duty_label(d)]
-        row += [_fmt(_cell_value(results[(c, d)], pos_key)) for c in columns]
+        row += [_fmt(cell_value(results[(c, d)], pos_key)) for c in columns]
         row += [_fmt(p[0]), _fmt(p[1])] if p else ["-", "-"]
-        row += [_fmt(_cell_value(results[(c, d)], att_key)) for c in columns]
+        row += [_fmt(cell_value(results[(c, d)], att_key)) for c in columns]
         row += [_fmt(p[2]), _fmt(p[3])] if p else ["-", "-"]
         lines.append("| " + " | ".join(row) + " |")
     lines += ["", "Failures (fraction of seeds, 95 % Wilson interval) and peak excursions along the stream "
@@ -552,9 +552,9 @@ def write_report(results: Mapping[tuple[str, Any], Mapping[str, Any]], duties: S
               "|" + "---|" * (3 * len(columns) + 1)]
     for d in duties:
         row = [_duty_label(d)]
-        row += [_fmt(_cell_value(results[(c, d)], "mean_position_error")) for c in columns]
-        row += [_fmt(_cell_value(results[(c, d)], "mean_attitude_error")) for c in columns]
-        row += [_fmt(_cell_value(results[(c, d)], "steady_position_error")) for c in columns]
+        row += [_fmt(cell_value(results[(c, d)], "mean_position_error")) for c in columns]
+        row += [_fmt(cell_value(results[(c, d)], "mean_attitude_error")) for c in columns]
+        row += [_fmt(cell_value(results[(c, d)], "steady_position_error")) for c in columns]
         lines.append("| " + " | ".join(row) + " |")
     lines += ["", "Per-seed position errors, Table-4 metric [m] (NaN = failed run):", ""]
     for d in duties:
@@ -717,6 +717,27 @@ def _resolve(args: argparse.Namespace, parser: argparse.ArgumentParser) -> None:
     args.assumptions = a
 
 
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """The command line of ``fawtgym reproduce table4`` (``argv``; None: ``sys.argv[1:]``) resolved as the study
+    flies it: defaults, then ``--quick``, then explicit flags; ``duties``/``seeds`` as lists, ``assumptions``
+    (:class:`Assumptions`), ``columns`` (PX4, then PX4 + each observer), ``argv`` as given.  Bad arguments exit
+    (one-line error, status 2)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = _parser()
+    args = parser.parse_args(argv)
+    args.argv = argv
+    _resolve(args, parser)
+    observers = [o.strip() for o in args.observers.split(",") if o.strip()]
+    import fawtgym.observers as obs_pkg
+
+    unknown = [o for o in observers if o not in obs_pkg.observer_names()]
+    if unknown or not observers:
+        parser.error(f"--observers: unknown observer(s) {unknown or args.observers!r}; valid: "
+                     f"{', '.join(obs_pkg.observer_names())}")
+    args.columns = controller_names(observers)
+    return args
+
+
 def fly_study(columns: Sequence[str], duties: Sequence[float], seeds: Sequence[int], hover: float, on: float,
               off: float, assumptions: Assumptions, sensors: str, control_rate: float, box: bool,
               progress: bool = False, tick: Progress | None = None) -> dict[tuple[str, Any], dict[str, Any]]:
@@ -734,7 +755,7 @@ def fly_study(columns: Sequence[str], duties: Sequence[float], seeds: Sequence[i
         for d, cell in cells_of(flown, hover, on, off).items():
             results[(c, d)] = cell
         if progress:
-            vals = ", ".join(f"{_duty_label(d)}: {_fmt(_cell_value(results[(c, d)], 'mean_position_error'))}"
+            vals = ", ".join(f"{_duty_label(d)}: {_fmt(cell_value(results[(c, d)], 'mean_position_error'))}"
                              for d in duties)
             _say(f"{c:>16s}: pos over our hover {vals} ({time.time() - t1:.0f} s)")
     return results
@@ -754,8 +775,8 @@ def run_sensitivity(columns: Sequence[str], duties: Sequence[float], seeds: Sequ
         res = fly_study(columns, duties, seeds, hover, on, off, a, sensors, control_rate, box, tick=tick)
         for d in duties:
             b_cell, e_cell = res[(columns[0], d)], res[(columns[-1], d)]
-            rows.append({"name": name, "value": value, "duty": d, "px4": _cell_value(b_cell, key),
-                         "eso": _cell_value(e_cell, key),
+            rows.append({"name": name, "value": value, "duty": d, "px4": cell_value(b_cell, key),
+                         "eso": cell_value(e_cell, key),
                          "fail_px4": "{}/{}".format(*failure_fraction(b_cell["failures"])[:2]),
                          "fail_eso": "{}/{}".format(*failure_fraction(e_cell["failures"])[:2])})
         if progress:
@@ -789,19 +810,8 @@ def reproduce(argv: Sequence[str] | None = None, progress: bool = True) -> C.Stu
 
     ``progress``: print one line per finished column.  Bad arguments exit (one-line error, status 2).
     """
-    argv = list(sys.argv[1:] if argv is None else argv)
-    parser = _parser()
-    args = parser.parse_args(argv)
-    args.argv = argv
-    _resolve(args, parser)
-    observers = [o.strip() for o in args.observers.split(",") if o.strip()]
-    import fawtgym.observers as obs_pkg
-
-    unknown = [o for o in observers if o not in obs_pkg.observer_names()]
-    if unknown or not observers:
-        parser.error(f"--observers: unknown observer(s) {unknown or args.observers!r}; valid: "
-                     f"{', '.join(obs_pkg.observer_names())}")
-    columns = controller_names(observers)
+    args = parse_args(argv)
+    columns = args.columns
     duties, seeds = args.duties, args.seeds
     out = args.out
     out.mkdir(parents=True, exist_ok=True)

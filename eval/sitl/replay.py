@@ -15,11 +15,12 @@ The companion-computer side of an OFFBOARD flight, one thread, every wait bounde
    reports it is on the ground).
 
 Each tick (``rate`` Hz, >= 50) turns the latest telemetry into our measurement mapping (:func:`.convert.
-measurement_from_telemetry`: the same keys, units and frames as ``info["measurement"]`` of the env), calls
-``agent.act`` exactly as the runner does in simulation (the observer inside the agent updates on it, with the
-known inputs of the last command), and sends SET_ATTITUDE_TARGET: attitude + thrust for agents that expose an
-attitude set point (the PX4 cascade, ``px4`` / ``px4+<observer>``: R_d and its collective
-thrust set point), body rates + thrust for ``ctbr`` agents.  The torque feedforward of ``px4+<observer>`` acts
+measurement_from_telemetry`: the same keys, units and frames as ``info["measurement"]`` of the env) and hands it
+to :meth:`Replay.command`, which calls ``agent.act`` exactly as the runner does in simulation (the observer
+inside the agent updates on it, with the known inputs of the last command, :attr:`Replay.known_inputs`) and
+returns the SET_ATTITUDE_TARGET sent: attitude + thrust for agents that expose an attitude set point (the PX4
+cascade, ``px4`` / ``px4+<observer>``: R_d and its collective thrust set point), body rates + thrust for ``ctbr``
+agents.  The torque feedforward of ``px4+<observer>`` acts
 on our side of the rate loop only; SET_ATTITUDE_TARGET carries no torque, so the autopilot's own rate loop
 flies without it.
 
@@ -48,7 +49,7 @@ import os
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from gymnasium import spaces
@@ -76,6 +77,15 @@ MSG_IDS = {"ATTITUDE_QUATERNION": 31, "LOCAL_POSITION_NED": 32, "HIGHRES_IMU": 1
 HEARTBEAT_PERIOD = 1.0
 ARMED_FLAG, CUSTOM_MODE_FLAG = 128, 1
 MAV_LANDED_STATE_ON_GROUND = 1
+
+
+class SetpointCommand(NamedTuple):
+    """One SET_ATTITUDE_TARGET of the replay: ``attitude`` set point R_d (3, 3) body -> NED (None: ignored),
+    ``body_rates`` (3,) [rad/s] FRD (None: ignored), ``thrust`` PX4's normalized collective thrust in [0, 1]."""
+
+    attitude: NDArray[np.float64] | None
+    body_rates: NDArray[np.float64] | None
+    thrust: float
 
 
 def resolve_agent(name: str, results: str | Path | None = None) -> str:
@@ -171,7 +181,7 @@ class Replay:
         warm_obs, warm_info = self.env.reset(seed=0)
         self.agent.reset(warm_info, seed=0)
         self.agent.act(warm_obs, warm_info)
-        self._last_action = np.asarray(self.env.hover_action(), dtype=float)
+        self.begin_flight()
         self.connect, self.rate, self.dt = connect, float(rate), self.env.dt
         self.duration, self.prestream, self.climb_speed, self.settle = duration, prestream, climb_speed, settle
         self.heartbeat_timeout, self.telemetry_timeout = heartbeat_timeout, telemetry_timeout
@@ -339,7 +349,7 @@ class Replay:
                    self.command_timeout, lambda: self._telemetry_ready())
         self.imu_type = "HIGHRES_IMU" if "HIGHRES_IMU" in self.last else "SCALED_IMU"
         yaw = float(rot_to_euler(self._measurement()["attitude"])[2])
-        neutral = (euler_to_rot(0.0, 0.0, yaw), None, 0.0)
+        neutral = SetpointCommand(euler_to_rot(0.0, 0.0, yaw), None, 0.0)
         self.phase = "prestream"
         self._stream(self.prestream, lambda t: neutral)
         mode = "GUIDED_NOGPS" if self.autopilot == MAV_AUTOPILOT_ARDUPILOTMEGA else "OFFBOARD"
@@ -356,15 +366,14 @@ class Replay:
         start = self._measurement()["position"].copy()
         distance = float(np.linalg.norm(self.hover_point - start))
         ramp = distance / self.climb_speed
-        self._first = True
-        self._command_state: tuple[float, NDArray[np.float64]] | None = None
+        self.begin_flight()
 
         def climb_sp(t: float) -> NDArray[np.float64]:
             return start + (self.hover_point - start) * min(1.0, t / ramp) if ramp > 0 else self.hover_point
 
-        self._stream(ramp + self.settle, lambda t: self._agent_target(climb_sp(t)))
+        self._stream(ramp + self.settle, lambda t: self.command(self._measurement(), climb_sp(t)))
         self.phase = "hover"
-        self._stream(self.duration, lambda t: self._agent_target(self.hover_point))
+        self._stream(self.duration, lambda t: self.command(self._measurement(), self.hover_point))
         self.final_error = float(np.linalg.norm(self._measurement()["position"] - self.hover_point))
         self.phase = "land"
         self.log(f"landing (position error at the end of the hover {self.final_error:.3f} m)")
@@ -380,8 +389,9 @@ class Replay:
         return C.measurement_from_telemetry(self.last["ATTITUDE_QUATERNION"], self.last["LOCAL_POSITION_NED"],
                                             self.last[self.imu_type], self.origin, time.monotonic())
 
-    def _stream(self, seconds: float, target: Callable[[float], tuple], until: Callable[[], bool] | None = None,
-                every: tuple[float, Callable[[], None]] | None = None, fail: str | None = None) -> None:
+    def _stream(self, seconds: float, target: Callable[[float], SetpointCommand],
+                until: Callable[[], bool] | None = None, every: tuple[float, Callable[[], None]] | None = None,
+                fail: str | None = None) -> None:
         """Send setpoints at ``rate`` for ``seconds`` (or until ``until()``; then ``fail`` if it never held)."""
         t0 = time.monotonic()
         next_every = t0
@@ -421,19 +431,33 @@ class Replay:
         return hover_observation(rows, np.asarray(setpoint, dtype=float)[None],
                                  np.asarray(last_action, dtype=float).reshape(1, 4), self._obs_low, self._obs_high)[0]
 
-    def _agent_target(self, setpoint: NDArray[np.float64]) -> tuple:
-        """One agent step on the latest telemetry -> (attitude or None, body rates or None, PX4 thrust)."""
-        meas = self._measurement()
-        if self._command_state is None:
-            applied = {"thrust": self.preset.mass * 9.80665, "torque": np.zeros(3)}
-        else:
-            applied = {"thrust": self._command_state[0], "torque": self._command_state[1]}
+    def begin_flight(self) -> None:
+        """Start a new flight of the agent: the next :meth:`command` resets it on its measurement, with the
+        hover thrust and no torque as its known inputs and the hover action as a policy's last action."""
+        self._first = True
+        self._known: tuple[float, NDArray[np.float64]] | None = None
+        self._last_action = np.asarray(self.env.hover_action(), dtype=float)
+
+    @property
+    def known_inputs(self) -> dict[str, Any]:
+        """The known inputs ``{"thrust": collective [N], "torque": (3,) [N m]}`` (the env's ``info["applied"]``)
+        the agent's observer gets with the next :meth:`command`: those of the last command sent (the thrust
+        sent, our rate loop's torque), or the hover thrust and no torque at the start of a flight."""
+        if self._known is None:
+            return {"thrust": self.preset.mass * 9.80665, "torque": np.zeros(3)}
+        return {"thrust": self._known[0], "torque": self._known[1].copy()}
+
+    def command(self, measurement: Mapping[str, Any], setpoint: ArrayLike) -> SetpointCommand:
+        """One agent step: the measurement of one telemetry tick (:func:`.convert.measurement_from_telemetry`)
+        and the NED set point [m] -> the SET_ATTITUDE_TARGET the replay sends for it.  The flight loop calls it
+        on every tick of the climb and the hover (after :meth:`begin_flight`)."""
+        meas = dict(measurement)
+        applied = self.known_inputs
         setpoint_ned = np.asarray(setpoint, dtype=float)
         info = {"measurement": meas, "applied": applied, "setpoint": setpoint_ned}
         if self._first:
             self.agent.reset(info, seed=0)
             self._first = False
-            self._last_action = np.asarray(self.env.hover_action(), dtype=float)
         obs = self.observation(meas, setpoint_ned, self._last_action) if self.policy else None
         action = np.asarray(self.agent.act(obs, info), dtype=float).reshape(-1)
         if not np.all(np.isfinite(action)):
@@ -441,8 +465,9 @@ class Replay:
         self._last_action = action
         if self.action_type == "ctbr":
             collective = float(np.clip(action[0], 0.0, 1.0)) * 4.0 * self.preset.max_thrust_per_rotor
-            self._command_state = (collective, np.zeros(3))
-            return None, np.clip(action[1:4], -1.0, 1.0) * MAX_RATES, C.px4_thrust(self.preset, collective)
+            self._known = (collective, np.zeros(3))
+            return SetpointCommand(None, np.clip(action[1:4], -1.0, 1.0) * MAX_RATES,
+                                   C.px4_thrust(self.preset, collective))
         # The thrust sent is the cascade's collective set point, not the collective of its motor commands: those
         # come from its own rate loop and allocator, which cut the collective when the torque saturates (PX4's
         # allocator does the same on PX4's side).  In the hand test against PX4 v1.14.0 the observer's torque
@@ -455,9 +480,9 @@ class Replay:
             collective += C.applied_from_motors(self.preset, action)[0] - \
                 C.applied_from_motors(self.preset, np.asarray(base_action, dtype=float).reshape(-1))[0]
         _, torque = C.applied_from_motors(self.preset, action)
-        self._command_state = (collective, torque)
+        self._known = (collective, np.asarray(torque, dtype=float))
         attitude = np.asarray(self._attitude_agent.attitude_setpoint, dtype=float).reshape(-1, 3, 3)[0]
-        return attitude, None, C.px4_thrust(self.preset, collective)
+        return SetpointCommand(attitude, None, C.px4_thrust(self.preset, collective))
 
     def _land(self) -> None:
         t0 = time.monotonic()
