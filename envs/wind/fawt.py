@@ -55,9 +55,9 @@ from numpy.typing import NDArray
 from fawtgym.core.checks import check_flag
 from fawtgym.core.frames import FAWT_ORIGIN_NED, R_FAWT_TO_NED
 
-from .base import WindModel, check_n, check_points, check_step, is_real, raise_not_finite, row_inputs_finite
+from .base import check_points, check_step, is_real, raise_not_finite, row_inputs_finite
 from .dryden import FORMS, V_FLOOR, DrydenParams
-from .dryden_process import DrydenProcess, Seed, gust_row_step, step_bin
+from .dryden_process import DrydenProcess, GustWind, Seed, gust_row_step, step_bin
 from .schedule import DEFAULT_SPIN_TAU, FanSchedule
 
 #: Wang et al. (2024) Table 3: duty -> (U [m/s], variance [(m/s)^2], Re_lambda, TI), hot wire at x = 1.2 m.
@@ -195,12 +195,12 @@ def fawt_profile(p_fawt: NDArray[np.float64], x_ref: float = HOTWIRE_X) -> tuple
 @njit(cache=True)
 def fawt_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], scale: float, ti: float,
                    turbulent: bool, rates: bool, dt: float, x: NDArray[np.float64], noise: NDArray[np.float64],
-                   k: int, table: NDArray[np.float64], filled: NDArray[np.bool_], k0: int, bins: NDArray[np.int64],
-                   y: NDArray[np.float64], out: NDArray[np.float64]) -> int:
+                   cursor: NDArray[np.int64], table: NDArray[np.float64], filled: NDArray[np.bool_], k0: int,
+                   bins: NDArray[np.int64], y: NDArray[np.float64], out: NDArray[np.float64]) -> int:
     """The FAWT wind (N, K, 3) NED at ``points`` (N, K, 3) into ``out``, every row (module docstring).
 
     ``scale = U_ref s(t)`` (mean speed at the hot wire times the fan level); with ``turbulent`` each row's Dryden
-    field (state ``x``, normals ``noise[:, k]``, step matrices ``table``) is advanced by ``dt`` at its
+    field (state ``x``, its next normals ``noise[i, cursor[i]]``, step matrices ``table``) is advanced by ``dt`` at its
     frozen-turbulence speed ``V = |U(CoM) e_x - v|`` (outputs ``y``).  Returns -1; or, before changing
     anything, -2 if a point or velocity is not finite, or the index of a table bin that must be filled first.
     """
@@ -221,7 +221,8 @@ def fawt_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], s
     shear_scale2 = (SHEAR_TI * scale) ** 2  # peak mixing-layer variance (TI_sl U_c)^2
     for i in range(n):
         if turbulent:
-            gust_row_step(x, noise[i, k], table[bins[i]], y, i, scratch)  # one gust per field: [u, v, w](, p, q, r)
+            gust_row_step(x, noise[i, cursor[i]], table[bins[i]], y, i, scratch)  # the row gust [u, v, w](, p, q, r)
+            cursor[i] += 1
         x0, y0 = points[i, 0, 0] - _OX, _OY - points[i, 0, 1]  # CoM, FAWT frame
         for p in range(n_pts):
             xf, yf, zf = points[i, p, 0] - _OX, _OY - points[i, p, 1], _OZ - points[i, p, 2]
@@ -242,7 +243,7 @@ def fawt_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], s
     return -1
 
 
-class FawtWind(WindModel):
+class FawtWind(GustWind):
     """Turbulent FAWT wind at ``duty`` (fraction of maximum), Wang et al. (2024) Sec. 7 / Table 3.
 
     Options: ``on_time``/``off_time``/``spin_tau``/``spin_down_tau`` (fan schedule; none: running and
@@ -278,35 +279,34 @@ class FawtWind(WindModel):
         self.level = self.schedule.initial_level()
 
     def reset(self, n: int, seed: Seed = None) -> None:
-        self.process.reset(check_n(n), seed)
-        self.n = int(n)
+        super().reset(n, seed)
         self.level = self.schedule.initial_level()
-        self._y = np.zeros((self.n, self.process.n_out))
 
     def step(self, t: float, dt: float, points_ned: NDArray[np.float64],
              vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
         """Wind (N, K, 3) NED at ``points_ned`` (N, K, 3) at time ``t`` (advanced by ``dt``); point 0 is the CoM."""
         check_step(t, dt)
         points, velocity = check_points(points_ned, vehicle_velocity_ned, self.n, finite=False)
-        return self.step_trusted(t, dt, points, velocity)
+        return self.step_trusted(float(t), float(dt), points, velocity)
 
     def step_trusted(self, t: float, dt: float, points: NDArray[np.float64],
                      velocity: NDArray[np.float64]) -> NDArray[np.float64]:
         """:meth:`step` without the input checks (:meth:`WindModel.step_trusted`); the kernel finds non-finite ones."""
-        level = self.schedule.advance(t - dt, t, self.level)
+        level = self.level if self.schedule.steady else self.schedule.advance(t - dt, t, self.level)
         turbulent = self.turbulence and level > 0.0
         proc = self.process
+        if turbulent and proc.refill_in <= 0:
+            proc.ready()
         table = proc.table
-        k = proc.noise_index() if turbulent else 0
         out = np.empty(points.shape)
         while (status := fawt_wind_rows(points, velocity, self.mean_speed * level, self.ti, turbulent, self.rates,
-                                        float(dt), proc.x, proc.noise, k, table.matrices, table.filled, table.k0,
+                                        dt, proc.x, proc.noise, proc.cursor, table.matrices, table.filled, table.k0,
                                         proc.bins, self._y, out)) != -1:
             if status == -2:
                 raise_not_finite(points, velocity)
             table.fill(status)
         if turbulent:
-            proc.advance_noise()
+            proc.refill_in -= 1  # proc.stepped()
         self.level = level
         return out
 
