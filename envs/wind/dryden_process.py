@@ -46,9 +46,16 @@ def step_bin(d: float, k0: int) -> int:
 
 
 @njit(cache=True)
-def gust_row_step(x: NDArray[np.float64], z: NDArray[np.float64], m: NDArray[np.float64],
-                  y: NDArray[np.float64], i: int, scratch: NDArray[np.float64]) -> None:
-    """Row ``i``: ``[x_i, z] @ M = [x+, y+]`` (exact step, module docstring); ``x[i]``, ``y[i]`` overwritten."""
+def bin_filled(table: NDArray[np.float64], b: int) -> bool:
+    """Whether bin ``b`` of a step-matrix table (:class:`.dryden_discrete.StepTable`) is computed (else NaN)."""
+    return not math.isnan(table[b, 0, 0])
+
+
+@njit(cache=True)
+def gust_row_step(x: NDArray[np.float64], z: NDArray[np.float64], m: NDArray[np.float64], i: int,
+                  scratch: NDArray[np.float64]) -> None:
+    """Row ``i``: ``[x_i, z] @ M = [x+, y+]`` (exact step, module docstring) into ``scratch`` (ns + n_out,); ``x[i]``
+    is overwritten with ``x+``, the outputs ``y+`` are ``scratch[ns:]``."""
     ns = x.shape[1]
     n_col = m.shape[1]
     for j in range(n_col):
@@ -60,31 +67,32 @@ def gust_row_step(x: NDArray[np.float64], z: NDArray[np.float64], m: NDArray[np.
         scratch[j] = acc
     for j in range(ns):
         x[i, j] = scratch[j]
-    for j in range(n_col - ns):
-        y[i, j] = scratch[ns + j]
 
 
 @njit(cache=True)
 def dryden_step_rows(x: NDArray[np.float64], noise: NDArray[np.float64], cursor: NDArray[np.int64],
-                     airspeed: NDArray[np.float64], dt: float, table: NDArray[np.float64], filled: NDArray[np.bool_],
-                     k0: int, bins: NDArray[np.int64], y: NDArray[np.float64]) -> int:
+                     airspeed: NDArray[np.float64], dt: float, table: NDArray[np.float64], k0: int,
+                     y: NDArray[np.float64]) -> int:
     """Advance every row by ``dt`` at its airspeed (``airspeed`` (N,) or (1,) for all) with its next normals
     ``noise[i, cursor[i]]`` (module docstring); outputs into ``y``.
 
     Returns -1, or (nothing changed) the index of a table bin a row needs that is not filled yet.
     """
-    n = x.shape[0]
+    n, ns = x.shape
     shared = airspeed.shape[0] == 1
+    bins = np.empty(n, dtype=np.int64)
     for i in range(n):
         v = airspeed[0] if shared else airspeed[i]
         b = step_bin((v if v > V_FLOOR else V_FLOOR) * dt, k0)  # d = max(V, V_FLOOR) dt
-        if not filled[b]:
+        if not bin_filled(table, b):
             return b
         bins[i] = b
     scratch = np.empty(table.shape[2])
     for i in range(n):
-        gust_row_step(x, noise[i, cursor[i]], table[bins[i]], y, i, scratch)
+        gust_row_step(x, noise[i, cursor[i]], table[bins[i]], i, scratch)
         cursor[i] += 1
+        for j in range(y.shape[1]):
+            y[i, j] = scratch[ns + j]
     return -1
 
 
@@ -136,7 +144,6 @@ class DrydenProcess:
         self._rngs: list[np.random.Generator] = []
         self.noise = np.zeros((0, self.block, self.n_states))
         self.cursor = np.zeros(0, dtype=np.int64)
-        self.bins = np.zeros(0, dtype=np.int64)
         self.refill_in = 0  # steps until some field's block is used up (block - max(cursor))
 
     # ---- state ---------------------------------------------------------------------------
@@ -155,7 +162,6 @@ class DrydenProcess:
         self._rngs = [np.random.Generator(np.random.PCG64(s)) for s in seeds]
         self.noise = np.empty((n, self.block, self.n_states))
         self.cursor = np.zeros(n, dtype=np.int64)
-        self.bins = np.zeros(n, dtype=np.int64)
         self._start(range(n))
 
     def restart_rows(self, rows: NDArray[np.intp], seeds: Sequence[np.random.SeedSequence]) -> None:
@@ -203,7 +209,6 @@ class DrydenProcess:
         sub._rngs = [self._rngs[r] for r in rows.tolist()]
         sub.noise = self.noise[rows]
         sub.cursor = self.cursor[rows]
-        sub.bins = np.zeros(sub.n, dtype=np.int64)
         sub.refill_in = self.block - int(sub.cursor.max())
         return sub
 
@@ -249,7 +254,7 @@ class DrydenProcess:
         y = np.empty((self.n, self.n_out))
         table = self.table
         while (missing := dryden_step_rows(self._x, self.noise, self.cursor, speed, float(dt), table.matrices,
-                                           table.filled, table.k0, self.bins, y)) >= 0:
+                                           table.k0, y)) >= 0:
             table.fill(missing)
         self.stepped()
         return y
@@ -272,12 +277,10 @@ class GustWind(WindModel):
     others go on (each row's wind from its own seed, module docstring)."""
 
     process: DrydenProcess
-    _y: NDArray[np.float64]  # the gust outputs of the last step (N, n_out): the kernels' scratch
 
     def reset(self, n: int, seed: Seed = None) -> None:
         self.process.reset(check_n(n), seed)
         self.n = int(n)
-        self._y = np.zeros((self.n, self.process.n_out))
 
     def restart_rows(self, rows: NDArray[np.intp], seeds: Sequence[np.random.SeedSequence]) -> None:
         """Rows ``rows`` start anew, row ``rows[j]`` exactly as the one row of a model reset with ``seeds[j]``
@@ -289,7 +292,6 @@ class GustWind(WindModel):
         sub = copy.copy(self)
         sub.process = self.process.take(rows)
         sub.n = int(rows.size)
-        sub._y = np.zeros((sub.n, self.process.n_out))
         return sub
 
     def put_rows(self, rows: NDArray[np.intp], sub: GustWind) -> None:

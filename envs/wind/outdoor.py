@@ -38,7 +38,7 @@ from fawtgym.core.checks import check_flag
 
 from .base import WindModel, check_n, check_points, check_step, is_real, raise_not_finite, row_inputs_finite
 from .dryden import FORMS, V_FLOOR, DrydenParams
-from .dryden_process import DrydenProcess, GustWind, Seed, gust_row_step, step_bin
+from .dryden_process import DrydenProcess, GustWind, Seed, bin_filled, gust_row_step, step_bin
 
 FT = 0.3048  #: [m] per foot
 KNOT = 0.514444  #: [m/s] per knot
@@ -83,15 +83,16 @@ def _direction(direction_deg: float) -> NDArray[np.float64]:
 def dryden_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], mean: NDArray[np.float64],
                      advection: NDArray[np.float64], axes: NDArray[np.float64], rates: bool, dt: float,
                      x: NDArray[np.float64], noise: NDArray[np.float64], cursor: NDArray[np.int64],
-                     table: NDArray[np.float64], filled: NDArray[np.bool_], k0: int, bins: NDArray[np.int64],
-                     y: NDArray[np.float64], out: NDArray[np.float64]) -> int:
+                     table: NDArray[np.float64], k0: int, out: NDArray[np.float64]) -> int:
     """The outdoor Dryden wind (N, K, 3) NED at ``points`` into ``out`` (module docstring), every row.
 
-    Each row's gust field (state ``x``, its next normals ``noise[i, cursor[i]]``) steps at ``V = |W_adv - v|``; the gust
-    ``[u, v, w]`` along ``axes`` (rows: u, v, w in NED), plus with ``rates`` the gradients across the vehicle.
+    Each row's gust field (state ``x``, its next normals ``noise[i, cursor[i]]``) steps at ``V = |W_adv - v|``; the
+    gust ``[u, v, w]`` along ``axes`` (rows: u, v, w in NED), plus with ``rates`` the gradients across the vehicle.
     Returns -1; or, before changing anything, -2 if a point or velocity is not finite, or a table bin to fill.
     """
     n, n_pts = points.shape[0], points.shape[1]
+    ns = x.shape[1]
+    bins = np.empty(n, dtype=np.int64)
     for i in range(n):  # pass 1: inputs finite, each row's Dryden bin filled
         if not row_inputs_finite(points, velocity, i):
             return -2
@@ -100,23 +101,23 @@ def dryden_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64],
             speed += (advection[c] - velocity[i, c]) ** 2
         speed = math.sqrt(speed)
         b = step_bin((speed if speed > V_FLOOR else V_FLOOR) * dt, k0)
-        if not filled[b]:
+        if not bin_filled(table, b):
             return b
         bins[i] = b
-    scratch = np.empty(table.shape[2])
+    scratch = np.empty(table.shape[2])  # [x+, y+]: the row's gust y+ = [u, v, w](, p, q, r) is scratch[ns:]
     for i in range(n):
-        gust_row_step(x, noise[i, cursor[i]], table[bins[i]], y, i, scratch)
+        gust_row_step(x, noise[i, cursor[i]], table[bins[i]], i, scratch)
         cursor[i] += 1
         for p in range(n_pts):
-            g_u, g_v, g_w = y[i, 0], y[i, 1], y[i, 2]
+            g_u, g_v, g_w = scratch[ns], scratch[ns + 1], scratch[ns + 2]
             if rates:  # offsets from the CoM along the gust axes u, v
                 d_u = d_v = 0.0
                 for c in range(3):
                     offset = points[i, p, c] - points[i, 0, c]
                     d_u += axes[0, c] * offset
                     d_v += axes[1, c] * offset
-                g_v = g_v - d_u * y[i, 5]
-                g_w = g_w - d_u * y[i, 4] + d_v * y[i, 3]
+                g_v = g_v - d_u * scratch[ns + 5]
+                g_w = g_w - d_u * scratch[ns + 4] + d_v * scratch[ns + 3]
             for c in range(3):  # mean + [g_u, g_v, g_w] @ axes (NED)
                 out[i, p, c] = mean[c] + (g_u * axes[0, c] + g_v * axes[1, c] + g_w * axes[2, c])
     return -1
@@ -178,8 +179,8 @@ class DrydenWind(GustWind):
         table = proc.table
         out = np.empty(points.shape)
         while (status := dryden_wind_rows(points, velocity, self.mean, self.advection, self.axes, self.rates,
-                                          dt, proc.x, proc.noise, proc.cursor, table.matrices, table.filled,
-                                          table.k0, proc.bins, self._y, out)) != -1:
+                                          dt, proc.x, proc.noise, proc.cursor, table.matrices, table.k0,
+                                          out)) != -1:
             if status == -2:
                 raise_not_finite(points, velocity)
             table.fill(status)
