@@ -46,7 +46,7 @@ def _inputs(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray]:
     return points, 0.5 * rng.standard_normal((n, 3))
 
 
-def _run(spec, n: int, restarts: dict[int, list[int]], same_step: bool, steps: int = 40):
+def _run(spec, n: int, restarts: dict[int, list[int]], same_step: bool, steps: int = 600):
     """Drive an n-row BatchWind and n one-row BatchWinds alike (the env's protocol); returns both (steps, n, 5, 3)
     series of wind samples and the restarted rows' first samples of the same-step mode."""
     batch = BatchWind(make_wind(spec), n)
@@ -89,8 +89,10 @@ def _run(spec, n: int, restarts: dict[int, list[int]], same_step: bool, steps: i
 @pytest.mark.parametrize("same_step", [False, True], ids=["next_step", "same_step"])
 @pytest.mark.parametrize("name", list(WINDS))
 def test_each_row_is_the_row_alone(name: str, same_step: bool) -> None:
+    # restarts at different steps, so the rows' blocks of normals (256 steps) run out at different steps too
     n = 5
-    restarts = {3: [1], 9: [0, 3, 4], 10: [2], 17: [1, 2], 25: list(range(n)), 31: [4]}
+    restarts = {3: [1], 9: [0, 3, 4], 10: [2], 17: [1, 2], 25: list(range(n)), 31: [4], 270: [0], 301: [1, 3],
+                540: [2]}
     (got, want), (first_got, first_want) = _run(WINDS[name], n, restarts, same_step)
     np.testing.assert_array_equal(got, want)
     for fg, fw in zip(first_got, first_want, strict=True):
