@@ -223,7 +223,7 @@ class DrydenProcess:
 
     @property
     def x(self) -> NDArray[np.float64]:
-        """Filter state (N, n_states); assign an (N, n_states) array to set it (e.g. restart some rows)."""
+        """Filter state (N, n_states); assign an (N, n_states) array to set it (:meth:`restart_rows` restarts rows)."""
         return self._x
 
     @x.setter
