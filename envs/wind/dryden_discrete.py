@@ -67,8 +67,9 @@ class StepTable:
     """Step matrices of the filter ``(A, B, C)`` on the log grid of ``d``, filled on first use.
 
     ``matrices[k]`` is ``M = [[Ad^T, Ad^T C^T], [S^T, S^T C^T]]`` (shape ``(2 ns, ns + n_out)``) for bin ``k``,
-    so that the row ``[x, z] @ M = [x+, y+]`` with ``z ~ N(0, I)`` (``S S^T = Qd``); ``filled[k]`` says whether
-    it is computed.  ``k0`` is the index offset of bin 0 (:func:`.dryden_process.step_bin`).
+    so that the row ``[x, z] @ M = [x+, y+]`` with ``z ~ N(0, I)`` (``S S^T = Qd``); a bin not computed yet holds
+    NaN (what the kernels test, :func:`.dryden_process.bin_filled`), ``filled[k]`` says whether it is computed.
+    ``k0`` is the index offset of bin 0 (:func:`.dryden_process.step_bin`).
     """
 
     def __init__(self, a: NDArray[np.float64], b: NDArray[np.float64], c: NDArray[np.float64],
@@ -80,9 +81,13 @@ class StepTable:
         self.n_states = a.shape[0]
         self.k0 = int(math.floor(math.log(D_MIN) / BIN + 0.5))
         n_keys = int(math.floor(math.log(D_MAX) / BIN + 0.5)) - self.k0 + 1
-        self.matrices = np.zeros((n_keys, 2 * self.n_states, self.n_states + c.shape[0]))
-        self.filled = np.zeros(n_keys, dtype=np.bool_)
+        self.matrices = np.full((n_keys, 2 * self.n_states, self.n_states + c.shape[0]), np.nan)
         self._ct = np.ascontiguousarray(c.T)
+
+    @property
+    def filled(self) -> NDArray[np.bool_]:
+        """Whether each bin is computed (a copy; an uncomputed bin holds NaN)."""
+        return ~np.isnan(self.matrices[:, 0, 0])
 
     def bin_length(self, k: int) -> float:
         """The step length ``d`` [m] bin ``k`` stands for."""
@@ -94,7 +99,7 @@ class StepTable:
 
     def fill(self, k: int) -> NDArray[np.float64]:
         """The step matrix of bin ``k`` (computed now if it was not)."""
-        if self.filled[k]:
+        if not math.isnan(self.matrices[k, 0, 0]):
             return self.matrices[k]
         d = self.bin_length(k)
         ad = expm_small(self.a * d)
@@ -110,8 +115,10 @@ class StepTable:
             s = np.zeros((ns, ns))
             s[:, :self.b.shape[1]] = sysd[1] / math.sqrt(d)
         top = np.vstack([ad.T, s.T])
-        self.matrices[k] = np.hstack([top, top @ self._ct])
-        self.filled[k] = True
+        m = np.hstack([top, top @ self._ct])
+        if not np.all(np.isfinite(m)):  # NaN marks an uncomputed bin: a computed one must be finite
+            raise FloatingPointError(f"Dryden step matrix of bin {k} (d = {d:g} m) is not finite")
+        self.matrices[k] = m
         return self.matrices[k]
 
     def discrete(self, d: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

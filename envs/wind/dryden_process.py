@@ -10,12 +10,17 @@ Rows never interact: each row's step is written out as explicit sums over its ow
 N-field run is bit for bit the run of that field alone with the same seed and airspeeds (tested).
 
 Random streams: field ``i`` has its own generator (a ``numpy.random.SeedSequence`` child of the seed, or
-the ``i``-th of a list of seeds), so field ``i`` is the same whatever ``N`` is.  Normals are drawn per
-field in blocks of ``block`` steps (one generator call per field per block).
+the ``i``-th of a list of seeds), so field ``i`` is the same whatever ``N`` is.  A field's stream is read in
+one order only: its stationary initial state (``n_states`` normals), then one ``n_states``-vector per step.
+The step normals are drawn per field in blocks of ``block`` steps into ``noise`` (N, block, n_states), one
+generator call per field per block, written in place; ``cursor[i]`` is field ``i``'s next row of its block,
+so fields restarted at different steps (:meth:`DrydenProcess.restart_rows`) each read their own stream from
+its start, and a field of an N-field run is the field alone whatever the other fields do.
 """
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Sequence
 
@@ -23,7 +28,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from .base import DT_MAX, is_real
+from .base import DT_MAX, WindModel, check_n, is_real
 from .dryden import V_FLOOR, DrydenParams, spatial_state_space
 from .dryden_discrete import BIN, D_MAX, D_MIN, StepTable, psd_sqrt, stationary_covariance
 
@@ -41,9 +46,16 @@ def step_bin(d: float, k0: int) -> int:
 
 
 @njit(cache=True)
-def gust_row_step(x: NDArray[np.float64], z: NDArray[np.float64], m: NDArray[np.float64],
-                  y: NDArray[np.float64], i: int, scratch: NDArray[np.float64]) -> None:
-    """Row ``i``: ``[x_i, z] @ M = [x+, y+]`` (exact step, module docstring); ``x[i]``, ``y[i]`` overwritten."""
+def bin_filled(table: NDArray[np.float64], b: int) -> bool:
+    """Whether bin ``b`` of a step-matrix table (:class:`.dryden_discrete.StepTable`) is computed (else NaN)."""
+    return not math.isnan(table[b, 0, 0])
+
+
+@njit(cache=True)
+def gust_row_step(x: NDArray[np.float64], z: NDArray[np.float64], m: NDArray[np.float64], i: int,
+                  scratch: NDArray[np.float64]) -> None:
+    """Row ``i``: ``[x_i, z] @ M = [x+, y+]`` (exact step, module docstring) into ``scratch`` (ns + n_out,); ``x[i]``
+    is overwritten with ``x+``, the outputs ``y+`` are ``scratch[ns:]``."""
     ns = x.shape[1]
     n_col = m.shape[1]
     for j in range(n_col):
@@ -55,33 +67,44 @@ def gust_row_step(x: NDArray[np.float64], z: NDArray[np.float64], m: NDArray[np.
         scratch[j] = acc
     for j in range(ns):
         x[i, j] = scratch[j]
-    for j in range(n_col - ns):
-        y[i, j] = scratch[ns + j]
 
 
 @njit(cache=True)
-def dryden_step_rows(x: NDArray[np.float64], noise: NDArray[np.float64], k: int, airspeed: NDArray[np.float64],
-                     dt: float, table: NDArray[np.float64], filled: NDArray[np.bool_], k0: int,
-                     bins: NDArray[np.int64], y: NDArray[np.float64]) -> int:
-    """Advance every row by ``dt`` at its airspeed (``airspeed`` (N,) or (1,) for all); outputs into ``y``.
+def dryden_step_rows(x: NDArray[np.float64], noise: NDArray[np.float64], cursor: NDArray[np.int64],
+                     airspeed: NDArray[np.float64], dt: float, table: NDArray[np.float64], k0: int,
+                     y: NDArray[np.float64]) -> int:
+    """Advance every row by ``dt`` at its airspeed (``airspeed`` (N,) or (1,) for all) with its next normals
+    ``noise[i, cursor[i]]`` (module docstring); outputs into ``y``.
 
     Returns -1, or (nothing changed) the index of a table bin a row needs that is not filled yet.
     """
-    n = x.shape[0]
+    n, ns = x.shape
     shared = airspeed.shape[0] == 1
+    bins = np.empty(n, dtype=np.int64)
     for i in range(n):
         v = airspeed[0] if shared else airspeed[i]
         b = step_bin((v if v > V_FLOOR else V_FLOOR) * dt, k0)  # d = max(V, V_FLOOR) dt
-        if not filled[b]:
+        if not bin_filled(table, b):
             return b
         bins[i] = b
     scratch = np.empty(table.shape[2])
     for i in range(n):
-        gust_row_step(x, noise[i, k], table[bins[i]], y, i, scratch)
+        gust_row_step(x, noise[i, cursor[i]], table[bins[i]], i, scratch)
+        cursor[i] += 1
+        for j in range(y.shape[1]):
+            y[i, j] = scratch[ns + j]
     return -1
 
 
-def _field_seeds(n: int, seed: Seed) -> list[np.random.SeedSequence]:
+def first_child(seed: np.random.SeedSequence) -> np.random.SeedSequence:
+    """The SeedSequence ``seed.spawn(1)[0]`` would return, without spawning (``seed`` is left unchanged): the seed
+    of the one field of a process reset with ``seed`` (:func:`field_seeds`), so a row of an N-field run given
+    ``first_child(s)`` is the field alone reset with ``s``."""
+    return np.random.SeedSequence(seed.entropy, spawn_key=(*seed.spawn_key, seed.n_children_spawned),
+                                  pool_size=seed.pool_size)
+
+
+def field_seeds(n: int, seed: Seed) -> list[np.random.SeedSequence]:
     """One SeedSequence per field: children of ``seed`` (int, SeedSequence or None), or ``seed`` itself when it is
     a sequence of ``n`` SeedSequences (so a field can be run alone with the seed it has in a batch)."""
     if seed is None or isinstance(seed, (int, np.integer, np.random.SeedSequence)) and not isinstance(seed, bool):
@@ -98,6 +121,8 @@ class DrydenProcess:
 
     ``step(dt, airspeed)`` advances all fields by ``dt`` at frozen-turbulence speed ``airspeed``
     (scalar or (N,)) and returns the outputs (N, 3) ``[u, v, w]`` (or (N, 6) with ``rates``).
+    A wind model's kernel steps the fields itself: it calls :meth:`ready` first (every field has its next
+    normals ``noise[i, cursor[i]]``), advances ``cursor`` for the fields it stepped, then calls :meth:`stepped`.
     """
 
     def __init__(self, params: DrydenParams, rates: bool = False, discretization: str = "exact",
@@ -111,11 +136,15 @@ class DrydenProcess:
         self.n_states = self.a.shape[0]
         self.n_out = self.c.shape[0]
         self.p_stat = stationary_covariance(self.a, self.b)
+        self._chol = psd_sqrt(self.p_stat)  # x0 = chol z, z ~ N(0, I): a draw from the stationary distribution
         self.table = StepTable(self.a, self.b, self.c, self.p_stat, discretization)
         self.discretization = discretization
         self.n = 0
         self._x = np.zeros((0, self.n_states))
-        self._k = self.block
+        self._rngs: list[np.random.Generator] = []
+        self.noise = np.zeros((0, self.block, self.n_states))
+        self.cursor = np.zeros(0, dtype=np.int64)
+        self.refill_in = 0  # steps until some field's block is used up (block - max(cursor))
 
     # ---- state ---------------------------------------------------------------------------
     def reset(self, n: int, seed: Seed = None) -> None:
@@ -127,17 +156,74 @@ class DrydenProcess:
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ValueError(f"number of fields n must be a positive int, got {n!r}")
         n = int(n)
-        self._rngs = [np.random.Generator(np.random.PCG64(s)) for s in _field_seeds(n, seed)]
+        seeds = field_seeds(n, seed)
         self.n = n
-        chol = psd_sqrt(self.p_stat)
-        self._x = np.ascontiguousarray(np.stack([chol @ g.standard_normal(self.n_states) for g in self._rngs]))
+        self._x = np.empty((n, self.n_states))
+        self._rngs = [np.random.Generator(np.random.PCG64(s)) for s in seeds]
         self.noise = np.empty((n, self.block, self.n_states))
-        self._k = self.block
-        self.bins = np.zeros(n, dtype=np.int64)
+        self.cursor = np.zeros(n, dtype=np.int64)
+        self._start(range(n))
+
+    def restart_rows(self, rows: NDArray[np.intp], seeds: Sequence[np.random.SeedSequence]) -> None:
+        """Fields ``rows`` (k,) start anew, field ``rows[j]`` from ``seeds[j]`` exactly as a field reset with it
+        (its generator, stationary state and stream from the start); the other fields are untouched."""
+        if len(seeds) != len(rows):
+            raise ValueError(f"restart_rows needs one seed per row: {len(rows)} rows, {len(seeds)} seeds")
+        row_list = [int(r) for r in rows]
+        for row, s in zip(row_list, seeds, strict=True):
+            self._rngs[row] = np.random.Generator(np.random.PCG64(s))
+        self._start(row_list)
+
+    def _start(self, rows: Sequence[int] | range) -> None:
+        """Fields ``rows`` draw their stationary initial state and their first block of step normals: one generator
+        call each, in the stream's order (``n_states`` normals for the state, then the block)."""
+        chol, block = self._chol, self.block
+        draw = np.empty((block + 1, self.n_states))
+        for row in rows:  # reset path: one generator per field (its own stream)
+            self._rngs[row].standard_normal(out=draw)
+            self._x[row] = chol @ draw[0]
+            self.noise[row] = draw[1:]
+            self.cursor[row] = 0
+        self.refill_in = block - int(self.cursor.max())
+
+    def ready(self) -> None:
+        """Before a step: every field has its next normals (the fields whose block is used up draw the next one)."""
+        if self.refill_in > 0:
+            return
+        block = self.block
+        for row in np.flatnonzero(self.cursor >= block).tolist():  # each field from its own generator
+            self._rngs[row].standard_normal(out=self.noise[row])
+            self.cursor[row] = 0
+        self.refill_in = block - int(self.cursor.max())
+
+    def stepped(self) -> None:
+        """After a step of every field (each kernel advanced ``cursor``)."""
+        self.refill_in -= 1
+
+    def take(self, rows: NDArray[np.intp]) -> DrydenProcess:
+        """A k-field process of fields ``rows`` (k,) (their state, blocks and generators; the step table shared), to
+        step those fields alone; :meth:`put` writes them back."""
+        sub = copy.copy(self)
+        sub.n = int(rows.size)
+        sub._x = self._x[rows]
+        sub._rngs = [self._rngs[r] for r in rows.tolist()]
+        sub.noise = self.noise[rows]
+        sub.cursor = self.cursor[rows]
+        sub.refill_in = self.block - int(sub.cursor.max())
+        return sub
+
+    def put(self, rows: NDArray[np.intp], sub: DrydenProcess) -> None:
+        """Write back the fields ``rows`` of :meth:`take`'s ``sub`` after it stepped them."""
+        self._x[rows] = sub._x
+        self.noise[rows] = sub.noise
+        self.cursor[rows] = sub.cursor
+        for row, rng in zip(rows.tolist(), sub._rngs, strict=True):
+            self._rngs[row] = rng
+        self.refill_in = self.block - int(self.cursor.max())
 
     @property
     def x(self) -> NDArray[np.float64]:
-        """Filter state (N, n_states); assign an (N, n_states) array to set it (e.g. restart some rows)."""
+        """Filter state (N, n_states); assign an (N, n_states) array to set it (:meth:`restart_rows` restarts rows)."""
         return self._x
 
     @x.setter
@@ -147,19 +233,6 @@ class DrydenProcess:
             raise ValueError(f"Dryden state must be finite with shape ({self.n}, {self.n_states}), got shape "
                              f"{x.shape}")
         self._x = x
-
-    def noise_index(self) -> int:
-        """Index ``k`` of this step's normals :attr:`noise` ``[:, k]`` (drawing the next block first if this one is
-        used up); :meth:`advance_noise` moves on once the step is taken."""
-        if self._k >= self.block:
-            for i, g in enumerate(self._rngs):
-                self.noise[i] = g.standard_normal((self.block, self.n_states))
-            self._k = 0
-        return self._k
-
-    def advance_noise(self) -> None:
-        """The normals of :meth:`noise_index` were used: the next step takes the next ones."""
-        self._k += 1
 
     def discrete(self, d: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``(Ad, S)`` for a step of length ``d`` [m] (binned): ``x+ = Ad x + S z``, ``z ~ N(0, I)``."""
@@ -177,13 +250,13 @@ class DrydenProcess:
         speed = np.array(airspeed, dtype=float, ndmin=1)
         if speed.shape not in ((1,), (self.n,)) or not np.all(np.isfinite(speed)):
             raise ValueError(f"airspeed must be a finite scalar or shape ({self.n},) [m/s], got {airspeed!r}")
-        k = self.noise_index()
+        self.ready()
         y = np.empty((self.n, self.n_out))
         table = self.table
-        while (missing := dryden_step_rows(self._x, self.noise, k, speed, float(dt), table.matrices, table.filled,
-                                           table.k0, self.bins, y)) >= 0:
+        while (missing := dryden_step_rows(self._x, self.noise, self.cursor, speed, float(dt), table.matrices,
+                                           table.k0, y)) >= 0:
             table.fill(missing)
-        self.advance_noise()
+        self.stepped()
         return y
 
     def sample(self, n_steps: int, dt: float, airspeed: float) -> NDArray[np.float64]:
@@ -196,3 +269,31 @@ class DrydenProcess:
     def stationary_std(self) -> NDArray[np.float64]:
         """Standard deviation of each output of the continuous model, from the Lyapunov solution."""
         return np.sqrt(np.diag(self.c @ self.p_stat @ self.c.T))
+
+
+class GustWind(WindModel):
+    """A wind model driven by one :class:`DrydenProcess` ``process`` (FAWT turbulence, outdoor Dryden): its reset,
+    and the row operations :class:`~fawtgym.envs.wind_cohorts.BatchWind` uses to restart some rows while the
+    others go on (each row's wind from its own seed, module docstring)."""
+
+    process: DrydenProcess
+
+    def reset(self, n: int, seed: Seed = None) -> None:
+        self.process.reset(check_n(n), seed)
+        self.n = int(n)
+
+    def restart_rows(self, rows: NDArray[np.intp], seeds: Sequence[np.random.SeedSequence]) -> None:
+        """Rows ``rows`` start anew, row ``rows[j]`` exactly as the one row of a model reset with ``seeds[j]``
+        (:func:`first_child`: that row's field seed); the other rows are untouched."""
+        self.process.restart_rows(rows, [first_child(s) for s in seeds])
+
+    def take_rows(self, rows: NDArray[np.intp]) -> GustWind:
+        """A copy of this model for rows ``rows`` (k,) alone (their fields, :meth:`DrydenProcess.take`)."""
+        sub = copy.copy(self)
+        sub.process = self.process.take(rows)
+        sub.n = int(rows.size)
+        return sub
+
+    def put_rows(self, rows: NDArray[np.intp], sub: GustWind) -> None:
+        """Write back the rows of :meth:`take_rows`'s ``sub`` after it stepped them."""
+        self.process.put(rows, sub.process)

@@ -55,9 +55,9 @@ from numpy.typing import NDArray
 from fawtgym.core.checks import check_flag
 from fawtgym.core.frames import FAWT_ORIGIN_NED, R_FAWT_TO_NED
 
-from .base import WindModel, check_n, check_points, check_step, is_real, raise_not_finite, row_inputs_finite
+from .base import check_points, check_step, is_real, raise_not_finite, row_inputs_finite
 from .dryden import FORMS, V_FLOOR, DrydenParams
-from .dryden_process import DrydenProcess, Seed, gust_row_step, step_bin
+from .dryden_process import DrydenProcess, GustWind, Seed, bin_filled, gust_row_step, step_bin
 from .schedule import DEFAULT_SPIN_TAU, FanSchedule
 
 #: Wang et al. (2024) Table 3: duty -> (U [m/s], variance [(m/s)^2], Re_lambda, TI), hot wire at x = 1.2 m.
@@ -195,46 +195,52 @@ def fawt_profile(p_fawt: NDArray[np.float64], x_ref: float = HOTWIRE_X) -> tuple
 @njit(cache=True)
 def fawt_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], scale: float, ti: float,
                    turbulent: bool, rates: bool, dt: float, x: NDArray[np.float64], noise: NDArray[np.float64],
-                   k: int, table: NDArray[np.float64], filled: NDArray[np.bool_], k0: int, bins: NDArray[np.int64],
-                   y: NDArray[np.float64], out: NDArray[np.float64]) -> int:
+                   cursor: NDArray[np.int64], table: NDArray[np.float64], k0: int, out: NDArray[np.float64]) -> int:
     """The FAWT wind (N, K, 3) NED at ``points`` (N, K, 3) into ``out``, every row (module docstring).
 
     ``scale = U_ref s(t)`` (mean speed at the hot wire times the fan level); with ``turbulent`` each row's Dryden
-    field (state ``x``, normals ``noise[:, k]``, step matrices ``table``) is advanced by ``dt`` at its
-    frozen-turbulence speed ``V = |U(CoM) e_x - v|`` (outputs ``y``).  Returns -1; or, before changing
-    anything, -2 if a point or velocity is not finite, or the index of a table bin that must be filled first.
+    field (state ``x``, its next normals ``noise[i, cursor[i]]``, step matrices ``table``) is advanced by ``dt`` at
+    its frozen-turbulence speed ``V = |U(CoM) e_x - v|``.  Returns -1; or, before changing anything, -2 if a point
+    or velocity is not finite, or the index of a table bin that must be filled first.
     """
     n, n_pts = points.shape[0], points.shape[1]
+    ns = x.shape[1]
+    com = np.empty((n, 2))  # (F / F_ref, shear weight) at each row's CoM: pass 1 needs it, pass 2 reuses it
+    bins = np.empty(n, dtype=np.int64)
     for i in range(n):  # pass 1: inputs finite, each row's Dryden bin filled
         if not row_inputs_finite(points, velocity, i):
             return -2
+        com[i, 0], com[i, 1] = profile_point(points[i, 0, 0] - _OX, _OY - points[i, 0, 1], _OZ - points[i, 0, 2],
+                                             _F_REF, _CORE_REF)
         if turbulent:
-            factor, _ = profile_point(points[i, 0, 0] - _OX, _OY - points[i, 0, 1], _OZ - points[i, 0, 2],
-                                      _F_REF, _CORE_REF)
-            rel_x = scale * factor - velocity[i, 0]  # air velocity relative to the vehicle at the CoM
+            rel_x = scale * com[i, 0] - velocity[i, 0]  # air velocity relative to the vehicle at the CoM
             speed = math.sqrt(rel_x * rel_x + velocity[i, 1] * velocity[i, 1] + velocity[i, 2] * velocity[i, 2])
             b = step_bin((speed if speed > V_FLOOR else V_FLOOR) * dt, k0)
-            if not filled[b]:
+            if not bin_filled(table, b):
                 return b
             bins[i] = b
-    scratch = np.empty(table.shape[2])
+    scratch = np.empty(table.shape[2])  # [x+, y+]: the row's gust y+ = [u, v, w](, p, q, r) is scratch[ns:]
     shear_scale2 = (SHEAR_TI * scale) ** 2  # peak mixing-layer variance (TI_sl U_c)^2
     for i in range(n):
         if turbulent:
-            gust_row_step(x, noise[i, k], table[bins[i]], y, i, scratch)  # one gust per field: [u, v, w](, p, q, r)
+            gust_row_step(x, noise[i, cursor[i]], table[bins[i]], i, scratch)  # one gust per row
+            cursor[i] += 1
         x0, y0 = points[i, 0, 0] - _OX, _OY - points[i, 0, 1]  # CoM, FAWT frame
         for p in range(n_pts):
             xf, yf, zf = points[i, p, 0] - _OX, _OY - points[i, p, 1], _OZ - points[i, p, 2]
-            factor, shear = profile_point(xf, yf, zf, _F_REF, _CORE_REF)
+            if p == 0:
+                factor, shear = com[i, 0], com[i, 1]
+            else:
+                factor, shear = profile_point(xf, yf, zf, _F_REF, _CORE_REF)
             u_mean = scale * factor  # stream-wise mean, FAWT x = NED north
             if not turbulent:
                 out[i, p, 0], out[i, p, 1], out[i, p, 2] = u_mean, 0.0, 0.0
                 continue
             sigma = math.sqrt((ti * u_mean) ** 2 + shear_scale2 * shear)  # local r.m.s. gust
-            g_u, g_v, g_w = y[i, 0], y[i, 1], y[i, 2]
+            g_u, g_v, g_w = scratch[ns], scratch[ns + 1], scratch[ns + 2]
             if rates:  # gust gradients: linear variation across the vehicle (offsets from the CoM, FAWT frame)
-                g_v = g_v - (xf - x0) * y[i, 5]
-                g_w = g_w - (xf - x0) * y[i, 4] + (yf - y0) * y[i, 3]
+                g_v = g_v - (xf - x0) * scratch[ns + 5]
+                g_w = g_w - (xf - x0) * scratch[ns + 4] + (yf - y0) * scratch[ns + 3]
             # FAWT (x, y, z) -> NED (x, -y, -z)
             out[i, p, 0] = u_mean + sigma * g_u
             out[i, p, 1] = -(sigma * g_v)
@@ -242,7 +248,7 @@ def fawt_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], s
     return -1
 
 
-class FawtWind(WindModel):
+class FawtWind(GustWind):
     """Turbulent FAWT wind at ``duty`` (fraction of maximum), Wang et al. (2024) Sec. 7 / Table 3.
 
     Options: ``on_time``/``off_time``/``spin_tau``/``spin_down_tau`` (fan schedule; none: running and
@@ -278,35 +284,33 @@ class FawtWind(WindModel):
         self.level = self.schedule.initial_level()
 
     def reset(self, n: int, seed: Seed = None) -> None:
-        self.process.reset(check_n(n), seed)
-        self.n = int(n)
+        super().reset(n, seed)
         self.level = self.schedule.initial_level()
-        self._y = np.zeros((self.n, self.process.n_out))
 
     def step(self, t: float, dt: float, points_ned: NDArray[np.float64],
              vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
         """Wind (N, K, 3) NED at ``points_ned`` (N, K, 3) at time ``t`` (advanced by ``dt``); point 0 is the CoM."""
         check_step(t, dt)
         points, velocity = check_points(points_ned, vehicle_velocity_ned, self.n, finite=False)
-        return self.step_trusted(t, dt, points, velocity)
+        return self.step_trusted(float(t), float(dt), points, velocity)
 
     def step_trusted(self, t: float, dt: float, points: NDArray[np.float64],
                      velocity: NDArray[np.float64]) -> NDArray[np.float64]:
         """:meth:`step` without the input checks (:meth:`WindModel.step_trusted`); the kernel finds non-finite ones."""
-        level = self.schedule.advance(t - dt, t, self.level)
+        level = self.level if self.schedule.steady else self.schedule.advance(t - dt, t, self.level)
         turbulent = self.turbulence and level > 0.0
         proc = self.process
+        if turbulent and proc.refill_in <= 0:
+            proc.ready()
         table = proc.table
-        k = proc.noise_index() if turbulent else 0
         out = np.empty(points.shape)
         while (status := fawt_wind_rows(points, velocity, self.mean_speed * level, self.ti, turbulent, self.rates,
-                                        float(dt), proc.x, proc.noise, k, table.matrices, table.filled, table.k0,
-                                        proc.bins, self._y, out)) != -1:
+                                        dt, proc.x, proc.noise, proc.cursor, table.matrices, table.k0, out)) != -1:
             if status == -2:
                 raise_not_finite(points, velocity)
             table.fill(status)
         if turbulent:
-            proc.advance_noise()
+            proc.refill_in -= 1  # proc.stepped()
         self.level = level
         return out
 

@@ -38,7 +38,7 @@ from fawtgym.core.checks import check_flag
 
 from .base import WindModel, check_n, check_points, check_step, is_real, raise_not_finite, row_inputs_finite
 from .dryden import FORMS, V_FLOOR, DrydenParams
-from .dryden_process import DrydenProcess, Seed, gust_row_step, step_bin
+from .dryden_process import DrydenProcess, GustWind, Seed, bin_filled, gust_row_step, step_bin
 
 FT = 0.3048  #: [m] per foot
 KNOT = 0.514444  #: [m/s] per knot
@@ -82,16 +82,17 @@ def _direction(direction_deg: float) -> NDArray[np.float64]:
 @njit(cache=True)
 def dryden_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], mean: NDArray[np.float64],
                      advection: NDArray[np.float64], axes: NDArray[np.float64], rates: bool, dt: float,
-                     x: NDArray[np.float64], noise: NDArray[np.float64], k: int, table: NDArray[np.float64],
-                     filled: NDArray[np.bool_], k0: int, bins: NDArray[np.int64], y: NDArray[np.float64],
-                     out: NDArray[np.float64]) -> int:
+                     x: NDArray[np.float64], noise: NDArray[np.float64], cursor: NDArray[np.int64],
+                     table: NDArray[np.float64], k0: int, out: NDArray[np.float64]) -> int:
     """The outdoor Dryden wind (N, K, 3) NED at ``points`` into ``out`` (module docstring), every row.
 
-    Each row's gust field (state ``x``, normals ``noise[:, k]``) steps at ``V = |W_adv - v|``; the gust
-    ``[u, v, w]`` along ``axes`` (rows: u, v, w in NED), plus with ``rates`` the gradients across the vehicle.
+    Each row's gust field (state ``x``, its next normals ``noise[i, cursor[i]]``) steps at ``V = |W_adv - v|``; the
+    gust ``[u, v, w]`` along ``axes`` (rows: u, v, w in NED), plus with ``rates`` the gradients across the vehicle.
     Returns -1; or, before changing anything, -2 if a point or velocity is not finite, or a table bin to fill.
     """
     n, n_pts = points.shape[0], points.shape[1]
+    ns = x.shape[1]
+    bins = np.empty(n, dtype=np.int64)
     for i in range(n):  # pass 1: inputs finite, each row's Dryden bin filled
         if not row_inputs_finite(points, velocity, i):
             return -2
@@ -100,28 +101,29 @@ def dryden_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64],
             speed += (advection[c] - velocity[i, c]) ** 2
         speed = math.sqrt(speed)
         b = step_bin((speed if speed > V_FLOOR else V_FLOOR) * dt, k0)
-        if not filled[b]:
+        if not bin_filled(table, b):
             return b
         bins[i] = b
-    scratch = np.empty(table.shape[2])
+    scratch = np.empty(table.shape[2])  # [x+, y+]: the row's gust y+ = [u, v, w](, p, q, r) is scratch[ns:]
     for i in range(n):
-        gust_row_step(x, noise[i, k], table[bins[i]], y, i, scratch)
+        gust_row_step(x, noise[i, cursor[i]], table[bins[i]], i, scratch)
+        cursor[i] += 1
         for p in range(n_pts):
-            g_u, g_v, g_w = y[i, 0], y[i, 1], y[i, 2]
+            g_u, g_v, g_w = scratch[ns], scratch[ns + 1], scratch[ns + 2]
             if rates:  # offsets from the CoM along the gust axes u, v
                 d_u = d_v = 0.0
                 for c in range(3):
                     offset = points[i, p, c] - points[i, 0, c]
                     d_u += axes[0, c] * offset
                     d_v += axes[1, c] * offset
-                g_v = g_v - d_u * y[i, 5]
-                g_w = g_w - d_u * y[i, 4] + d_v * y[i, 3]
+                g_v = g_v - d_u * scratch[ns + 5]
+                g_w = g_w - d_u * scratch[ns + 4] + d_v * scratch[ns + 3]
             for c in range(3):  # mean + [g_u, g_v, g_w] @ axes (NED)
                 out[i, p, c] = mean[c] + (g_u * axes[0, c] + g_v * axes[1, c] + g_w * axes[2, c])
     return -1
 
 
-class DrydenWind(WindModel):
+class DrydenWind(GustWind):
     """MIL-spec Dryden turbulence at low altitude (module docstring); ``intensity`` light/moderate/severe.
 
     Options: ``altitude`` [m] (default 10), ``form`` ("8785c" | "1797"), ``mean_wind`` (False | True |
@@ -162,26 +164,27 @@ class DrydenWind(WindModel):
         self.process = DrydenProcess(params, rates=self.rates, discretization=discretization)
         self.n = 0
 
-    def reset(self, n: int, seed: Seed = None) -> None:
-        self.process.reset(check_n(n), seed)
-        self.n = int(n)
-        self._y = np.zeros((self.n, self.process.n_out))
-
     def step(self, t: float, dt: float, points_ned: NDArray[np.float64],
              vehicle_velocity_ned: NDArray[np.float64]) -> NDArray[np.float64]:
         check_step(t, dt)
         points, velocity = check_points(points_ned, vehicle_velocity_ned, self.n, finite=False)
+        return self.step_trusted(float(t), float(dt), points, velocity)
+
+    def step_trusted(self, t: float, dt: float, points: NDArray[np.float64],
+                     velocity: NDArray[np.float64]) -> NDArray[np.float64]:
+        """:meth:`step` without the input checks (:meth:`WindModel.step_trusted`); the kernel finds non-finite ones."""
         proc = self.process
+        if proc.refill_in <= 0:
+            proc.ready()
         table = proc.table
-        k = proc.noise_index()
         out = np.empty(points.shape)
         while (status := dryden_wind_rows(points, velocity, self.mean, self.advection, self.axes, self.rates,
-                                          float(dt), proc.x, proc.noise, k, table.matrices, table.filled, table.k0,
-                                          proc.bins, self._y, out)) != -1:
+                                          dt, proc.x, proc.noise, proc.cursor, table.matrices, table.k0,
+                                          out)) != -1:
             if status == -2:
                 raise_not_finite(points, velocity)
             table.fill(status)
-        proc.advance_noise()
+        proc.refill_in -= 1  # proc.stepped()
         return out
 
 

@@ -5,6 +5,10 @@
 * ``wind.step``, ``AeroModel.wrench``, the sensor law (``mocap_imu``) and the motor lag of one control step (5
   substeps) per call for N = 1 and N = 1024 (and per env); each is a compiled kernel over rows, called once
   before timing so that compilation (or loading it from the cache) is not timed;
+* the env's own call into the wind (:meth:`~fawtgym.envs.wind_cohorts.BatchWind.step`, shared mode: no input
+  re-validation), averaged over a whole noise block (so the per-row refill of the gust normals is included),
+  and the wind's part of a reset: all N rows (``HoverBatchEnv.reset``) and 1/8 of them restarting while the
+  others fly (autoreset), each row from its own seed;
 * the env step cost with ``wind="calm"`` and ``wind="fawt-50"``, alternating single steps so that
   machine load affects both alike, and their ratio (target: the FAWT wind adds <= 20 %).  Both hover at the
   FAWT point under the PX4 cascade (:class:`~fawtgym.agents.PX4Agent`, not timed), so the FAWT env meets the
@@ -34,6 +38,7 @@ from fawtgym.envs.motors import decay_factors, lag_thrusts, substep_times
 from fawtgym.envs.sensors_batch import BatchSensorModel
 from fawtgym.envs.vehicles import make_vehicle
 from fawtgym.envs.wind import make_wind
+from fawtgym.envs.wind_cohorts import BatchWind
 
 
 def _best_per_call(fn: Callable[[], object], calls: int, repeats: int = 5) -> float:
@@ -90,6 +95,36 @@ def wind_aero_costs(n: int, calls: int, preset: str = "fawt-50", vehicle: str = 
     return {"wind": _best_per_call(step_wind, calls), "aero": _best_per_call(step_aero, calls),
             "both": _best_per_call(both, calls), "sensors": _best_per_call(measure, calls),
             "motors": _best_per_call(lag, calls)}
+
+
+def batch_wind_costs(n: int, preset: str = "fawt-50", vehicle: str = "s500") -> dict[str, float]:
+    """Per-call seconds of the env's wind call ``BatchWind.step`` (averaged over one noise block, refill included),
+    of a reset of all ``n`` rows and of a restart of ``n // 8`` rows (at least one), hovering at the FAWT point."""
+    p = make_vehicle(vehicle)
+    wind = BatchWind(make_wind(preset), n)
+    pts = np.broadcast_to(np.vstack([FAWT_HOVER_POINT_NED, FAWT_HOVER_POINT_NED + p.rotor_positions]),
+                          (n, 5, 3)).copy()
+    vel, times = np.zeros((n, 3)), np.zeros(n)
+    rows, some = np.arange(n), np.arange(0, n, 8)
+    ints = [1000 + i for i in range(n)]
+
+    seeds = [np.random.SeedSequence(i).spawn(2)[0] for i in ints]  # the env's per-row wind seeds (made untimed)
+    some_ints, some_seeds = [ints[i] for i in some.tolist()], [seeds[i] for i in some.tolist()]
+
+    def reset_all() -> None:
+        wind.reset_rows(rows, ints, seeds)
+
+    def restart_some() -> None:
+        wind.reset_rows(some, some_ints, some_seeds)
+
+    def step() -> None:
+        wind.step(times, 0.01, pts, vel)
+
+    reset_all()
+    step()  # compile (or load from the cache), fill the step-matrix bins met
+    block = getattr(getattr(wind.model, "process", None), "block", 1)
+    return {"step": _best_per_call(step, block * max(1, 4096 // (block * n))),
+            "reset": _best_per_call(reset_all, 1, 3), "restart": _best_per_call(restart_some, 1, 3)}
 
 
 def env_costs(steps: int, blocks: int) -> dict[str, float] | None:
@@ -174,6 +209,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                        ("sensors", "sensors (mocap_imu)"), ("motors", "motor lag (5 subst.)")):
         print(f"{label:22s}{single[key] * 1e6:12.1f}{batch[key] * 1e6:16.1f}{batch[key] / ns.batch * 1e6:14.3f}")
     print(f"wind + aero, N = 1, in numpy reference ops: {single['both'] / ref:.0f}")
+    bw1, bwn = batch_wind_costs(1), batch_wind_costs(ns.batch)
+    print(f"{'env wind call (shared)':22s}{bw1['step'] * 1e6:12.2f}{bwn['step'] * 1e6:16.1f}"
+          f"{bwn['step'] / ns.batch * 1e6:14.3f}   (BatchWind.step over a noise block, refill included)")
+    print(f"{'wind reset, all rows':22s}{bw1['reset'] * 1e6:12.1f}{bwn['reset'] * 1e6:16.1f}"
+          f"{bwn['reset'] / ns.batch * 1e6:14.3f}")
+    print(f"{'wind restart 1/8 rows':22s}{'':12s}{bwn['restart'] * 1e6:16.1f}"
+          f"{bwn['restart'] / max(ns.batch // 8, 1) * 1e6:14.3f}   (per restarted row)")
     if not ns.no_env:
         env = env_costs(ns.env_steps, ns.env_blocks)
         if env is not None:
