@@ -72,6 +72,9 @@ def _rate(name: str, value: float | None, default: float, control_rate: float) -
     return float(value)
 
 
+_F64 = np.dtype(np.float64)
+
+
 def _rows3(x: ArrayLike, n: int) -> NDArray[np.float64]:
     """``x`` as a C-contiguous float (n, 3) array (a (3,) vector is broadcast; no copy if it already is one)."""
     a = np.asarray(x, dtype=float)
@@ -143,6 +146,9 @@ class PX4Agent(Agent):
             (1.0 / self.position_rate, 1.0 / self.attitude_rate, 1.0 / self.rate_loop_rate), self.use_hte,
             self.allocation.thrust_scale, self.allocation.torque_scale)
         self._n = 0
+
+    #: the observer's latest (force (N, 3), torque (N, 3)) estimates (None: no observer, or before the first act)
+    raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
 
     @classmethod
     def for_env(cls, env: Any, **kwargs: Any) -> PX4Agent:
@@ -224,40 +230,50 @@ class PX4Agent(Agent):
 
     def act(self, observation: Any, info: Mapping[str, Any]) -> NDArray[np.float64]:
         meas, batched = measurement_from_info(info)
-        n = meas["position"].shape[0]
+        pos = meas["position"]
+        n = pos.shape[0]
         if n != self._n:
             if self._n == 0:
                 raise RuntimeError(f"{type(self).__name__}.act() before reset(): call reset(info) first")
             raise ValueError(f"act() got {n} vehicles but reset() saw {self._n}; call reset() first")
         if self._pose_delay.steps:
             meas = self._pose_delay(meas)
-        sp = info.get("setpoint")
-        if sp is not None and not self._setpoint_override:
-            sp = np.asarray(sp, dtype=float)  # one NED point (3,) for every row is passed as (1, 3), not copied
-            self._setpoint = np.ascontiguousarray(sp.reshape(1, 3) if sp.shape == (3,) else _rows3(sp, n))
+            pos = meas["position"]
+        if not self._setpoint_override:
+            sp = info.get("setpoint")
+            if sp is not None:  # one NED point (3,) for every row is passed as a (1, 3) view, not copied
+                if type(sp) is not np.ndarray or sp.dtype is not _F64:
+                    sp = np.asarray(sp, dtype=float)
+                self._setpoint = np.ascontiguousarray(sp.reshape(1, 3) if sp.shape == (3,) else _rows3(sp, n))
         force_hat, torque_hat = self._estimate(meas, info, self.dt)
         self.last_estimate = (force_hat, torque_hat)
-        raw = getattr(self, "raw_estimate", None)
+        raw = self.raw_estimate
         force, torque = (self._no_estimate, self._no_estimate) if raw is None else raw
         gyro = meas.get(self.gyro_key)
         sf = meas.get("specific_force")
+        _c = np.ascontiguousarray
         code, row = C.cascade_step(
-            np.ascontiguousarray(meas["position"]), np.ascontiguousarray(meas["velocity"]),
-            np.ascontiguousarray(meas["attitude"]),
-            np.ascontiguousarray(meas["angular_velocity"] if gyro is None else gyro),
-            self._no_estimate if sf is None else np.ascontiguousarray(sf), sf is not None, self._setpoint,
+            _c(pos), _c(meas["velocity"]), _c(meas["attitude"]), _c(meas["angular_velocity"] if gyro is None else gyro),
+            self._no_estimate if sf is None else _c(sf), sf is not None, self._setpoint,
             self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt, self._config,
             self.position_control.params, self.hover_thrust_estimator.params, self.attitude_control.params,
             self.rate_control.params, self.allocation.mix_t, self.allocation.effectiveness, self.allocation.scale,
             self.allocation.rotor_map, self._state, self.position_control.state, self.hover_thrust_estimator.state,
             self.rate_control.state, self._att_sp, self._action)
+        if code:
+            self._raise_status(code, row, meas)
+        action = self._action.copy()
+        return action if batched else match_batch(action, batched)
+
+    def _raise_status(self, code: int, row: int, meas: Mapping[str, NDArray[np.float64]]) -> None:
+        """The FloatingPointError of a cascade status code (:data:`~fawtgym.agents.px4_cascade.BAD_ESTIMATE`,
+        :data:`~fawtgym.agents.px4_cascade.BAD_ACTION`)."""
         if code == C.BAD_ESTIMATE:
             raise FloatingPointError(self._bad_estimate(row))
         if code == C.BAD_ACTION:
             bad = np.flatnonzero(~np.isfinite(self._action).all(axis=1)).tolist()
             raise FloatingPointError(f"PX4Agent produced a non-finite action for rows {bad}; measured position "
                                      f"{meas['position'][bad[0]].tolist()}")
-        return match_batch(self._action.copy(), batched)
 
     @property
     def _rotor(self) -> NDArray[np.float64]:
@@ -327,10 +343,13 @@ class PX4ObserverAgent(PX4Agent):
     def _estimate(self, meas: dict[str, NDArray[np.float64]], info: Mapping[str, Any],
                   dt: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
         n = meas["position"].shape[0]
-        thrust, torque = applied_from_info(self.known_inputs(info), n, self.preset.mass * GRAVITY)
+        known = info if self.observer_inputs == "applied" else self.known_inputs(info)
+        thrust, torque = applied_from_info(known, n, self.preset.mass * GRAVITY)
         est = self.observer.update(meas, thrust, torque, dt)
-        force = np.ascontiguousarray(est.force, dtype=float).reshape(n, 3)
-        tau = np.ascontiguousarray(est.torque, dtype=float).reshape(n, 3)
+        force = np.ascontiguousarray(est.force, dtype=float)
+        tau = np.ascontiguousarray(est.torque, dtype=float)
+        if force.shape != (n, 3) or tau.shape != (n, 3):
+            force, tau = force.reshape(n, 3), tau.reshape(n, 3)
         self.raw_estimate = (force, tau)  # checked finite by the cascade kernel before it uses either
         return (force if self.force_ff else None), (tau if self.torque_ff else None)
 
