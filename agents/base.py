@@ -67,8 +67,10 @@ class Agent(abc.ABC):
         return self.act(observation, info)
 
 
-def measurement_from_info(info: Mapping[str, Any]) -> tuple[dict[str, NDArray[np.float64]], bool]:
-    """``(measurement with a batch axis, was_batched)`` from an env info dict.
+def measurement_from_info(info: Mapping[str, Any],
+                          keys: tuple[str, ...] | None = None) -> tuple[dict[str, NDArray[np.float64]], bool]:
+    """``(measurement with a batch axis, was_batched)`` from an env info dict (only ``keys``, if given: the keys
+    an agent reads; those absent from the info are left out).
 
     Raises ValueError if ``info`` has no ``"measurement"`` mapping.
     """
@@ -82,7 +84,7 @@ def measurement_from_info(info: Mapping[str, Any]) -> tuple[dict[str, NDArray[np
         raise ValueError(f"info['measurement'] has no 'position'; keys: {sorted(raw)}")
     pos = raw["position"]
     batched = (pos.ndim if type(pos) is np.ndarray else np.ndim(pos)) == 2
-    return batch_measurement(raw), batched
+    return batch_measurement(raw, keys), batched
 
 
 _F64 = np.dtype(np.float64)

@@ -55,7 +55,14 @@ from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
 
 from . import px4_cascade as C
 from .base import Agent, applied_from_info, match_batch, measurement_from_info
-from .observer_inputs import OBSERVER_INPUTS, PoseDelay, check_thrust_model_error, commanded_wrench, latency_steps
+from .observer_inputs import (
+    OBSERVER_INPUTS,
+    POSE_KEYS,
+    PoseDelay,
+    check_thrust_model_error,
+    commanded_wrench,
+    latency_steps,
+)
 from .px4_allocation import QuadXAllocation
 from .px4_attitude_control import AttitudeControl
 from .px4_filters import butterworth_coefficients
@@ -147,6 +154,8 @@ class PX4Agent(Agent):
             self.allocation.thrust_scale, self.allocation.torque_scale)
         self._n = 0
 
+    #: (what the measurement keys depend on, the keys act reads): see :meth:`_measurement_keys`
+    _keys: tuple[Any, tuple[str, ...]] = (None, ())
     #: the observer's latest (force (N, 3), torque (N, 3)) estimates (None: no observer, or before the first act)
     raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
 
@@ -228,8 +237,15 @@ class PX4Agent(Agent):
         if yaw is not None:
             self.yaw_setpoint = float(yaw)
 
+    def _measurement_keys(self) -> tuple[str, ...]:
+        """The measurement keys ``act`` reads: the cascade's (pose, gyro, accelerometer)."""
+        return tuple(dict.fromkeys((*POSE_KEYS, "angular_velocity", self.gyro_key, "specific_force")))
+
     def act(self, observation: Any, info: Mapping[str, Any]) -> NDArray[np.float64]:
-        meas, batched = measurement_from_info(info)
+        spec = (self.gyro_key, getattr(self, "observer", None))
+        if self._keys[0] != spec:  # only the keys read are converted (rebuilt if the gyro key or observer changes)
+            self._keys = (spec, self._measurement_keys())
+        meas, batched = measurement_from_info(info, self._keys[1])
         pos = meas["position"]
         n = pos.shape[0]
         if n != self._n:
@@ -318,7 +334,7 @@ class PX4ObserverAgent(PX4Agent):
         if not isinstance(observer, Observer):
             raise TypeError(f"observer must be a registered name or an Observer, got {type(observer).__name__}")
         self.observer = observer
-        #: the observer's latest (force (N, 3), torque (N, 3)) estimates, None before the first act
+            #: the observer's latest (force (N, 3), torque (N, 3)) estimates, None before the first act
         self.raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self.force_ff = bool(force_ff) and "force" in observer.channels
         self.torque_ff = bool(torque_ff) and "torque" in observer.channels
@@ -330,6 +346,10 @@ class PX4ObserverAgent(PX4Agent):
             self.observer.reset(meas)
         else:
             self.observer.reset(meas, rows=rows)
+
+    def _measurement_keys(self) -> tuple[str, ...]:
+        """The cascade's measurement keys and the observer's."""
+        return tuple(dict.fromkeys((*super()._measurement_keys(), *self.observer.required_keys)))
 
     def known_inputs(self, info: Mapping[str, Any]) -> Mapping[str, Any]:
         """The info whose ``"applied"`` the observer reads: the env's (exact applied wrench) or, with

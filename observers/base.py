@@ -32,6 +32,7 @@ from fawtgym.core.rows import check_row_mask
 from fawtgym.core.so3_kernels import first_non_rotation
 from fawtgym.observers._checks import (
     ROTATION_TOL,
+    first_bad_estimate,
     first_bad_wrench,
     first_nonfinite_input,
     first_nonfinite_row,
@@ -266,7 +267,13 @@ class Observer:
         views of one (what the kernels return), else one pass each."""
         force_bound = self.MAX_FORCE_WEIGHTS * self.mass * self.gravity
         torque_bound = self.MAX_ANGULAR_ACCELERATION * self._j_max
-        code = first_bad_wrench(est.force, est.torque, force_bound, torque_bound)
+        states = est.states
+        if type(states) is BufferStates:      # every state a view of one buffer: one pass, no views made
+            code = first_bad_estimate(est.force, est.torque, force_bound, torque_bound, states.buffer)
+            if code == -1:
+                return
+        else:
+            code = first_bad_wrench(est.force, est.torque, force_bound, torque_bound)
         if code >= 0:
             row, channel = code // 2, ("force", "torque")[code % 2]
             value = (est.force, est.torque)[code % 2][row]
@@ -274,11 +281,7 @@ class Observer:
                 f"{who}: the {channel} estimate diverged (row {row}: {np.asarray(value).tolist()}; "
                 f"allowed: finite, |component| <= {(force_bound, torque_bound)[code % 2]:.4g}); the state is left "
                 "as before this update (check dt, the gains and the measurement)")
-        states = est.states
-        if type(states) is BufferStates:      # every state a view of one buffer: one pass, no views made
-            if first_nonfinite_row(states.buffer) < 0:
-                return
-        elif not states:
+        if not states:
             return
         buf = est.force.base
         shared = buf is not None
