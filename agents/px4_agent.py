@@ -152,6 +152,14 @@ class PX4Agent(Agent):
             butterworth_coefficients(fs, self.params["IMU_DGYRO_CUTOFF"]), self.params["MPC_VELD_LP"],
             (1.0 / self.position_rate, 1.0 / self.attitude_rate, 1.0 / self.rate_loop_rate), self.use_hte,
             self.allocation.thrust_scale, self.allocation.torque_scale)
+        # one constants vector for the cascade kernel; the laws keep views of it as their parameter arrays
+        alloc = self.allocation
+        self._constants, views = C.pack_constants(
+            self._config, self.position_control.params, self.hover_thrust_estimator.params,
+            self.attitude_control.params, self.rate_control.params, alloc.mix_t, alloc.effectiveness, alloc.scale,
+            alloc.rotor_map)
+        (self._config, self.position_control.params, self.hover_thrust_estimator.params, self.attitude_control.params,
+         self.rate_control.params, alloc.mix_t, alloc.effectiveness, alloc.scale, alloc.rotor_map) = views
         self._n = 0
 
     #: (what the measurement keys depend on, the keys act reads): see :meth:`_measurement_keys`
@@ -271,10 +279,8 @@ class PX4Agent(Agent):
         code, row = C.cascade_step(
             _c(pos), _c(meas["velocity"]), _c(meas["attitude"]), _c(meas["angular_velocity"] if gyro is None else gyro),
             self._no_estimate if sf is None else _c(sf), sf is not None, self._setpoint,
-            self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt, self._config,
-            self.position_control.params, self.hover_thrust_estimator.params, self.attitude_control.params,
-            self.rate_control.params, self.allocation.mix_t, self.allocation.effectiveness, self.allocation.scale,
-            self.allocation.rotor_map, self._state, self.position_control.state, self.hover_thrust_estimator.state,
+            self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt, self._constants,
+            self._state, self.position_control.state, self.hover_thrust_estimator.state,
             self.rate_control.state, self._att_sp, self._action)
         if code:
             self._raise_status(code, row, meas)
