@@ -61,7 +61,7 @@ class ObserverEstimate:
 class BufferStates(Mapping[str, NDArray[np.float64]]):
     """The ``states`` of an estimate whose arrays are all column blocks of one kernel buffer (N, k).
 
-    ``layout`` maps each state's name to (first column, last column + 1, trailing shape); the views
+    ``layout`` maps each state's name to (first column, last column + 1 or None for the rest, trailing shape); the views
     ``buffer[:, a:b].reshape(N, *shape)`` are made on first access (building six views costs about a
     microsecond, a tenth of an update's budget at N = 1, and the agent reads only force and torque).
     :meth:`Observer._check_estimate` checks the whole buffer in one pass without making them.
@@ -70,7 +70,7 @@ class BufferStates(Mapping[str, NDArray[np.float64]]):
     __slots__ = ("buffer", "_layout", "_views")
 
     def __init__(self, buffer: NDArray[np.float64],
-                 layout: Mapping[str, tuple[int, int, tuple[int, ...]]]) -> None:
+                 layout: Mapping[str, tuple[int, int | None, tuple[int, ...]]]) -> None:
         self.buffer = buffer
         self._layout = layout
         self._views: dict[str, NDArray[np.float64]] | None = None
