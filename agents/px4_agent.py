@@ -284,8 +284,7 @@ class PX4Agent(Agent):
             self.rate_control.state, self._att_sp, self._action)
         if code:
             self._raise_status(code, row, meas)
-        action = self._action.copy()
-        return action if batched else match_batch(action, batched)
+        return self._action.copy() if batched else match_batch(self._action, batched).copy()
 
     def _raise_status(self, code: int, row: int, meas: Mapping[str, NDArray[np.float64]]) -> None:
         """The FloatingPointError of a cascade status code (:data:`~fawtgym.agents.px4_cascade.BAD_ESTIMATE`,
