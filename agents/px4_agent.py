@@ -152,7 +152,12 @@ class PX4Agent(Agent):
             butterworth_coefficients(fs, self.params["IMU_DGYRO_CUTOFF"]), self.params["MPC_VELD_LP"],
             (1.0 / self.position_rate, 1.0 / self.attitude_rate, 1.0 / self.rate_loop_rate), self.use_hte,
             self.allocation.thrust_scale, self.allocation.torque_scale)
-        # one constants vector for the cascade kernel; the laws keep views of it as their parameter arrays
+        self._pack_constants()
+        self._n = 0
+
+    def _pack_constants(self) -> None:
+        """One constants vector for the cascade kernel (:func:`~fawtgym.agents.px4_cascade.pack_constants`); the
+        laws keep views of it as their parameter arrays (so a parameter changed in place reaches the kernel)."""
         alloc = self.allocation
         self._constants, views = C.pack_constants(
             self._config, self.position_control.params, self.hover_thrust_estimator.params,
@@ -160,7 +165,11 @@ class PX4Agent(Agent):
             alloc.rotor_map)
         (self._config, self.position_control.params, self.hover_thrust_estimator.params, self.attitude_control.params,
          self.rate_control.params, alloc.mix_t, alloc.effectiveness, alloc.scale, alloc.rotor_map) = views
-        self._n = 0
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled / deep-copied: the views of the constants vector come back as separate arrays; share again."""
+        self.__dict__.update(state)
+        self._pack_constants()
 
     #: (what the measurement keys depend on, the keys act reads): see :meth:`_measurement_keys`
     _keys: tuple[Any, tuple[str, ...]] = (None, ())
