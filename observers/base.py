@@ -70,10 +70,12 @@ class BufferStates(Mapping[str, NDArray[np.float64]]):
     __slots__ = ("buffer", "_layout", "_views")
 
     def __init__(self, buffer: NDArray[np.float64],
-                 layout: Mapping[str, tuple[int, int | None, tuple[int, ...]]]) -> None:
+                 layout: Mapping[str, tuple[int, int | None, tuple[int, ...]]],
+                 views: dict[str, NDArray[np.float64]] | None = None) -> None:
         self.buffer = buffer
         self._layout = layout
-        self._views: dict[str, NDArray[np.float64]] | None = None
+        #: every state's view, once made (``views``: already made by the caller, in the layout's order)
+        self._views = views
 
     def _all(self) -> dict[str, NDArray[np.float64]]:
         views = self._views
