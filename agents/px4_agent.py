@@ -348,7 +348,7 @@ class PX4ObserverAgent(PX4Agent):
         if not isinstance(observer, Observer):
             raise TypeError(f"observer must be a registered name or an Observer, got {type(observer).__name__}")
         self.observer = observer
-            #: the observer's latest (force (N, 3), torque (N, 3)) estimates, None before the first act
+        #: the observer's latest (force (N, 3), torque (N, 3)) estimates, None before the first act
         self.raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self.force_ff = bool(force_ff) and "force" in observer.channels
         self.torque_ff = bool(torque_ff) and "torque" in observer.channels
@@ -377,8 +377,7 @@ class PX4ObserverAgent(PX4Agent):
     def _estimate(self, meas: dict[str, NDArray[np.float64]], info: Mapping[str, Any],
                   dt: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
         n = meas["position"].shape[0]
-        known = info if self.observer_inputs == "applied" else self.known_inputs(info)
-        thrust, torque = applied_from_info(known, n, self.preset.mass * GRAVITY)
+        thrust, torque = applied_from_info(self.known_inputs(info), n, self.preset.mass * GRAVITY)
         est = self.observer.update(meas, thrust, torque, dt)
         force = np.ascontiguousarray(est.force, dtype=float)
         tau = np.ascontiguousarray(est.torque, dtype=float)
