@@ -343,7 +343,7 @@ def check_measurement(measurement: Mapping[str, ArrayLike], keys: tuple[str, ...
         raise TypeError(f"{who}: measurement must be a mapping of arrays (info['measurement']), "
                         f"got {type(measurement).__name__}")
     out = {}
-    for key, shape in _shapes(keys, n):
+    for key, shape, kind in _shapes(keys, n):
         try:
             a = measurement[key]
         except KeyError:
@@ -351,7 +351,12 @@ def check_measurement(measurement: Mapping[str, ArrayLike], keys: tuple[str, ...
             raise ValueError(f"{who}: measurement needs the keys {list(keys)}; missing {missing}") from None
         if type(a) is not np.ndarray or a.dtype is not _F64 or a.shape != shape:
             a = _measured_array(a, key, TRAILING_SHAPES[key], n, who)
-        if key == ATTITUDE:
+        if kind == _ROWS:
+            row = first_nonfinite_row(a)
+            if row >= 0:
+                raise ValueError(f"{who}: measurement[{key!r}] has a non-finite entry in row {row}: "
+                                 f"{a[row].tolist()}")
+        elif kind == _ROTATION:
             row = first_non_rotation(a, ROTATION_TOL)
             if row >= 0:
                 bad = a[row]
@@ -363,7 +368,7 @@ def check_measurement(measurement: Mapping[str, ArrayLike], keys: tuple[str, ...
                                  f"max |R^T R - I| <= {ROTATION_TOL:g} and det R = +1; got max |R^T R - I| = "
                                  f"{defect:.3g}, det R = {float(np.linalg.det(bad)):.6g})")
         else:
-            row = first_nonfinite_row(a if a.ndim == 2 else a.reshape(n, -1))
+            row = first_nonfinite_row(a.reshape(n, -1))
             if row >= 0:
                 raise ValueError(f"{who}: measurement[{key!r}] has a non-finite entry in row {row}: "
                                  f"{a[row].tolist()}")
@@ -372,14 +377,19 @@ def check_measurement(measurement: Mapping[str, ArrayLike], keys: tuple[str, ...
 
 
 _F64 = np.dtype(np.float64)
-_SHAPES: dict[tuple[tuple[str, ...], int], tuple[tuple[str, tuple[int, ...]], ...]] = {}
+#: how :func:`check_measurement` checks a key: rows of a 2-d array finite, a rotation, or the rows of another shape
+_ROWS, _ROTATION, _OTHER = 0, 1, 2
+_SHAPES: dict[tuple[tuple[str, ...], int], tuple[tuple[str, tuple[int, ...], int], ...]] = {}
 
 
-def _shapes(keys: tuple[str, ...], n: int) -> tuple[tuple[str, tuple[int, ...]], ...]:
-    """(key, expected shape (n, *trailing)) of each key (memoized: built once per key set and batch size)."""
+def _shapes(keys: tuple[str, ...], n: int) -> tuple[tuple[str, tuple[int, ...], int], ...]:
+    """(key, expected shape (n, *trailing), check kind) of each key (memoized: built once per key set and batch
+    size)."""
     spec = _SHAPES.get((keys, n))
     if spec is None:
-        spec = _SHAPES[(keys, n)] = tuple((k, (n, *TRAILING_SHAPES[k])) for k in keys)
+        spec = _SHAPES[(keys, n)] = tuple(
+            (k, (n, *TRAILING_SHAPES[k]), _ROTATION if k == ATTITUDE else _ROWS if len(TRAILING_SHAPES[k]) == 1
+             else _OTHER) for k in keys)
     return spec
 
 
