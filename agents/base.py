@@ -67,20 +67,27 @@ class Agent(abc.ABC):
         return self.act(observation, info)
 
 
-def measurement_from_info(info: Mapping[str, Any]) -> tuple[dict[str, NDArray[np.float64]], bool]:
-    """``(measurement with a batch axis, was_batched)`` from an env info dict.
+def measurement_from_info(info: Mapping[str, Any],
+                          keys: tuple[str, ...] | None = None) -> tuple[dict[str, NDArray[np.float64]], bool]:
+    """``(measurement with a batch axis, was_batched)`` from an env info dict (only ``keys``, if given: the keys
+    an agent reads; those absent from the info are left out).
 
     Raises ValueError if ``info`` has no ``"measurement"`` mapping.
     """
-    if not isinstance(info, Mapping) or not isinstance(info.get("measurement"), Mapping):
+    # type(...) is dict first: the env's plain dicts skip the (slower) ABC isinstance check
+    raw = info.get("measurement") if type(info) is dict or isinstance(info, Mapping) else None
+    if type(raw) is not dict and not isinstance(raw, Mapping):
         raise ValueError("agent needs the env's info dict with an info['measurement'] mapping "
                          f"(keys: position, velocity, attitude, angular_velocity, ...); got {type(info).__name__}"
                          + (f" with keys {sorted(info)}" if isinstance(info, Mapping) else ""))
-    raw = info["measurement"]
     if "position" not in raw:
         raise ValueError(f"info['measurement'] has no 'position'; keys: {sorted(raw)}")
-    batched = np.ndim(raw["position"]) == 2
-    return batch_measurement(raw), batched
+    pos = raw["position"]
+    batched = (pos.ndim if type(pos) is np.ndarray else np.ndim(pos)) == 2
+    return batch_measurement(raw, keys), batched
+
+
+_F64 = np.dtype(np.float64)
 
 
 def applied_from_info(info: Mapping[str, Any], n: int, default_thrust: float) -> tuple[NDArray[np.float64],
@@ -88,13 +95,21 @@ def applied_from_info(info: Mapping[str, Any], n: int, default_thrust: float) ->
     """Applied collective thrust (n,) [N] and body torque (n, 3) [N m] from ``info["applied"]``.
 
     Before the first step (or if the env does not report it) the hover thrust ``default_thrust`` and
-    zero torque are returned.
+    zero torque are returned.  The single env's scalar thrust and (3,) torque become (1,) / (1, 3) arrays (the
+    torque a view, not a copy).
     """
-    applied = info.get("applied") if isinstance(info, Mapping) else None
-    if not isinstance(applied, Mapping) or "thrust" not in applied or "torque" not in applied:
+    applied = info.get("applied") if type(info) is dict or isinstance(info, Mapping) else None
+    if type(applied) is not dict and not isinstance(applied, Mapping) or "thrust" not in applied \
+            or "torque" not in applied:
         return np.full(n, float(default_thrust)), np.zeros((n, 3))
-    thrust = np.asarray(applied["thrust"], dtype=float)
-    torque = np.asarray(applied["torque"], dtype=float)
+    thrust = applied["thrust"]
+    torque = applied["torque"]
+    if type(thrust) is float and n == 1:
+        thrust = np.array((thrust,))
+    else:
+        thrust = np.asarray(thrust, dtype=float)
+    if type(torque) is not np.ndarray or torque.dtype is not _F64:
+        torque = np.asarray(torque, dtype=float)
     if thrust.shape != (n,):  # a scalar / (1,) of the single env: a view when it already holds n values
         thrust = thrust.reshape(n) if thrust.size == n else np.broadcast_to(thrust.reshape(-1), (n,)).copy()
     if torque.shape != (n, 3):

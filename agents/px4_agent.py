@@ -55,7 +55,14 @@ from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
 
 from . import px4_cascade as C
 from .base import Agent, applied_from_info, match_batch, measurement_from_info
-from .observer_inputs import OBSERVER_INPUTS, PoseDelay, check_thrust_model_error, commanded_wrench, latency_steps
+from .observer_inputs import (
+    OBSERVER_INPUTS,
+    POSE_KEYS,
+    PoseDelay,
+    check_thrust_model_error,
+    commanded_wrench,
+    latency_steps,
+)
 from .px4_allocation import QuadXAllocation
 from .px4_attitude_control import AttitudeControl
 from .px4_filters import butterworth_coefficients
@@ -70,6 +77,9 @@ def _rate(name: str, value: float | None, default: float, control_rate: float) -
     if not (isinstance(value, (int, float)) and math.isfinite(value) and 0 < value <= control_rate * (1 + 1e-9)):
         raise ValueError(f"{name} must be a frequency in (0, control_rate={control_rate:g}] Hz, got {value!r}")
     return float(value)
+
+
+_F64 = np.dtype(np.float64)
 
 
 def _rows3(x: ArrayLike, n: int) -> NDArray[np.float64]:
@@ -142,7 +152,29 @@ class PX4Agent(Agent):
             butterworth_coefficients(fs, self.params["IMU_DGYRO_CUTOFF"]), self.params["MPC_VELD_LP"],
             (1.0 / self.position_rate, 1.0 / self.attitude_rate, 1.0 / self.rate_loop_rate), self.use_hte,
             self.allocation.thrust_scale, self.allocation.torque_scale)
+        self._pack_constants()
         self._n = 0
+
+    def _pack_constants(self) -> None:
+        """One constants vector for the cascade kernel (:func:`~fawtgym.agents.px4_cascade.pack_constants`); the
+        laws keep views of it as their parameter arrays (so a parameter changed in place reaches the kernel)."""
+        alloc = self.allocation
+        self._constants, views = C.pack_constants(
+            self._config, self.position_control.params, self.hover_thrust_estimator.params,
+            self.attitude_control.params, self.rate_control.params, alloc.mix_t, alloc.effectiveness, alloc.scale,
+            alloc.rotor_map)
+        (self._config, self.position_control.params, self.hover_thrust_estimator.params, self.attitude_control.params,
+         self.rate_control.params, alloc.mix_t, alloc.effectiveness, alloc.scale, alloc.rotor_map) = views
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled / deep-copied: the views of the constants vector come back as separate arrays; share again."""
+        self.__dict__.update(state)
+        self._pack_constants()
+
+    #: (what the measurement keys depend on, the keys act reads): see :meth:`_measurement_keys`
+    _keys: tuple[Any, tuple[str, ...]] = (None, ())
+    #: the observer's latest (force (N, 3), torque (N, 3)) estimates (None: no observer, or before the first act)
+    raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
 
     @classmethod
     def for_env(cls, env: Any, **kwargs: Any) -> PX4Agent:
@@ -222,42 +254,56 @@ class PX4Agent(Agent):
         if yaw is not None:
             self.yaw_setpoint = float(yaw)
 
+    def _measurement_keys(self) -> tuple[str, ...]:
+        """The measurement keys ``act`` reads: the cascade's (pose, gyro, accelerometer)."""
+        return tuple(dict.fromkeys((*POSE_KEYS, "angular_velocity", self.gyro_key, "specific_force")))
+
     def act(self, observation: Any, info: Mapping[str, Any]) -> NDArray[np.float64]:
-        meas, batched = measurement_from_info(info)
-        n = meas["position"].shape[0]
+        spec = (self.gyro_key, getattr(self, "observer", None))
+        if self._keys[0] != spec:  # only the keys read are converted (rebuilt if the gyro key or observer changes)
+            self._keys = (spec, self._measurement_keys())
+        meas, batched = measurement_from_info(info, self._keys[1])
+        pos = meas["position"]
+        n = pos.shape[0]
         if n != self._n:
             if self._n == 0:
                 raise RuntimeError(f"{type(self).__name__}.act() before reset(): call reset(info) first")
             raise ValueError(f"act() got {n} vehicles but reset() saw {self._n}; call reset() first")
         if self._pose_delay.steps:
             meas = self._pose_delay(meas)
-        sp = info.get("setpoint")
-        if sp is not None and not self._setpoint_override:
-            sp = np.asarray(sp, dtype=float)  # one NED point (3,) for every row is passed as (1, 3), not copied
-            self._setpoint = np.ascontiguousarray(sp.reshape(1, 3) if sp.shape == (3,) else _rows3(sp, n))
+            pos = meas["position"]
+        if not self._setpoint_override:
+            sp = info.get("setpoint")
+            if sp is not None:  # one NED point (3,) for every row is passed as a (1, 3) view, not copied
+                if type(sp) is not np.ndarray or sp.dtype is not _F64:
+                    sp = np.asarray(sp, dtype=float)
+                self._setpoint = np.ascontiguousarray(sp.reshape(1, 3) if sp.shape == (3,) else _rows3(sp, n))
         force_hat, torque_hat = self._estimate(meas, info, self.dt)
         self.last_estimate = (force_hat, torque_hat)
-        raw = getattr(self, "raw_estimate", None)
+        raw = self.raw_estimate
         force, torque = (self._no_estimate, self._no_estimate) if raw is None else raw
         gyro = meas.get(self.gyro_key)
         sf = meas.get("specific_force")
+        _c = np.ascontiguousarray
         code, row = C.cascade_step(
-            np.ascontiguousarray(meas["position"]), np.ascontiguousarray(meas["velocity"]),
-            np.ascontiguousarray(meas["attitude"]),
-            np.ascontiguousarray(meas["angular_velocity"] if gyro is None else gyro),
-            self._no_estimate if sf is None else np.ascontiguousarray(sf), sf is not None, self._setpoint,
-            self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt, self._config,
-            self.position_control.params, self.hover_thrust_estimator.params, self.attitude_control.params,
-            self.rate_control.params, self.allocation.mix_t, self.allocation.effectiveness, self.allocation.scale,
-            self.allocation.rotor_map, self._state, self.position_control.state, self.hover_thrust_estimator.state,
+            _c(pos), _c(meas["velocity"]), _c(meas["attitude"]), _c(meas["angular_velocity"] if gyro is None else gyro),
+            self._no_estimate if sf is None else _c(sf), sf is not None, self._setpoint,
+            self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt, self._constants,
+            self._state, self.position_control.state, self.hover_thrust_estimator.state,
             self.rate_control.state, self._att_sp, self._action)
+        if code:
+            self._raise_status(code, row, meas)
+        return self._action.copy() if batched else match_batch(self._action, batched).copy()
+
+    def _raise_status(self, code: int, row: int, meas: Mapping[str, NDArray[np.float64]]) -> None:
+        """The FloatingPointError of a cascade status code (:data:`~fawtgym.agents.px4_cascade.BAD_ESTIMATE`,
+        :data:`~fawtgym.agents.px4_cascade.BAD_ACTION`)."""
         if code == C.BAD_ESTIMATE:
             raise FloatingPointError(self._bad_estimate(row))
         if code == C.BAD_ACTION:
             bad = np.flatnonzero(~np.isfinite(self._action).all(axis=1)).tolist()
             raise FloatingPointError(f"PX4Agent produced a non-finite action for rows {bad}; measured position "
                                      f"{meas['position'][bad[0]].tolist()}")
-        return match_batch(self._action.copy(), batched)
 
     @property
     def _rotor(self) -> NDArray[np.float64]:
@@ -315,6 +361,10 @@ class PX4ObserverAgent(PX4Agent):
         else:
             self.observer.reset(meas, rows=rows)
 
+    def _measurement_keys(self) -> tuple[str, ...]:
+        """The cascade's measurement keys and the observer's."""
+        return tuple(dict.fromkeys((*super()._measurement_keys(), *self.observer.required_keys)))
+
     def known_inputs(self, info: Mapping[str, Any]) -> Mapping[str, Any]:
         """The info whose ``"applied"`` the observer reads: the env's (exact applied wrench) or, with
         ``observer_inputs="commanded"``, the wrench commanded over the step just taken through the thrust model."""
@@ -329,8 +379,10 @@ class PX4ObserverAgent(PX4Agent):
         n = meas["position"].shape[0]
         thrust, torque = applied_from_info(self.known_inputs(info), n, self.preset.mass * GRAVITY)
         est = self.observer.update(meas, thrust, torque, dt)
-        force = np.ascontiguousarray(est.force, dtype=float).reshape(n, 3)
-        tau = np.ascontiguousarray(est.torque, dtype=float).reshape(n, 3)
+        force = np.ascontiguousarray(est.force, dtype=float)
+        tau = np.ascontiguousarray(est.torque, dtype=float)
+        if force.shape != (n, 3) or tau.shape != (n, 3):
+            force, tau = force.reshape(n, 3), tau.reshape(n, 3)
         self.raw_estimate = (force, tau)  # checked finite by the cascade kernel before it uses either
         return (force if self.force_ff else None), (tau if self.torque_ff else None)
 

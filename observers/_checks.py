@@ -61,6 +61,17 @@ def first_bad_wrench(force: NDArray[np.float64], torque: NDArray[np.float64], fo
 
 
 @njit(cache=True)
+def first_bad_estimate(force: NDArray[np.float64], torque: NDArray[np.float64], force_bound: float,
+                       torque_bound: float, buffer: NDArray[np.float64]) -> int:
+    """:func:`first_bad_wrench`, then the finiteness of the buffer (N, k) the estimate's states are views of, in one
+    call: -1 if all pass, the wrench's code if it fails, -2 if only the buffer holds a NaN or an infinity."""
+    code = first_bad_wrench(force, torque, force_bound, torque_bound)
+    if code >= 0:
+        return code
+    return -2 if first_nonfinite_row(buffer) >= 0 else -1
+
+
+@njit(cache=True)
 def first_nonfinite_input(thrust: NDArray[np.float64], torque: NDArray[np.float64]) -> int:
     """Check the known inputs, thrust (N,) and torque (N, 3): -1 if finite, else 2 * row for the first non-finite
     thrust, 2 * row + 1 for the first non-finite torque row (thrust checked first)."""

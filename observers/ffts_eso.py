@@ -62,7 +62,7 @@ from fawtgym.core.rows import write_rows
 from fawtgym.core.so3 import project_so3
 from fawtgym.core.so3_kernels import cross_row, exp_so3_row, mat_mul_row, mat_t_vec_row, mat_vec_row
 from fawtgym.observers._obs_common import batch_vec
-from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
+from fawtgym.observers.base import BufferStates, Observer, ObserverEstimate, register_observer
 from fawtgym.observers.hc_ffts import (
     DEFAULT_EPS,
     check_p,
@@ -231,12 +231,15 @@ class FFTSESO(Observer):
         return _estimate(est)
 
 
+#: the estimate's states: columns of the estimate buffer and trailing shapes
+_STATES = {"position": (E_POS, E_POS + 3, (3,)), "velocity": (E_VEL, E_VEL + 3, (3,)),
+           "attitude": (E_ATT, E_ATT + 9, (3, 3)), "angular_velocity": (E_W, E_W + 3, (3,))}
+
+
 def _estimate(est: NDArray[np.float64]) -> ObserverEstimate:
     """The estimate from the kernel's buffer (N, 24) (views of a fresh buffer, not of the state)."""
-    n = est.shape[0]
-    return ObserverEstimate(force=est[:, E_FORCE:E_FORCE + 3], torque=est[:, E_TORQUE:E_TORQUE + 3], states={
-        "position": est[:, E_POS:E_POS + 3], "velocity": est[:, E_VEL:E_VEL + 3],
-        "attitude": est[:, E_ATT:E_ATT + 9].reshape(n, 3, 3), "angular_velocity": est[:, E_W:E_W + 3]})
+    return ObserverEstimate(force=est[:, E_FORCE:E_FORCE + 3], torque=est[:, E_TORQUE:E_TORQUE + 3],
+                            states=BufferStates(est, _STATES))
 
 
 @njit(cache=True)

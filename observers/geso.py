@@ -48,7 +48,7 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.core import measurement as M
 from fawtgym.core.rows import write_rows
 
-from .base import Observer, ObserverEstimate, register_observer
+from .base import BufferStates, Observer, ObserverEstimate, register_observer
 
 #: orders the module supports (eqs. 18-23 for n = 1..4)
 ORDERS = (1, 2, 3, 4)
@@ -421,6 +421,14 @@ class GESO(Observer):
         #: the kernel's channel slots: (kind 0 = force / 1 = torque, n + 1) each, and M = the largest n + 1
         self._slots = np.array([[CHANNELS.index(c), f.order + 1] for c, f in self.filters.items()], dtype=np.int64)
         self._m = int(self._slots[:, 1].max())
+        # the estimate buffer (N, K, M, 3) seen as (N, 3 K M): slot k's d_hat at columns 3 k M .. +3, its rate
+        # estimate next, then its derivatives (n - 1 of them); the states are views made on first access
+        self._wrench_cols = tuple((chan, 3 * k * self._m) for k, chan in enumerate(self.filters))
+        self._states_layout: dict[str, tuple[int, int | None, tuple[int, ...]]] = {}
+        for k, (chan, filt) in enumerate(self.filters.items()):
+            col = 3 * k * self._m
+            self._states_layout[_RATE_NAME[chan]] = (col + 3, col + 6, (3,))
+            self._states_layout[_DER_NAME[chan]] = (col + 6, col + 3 * (filt.order + 1), (filt.order - 1, 3))
         self._params = np.concatenate([[self.mass, self.gravity], self.inertia.ravel(), self.inertia_inv.ravel()])
         self._mats: dict[float, NDArray[np.float64]] = {}
         self._state: NDArray[np.float64] = np.empty((0, 0))      # (N, k) after reset
@@ -484,12 +492,9 @@ class GESO(Observer):
         est = np.empty((n, x.shape[1], self._m, 3))
         geso_step(x, vel, meas.get(M.ATTITUDE, _EYE3), rate, f, tau, self._slots, self.hold == "foh", self._params,
                   mats, x_new, est)
-        out: dict[str, NDArray[np.float64]] = {}
-        states: dict[str, NDArray[np.float64]] = {}
-        for k, (chan, filt) in enumerate(self.filters.items()):
-            out[chan] = est[:, k, 0]
-            states[_RATE_NAME[chan]] = est[:, k, 1]
-            states[_DER_NAME[chan]] = est[:, k, 2:filt.order + 1]
+        flat = est.reshape(n, -1)
+        out = {chan: flat[:, col:col + 3] for chan, col in self._wrench_cols}
         if len(out) == 1:                                     # the channel this instance does not estimate
             out["torque" if "force" in out else "force"] = np.zeros((n, 3))
-        return ObserverEstimate(force=out["force"], torque=out["torque"], states=states), x_new
+        return ObserverEstimate(force=out["force"], torque=out["torque"],
+                                states=BufferStates(flat, self._states_layout)), x_new

@@ -43,7 +43,7 @@ from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import exp_so3_row, mat_mul_row
 
 from . import vector_attitude as va
-from .base import Observer, ObserverEstimate, register_observer
+from .base import BufferStates, Observer, ObserverEstimate, register_observer
 from .vector_attitude import _S2_FLOOR, imu_body_vectors_row
 
 #: the Morse-function gains K (Lemma 1) used when none are given; the paper's simulation does not state
@@ -277,6 +277,10 @@ VECTOR_SOURCES = ("imu", "attitude")
 MAX_SUBSTEPS = 100
 
 
+#: the estimate's states: columns of the estimate buffer (N, 21) and trailing shapes
+_STATES = {"attitude": (6, 15, (3, 3)), "angular_velocity": (15, 18, (3,)), "sigma": (18, 21, (3,))}
+
+
 @register_observer("hc_eso")
 class HcEsoSO3(Observer):
     """HC-ESO on SO(3) (Wang and Sanyal 2022, eq. 30) estimating the body disturbance torque ``J sigma_hat``.
@@ -397,8 +401,8 @@ class HcEsoSO3(Observer):
         self._raise(code, row)
         # the estimate: views of one buffer, which are also the new state (no update writes into a stored state)
         r_hat, w_hat, sigma = out[:, 6:15].reshape(n, 3, 3), out[:, 15:18], out[:, 18:21]
-        est = ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6],
-                               states={"attitude": r_hat, "angular_velocity": w_hat, "sigma": sigma})
+        states = BufferStates(out, _STATES, {"attitude": r_hat, "angular_velocity": w_hat, "sigma": sigma})
+        est = ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6], states=states)
         return est, (r_hat, w_hat, sigma, l_new, o_new)
 
     def _commit(self, state: Any) -> None:

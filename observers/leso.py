@@ -37,7 +37,7 @@ from fawtgym.core.frames import rot_to_euler
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import rot_to_euler_row
 from fawtgym.observers._obs_common import batch_vec, positive
-from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
+from fawtgym.observers.base import BufferStates, Observer, ObserverEstimate, register_observer
 
 _KEYS = ("position", "velocity", "attitude", "angular_velocity")
 #: columns of the state (N, 18): z1, z2, z3 of the position channel, then of the Euler-angle channel
@@ -101,8 +101,12 @@ class LESO(Observer):
 
 def _estimate(est: NDArray[np.float64]) -> ObserverEstimate:
     """The estimate from the kernel's buffer (N, 18): force, torque, position, velocity, euler, euler_rate."""
-    return ObserverEstimate(force=est[:, 0:3], torque=est[:, 3:6], states={
-        "position": est[:, 6:9], "velocity": est[:, 9:12], "euler": est[:, 12:15], "euler_rate": est[:, 15:18]})
+    return ObserverEstimate(force=est[:, 0:3], torque=est[:, 3:6], states=BufferStates(est, _STATES))
+
+
+#: the estimate's states: columns of the estimate buffer and trailing shapes
+_STATES = {"position": (6, 9, (3,)), "velocity": (9, 12, (3,)), "euler": (12, 15, (3,)),
+           "euler_rate": (15, 18, (3,))}
 
 
 @njit(cache=True)

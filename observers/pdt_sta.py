@@ -28,7 +28,7 @@ from fawtgym.core.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FOR
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import mat_mul_row, quat_to_rot_row
 
-from .base import Observer, ObserverEstimate, register_observer
+from .base import BufferStates, Observer, ObserverEstimate, register_observer
 from .gibbs import gibbs_to_rot_row, omega_row, rot_to_gibbs_row
 from .predefined_sta import early_switch_time
 from .quest import quest_row
@@ -130,6 +130,11 @@ def _pdt_sta_rows(sf, mag, tau, dt, k, anchor, x1, x2, t, state, est, valid):
         e[27], e[28], e[29] = g_new[0], g_new[1], g_new[2]
 
 
+#: the estimate's states: columns of the estimate buffer (N, 30) and trailing shapes
+_STATES = {"attitude": (6, 15, (3, 3)), "angular_velocity": (15, 18, (3,)), "attitude_quest": (18, 27, (3, 3)),
+           "gibbs": (27, 30, (3,))}
+
+
 @register_observer("pdt_sta")
 class PdtStaAttitudeObserver(Observer):
     """Gyroless attitude/rate estimator: QUEST (accelerometer + magnetometer) + predefined-time STSMO.
@@ -223,9 +228,7 @@ class PdtStaAttitudeObserver(Observer):
                       state, out, valid)
         # views of two buffers: the new state (no update writes into a stored state) and the estimate
         anchor, x1, x2, t = state[:, 0:9].reshape(n, 3, 3), state[:, 9:12], state[:, 12:15], state[:, 15]
-        est = ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6], states={
-            "attitude": out[:, 6:15].reshape(n, 3, 3), "angular_velocity": out[:, 15:18],
-            "attitude_quest": out[:, 18:27].reshape(n, 3, 3), "gibbs": out[:, 27:30]})
+        est = ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6], states=BufferStates(out, _STATES))
         return est, (anchor, x1, x2, t, valid)
 
     def _commit(self, state: Any) -> None:

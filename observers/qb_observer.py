@@ -54,7 +54,7 @@ from scipy.linalg import expm
 from fawtgym.core import measurement as M
 from fawtgym.core.rows import write_rows
 
-from .base import Observer, ObserverEstimate, register_observer
+from .base import BufferStates, Observer, ObserverEstimate, register_observer
 from .qb_uav_model import momentum_input_row, momentum_output, momentum_output_row
 
 GAIN_DIR = Path(__file__).resolve().parent
@@ -189,8 +189,11 @@ def _estimate_rows(x, R, mass, J_inv, out):
 
 def _estimate_views(out: NDArray[np.float64]) -> ObserverEstimate:
     """The estimate as views of the one buffer the kernels write (:func:`_estimate_rows`)."""
-    return ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6], states={
-        "velocity": out[:, 6:9], "angular_velocity": out[:, 9:12], "disturbance_derivatives": out[:, 12:]})
+    return ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6], states=BufferStates(out, _STATES))
+
+
+#: the estimate's states: columns of the buffer (the derivatives: the rest) and trailing shapes
+_STATES = {"velocity": (6, 9, (3,)), "angular_velocity": (9, 12, (3,)), "disturbance_derivatives": (12, None, (-1,))}
 
 
 @njit(cache=True)

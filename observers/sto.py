@@ -41,7 +41,7 @@ from fawtgym.observers._obs_common import (
     positive,
     sig_row,
 )
-from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
+from fawtgym.observers.base import BufferStates, Observer, ObserverEstimate, register_observer
 
 #: columns of the state (N, 12): v_hat, Omega_hat, d_t_hat [m/s^2], d_a_hat [rad/s^2]
 V, W, D_T, D_A = 0, 3, 6, 9
@@ -105,8 +105,11 @@ class SuperTwistingObserver(Observer):
 
 def _estimate(est: NDArray[np.float64]) -> ObserverEstimate:
     """The estimate from the kernel's buffer (N, 12): force, torque, velocity, angular_velocity."""
-    return ObserverEstimate(force=est[:, 0:3], torque=est[:, 3:6], states={
-        "velocity": est[:, 6:9], "angular_velocity": est[:, 9:12]})
+    return ObserverEstimate(force=est[:, 0:3], torque=est[:, 3:6], states=BufferStates(est, _STATES))
+
+
+#: the estimate's states: columns of the estimate buffer and trailing shapes
+_STATES = {"velocity": (6, 9, (3,)), "angular_velocity": (9, 12, (3,))}
 
 
 @njit(cache=True)

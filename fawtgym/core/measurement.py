@@ -42,15 +42,31 @@ TRAILING_SHAPES = {POSITION: (3,), VELOCITY: (3,), ATTITUDE: (3, 3), ANGULAR_VEL
 EARTH_FIELD_NED = np.array([0.22, 0.0, 0.42])
 
 
-def batch_measurement(measurement: Mapping[str, object]) -> dict[str, NDArray[np.float64]]:
+_F64 = np.dtype(np.float64)
+
+
+def batch_measurement(measurement: Mapping[str, object],
+                      keys: tuple[str, ...] | None = None) -> dict[str, NDArray[np.float64]]:
     """Return the measurement with a leading batch axis on every known key (N = 1 added if absent).
 
+    ``keys``: only these keys (those of them present), e.g. the ones a controller reads; default all.
+    A float64 array is passed on as is (batched) or as a (1, *trailing) view (unbatched: the single env's
+    info), never copied; anything else goes through ``np.asarray(value, dtype=float)``.
     Raises ValueError naming a key whose trailing shape is wrong.
     """
     out: dict[str, NDArray[np.float64]] = {}
-    for key, value in measurement.items():
-        arr = np.asarray(value, dtype=float)
+    items = measurement.items() if keys is None else [(k, measurement[k]) for k in keys if k in measurement]
+    for key, value in items:
         trailing = TRAILING_SHAPES.get(key)
+        if trailing is not None and type(value) is np.ndarray and value.dtype is _F64:
+            shape = value.shape
+            if shape == trailing:
+                out[key] = value[None]
+                continue
+            if shape[1:] == trailing and len(shape) == len(trailing) + 1:
+                out[key] = value
+                continue
+        arr = np.asarray(value, dtype=float)
         if trailing is None:
             out[key] = arr
             continue
