@@ -34,6 +34,11 @@ from .sensors import SensorSpec, make_sensor_spec, pose_rate_error
 from .vehicles import GRAVITY
 
 _FIELD = np.ascontiguousarray(M.EARTH_FIELD_NED, dtype=float)
+#: the error of a measurement that is not finite (the same at every N, whoever calls the kernel)
+SENSOR_NOT_FINITE = ("sensor measurement is not finite: check position, velocity, rotation, angular_velocity and "
+                     "acceleration for NaN/inf")
+
+
 @njit(cache=True)
 def measure_rows(position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
                  rate: NDArray[np.float64], accel: NDArray[np.float64], z: NDArray[np.float64],
@@ -112,15 +117,19 @@ class BatchSensorModel:
         self.sig_rate = spec.angular_velocity_density / root_dt
         self.sig_gyro = spec.gyro_density / root_dt
         self.sig_acc = spec.accel_density / root_dt
-        self._sigma = np.array([self.sig_pos, self.sig_vel, self.sig_att, self.sig_rate, self.sig_acc,
+        self.sigma = self._sigma = np.array([self.sig_pos, self.sig_vel, self.sig_att, self.sig_rate, self.sig_acc,
                                 self.sig_gyro, spec.mag_sigma])
         self.noisy = bool(np.any(self._sigma > 0) or spec.gyro_bias_sigma > 0 or spec.accel_bias_sigma > 0)
         self.gyro_bias = np.zeros((self.n, 3))
         self.accel_bias = np.zeros((self.n, 3))
-        self._count = np.zeros(self.n, dtype=np.int64)
-        self._no_noise = np.zeros((self.n, 21))  # exact sensors: the kernel reads zero normals (never written)
-        self._pose = {M.POSITION: np.zeros((self.n, 3)), M.VELOCITY: np.zeros((self.n, 3)),
-                      M.ATTITUDE: np.broadcast_to(np.eye(3), (self.n, 3, 3)).copy()}
+        #: steps since each row's episode start (the pose hold's clock), updated in place by the kernel
+        self.count = self._count = np.zeros(self.n, dtype=np.int64)
+        #: exact sensors: the kernel reads zero normals (never written)
+        self.no_noise = self._no_noise = np.zeros((self.n, 21))
+        #: the held pose samples (N, 3), (N, 3), (N, 3, 3), updated in place by the kernel
+        self.pose_pos, self.pose_vel = np.zeros((self.n, 3)), np.zeros((self.n, 3))
+        self.pose_att = np.broadcast_to(np.eye(3), (self.n, 3, 3)).copy()
+        self._pose = {M.POSITION: self.pose_pos, M.VELOCITY: self.pose_vel, M.ATTITUDE: self.pose_att}
         self.rng = np.random.default_rng(0)
 
     @property
@@ -169,17 +178,13 @@ class BatchSensorModel:
 
         Every array handed out is a fresh C-contiguous array.
         """
-        n = self.n
-        z = self.rng.standard_normal((n, 21)) if self.noisy else self._no_noise
-        return self._measure(None, z, t, position, velocity, rotation, angular_velocity, acceleration)
+        return self._measure(None, self.noise(), t, position, velocity, rotation, angular_velocity, acceleration)
 
-    def measure_trusted(self, t: NDArray[np.float64], position: NDArray[np.float64], velocity: NDArray[np.float64],
-                        rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],
-                        acceleration: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
-        """:meth:`measure` for a caller whose inputs are its own C-contiguous float64 arrays of the right shapes (the
-        env's state): the same law and noise stream, without the input conversion and shape checks."""
-        z = self.rng.standard_normal((self.n, 21)) if self.noisy else self._no_noise
-        return self._measure(None, z, t, position, velocity, rotation, angular_velocity, acceleration, trusted=True)
+    def noise(self) -> NDArray[np.float64]:
+        """One step's normals of every row, (N, 21) (module docstring's columns) from the noise generator; the zeros
+        :attr:`no_noise` (nothing drawn) for exact sensors.  What :meth:`measure` draws: the env draws it and runs the
+        kernel in its own step kernel (:func:`fawtgym.envs.step_kernels.observe_rows`)."""
+        return self.rng.standard_normal((self.n, 21)) if self.noisy else self._no_noise
 
     def measure_rows(self, rows: NDArray[np.intp], rngs: list[np.random.Generator], t: NDArray[np.float64],
                      position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
@@ -198,18 +203,16 @@ class BatchSensorModel:
 
     def _measure(self, rows: NDArray[np.intp] | None, z: NDArray[np.float64], t: NDArray[np.float64],
                  position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
-                 angular_velocity: NDArray[np.float64], acceleration: NDArray[np.float64], trusted: bool = False
+                 angular_velocity: NDArray[np.float64], acceleration: NDArray[np.float64]
                  ) -> dict[str, NDArray[np.float64]]:
-        """The kernel on ``rows`` (None: every row, the model's own state in place; else their state, written back);
-        ``trusted``: the inputs are C-contiguous float64 of the right shapes (not checked)."""
+        """The kernel on ``rows`` (None: every row, the model's own state in place; else their state, written back)."""
         every = rows is None
         n = self.n if rows is None else rows.size
-        if not trusted:
-            position, velocity = as_f64(position, "position"), as_f64(velocity, "velocity")
-            rotation, angular_velocity = as_f64(rotation, "rotation"), as_f64(angular_velocity, "angular_velocity")
-            acceleration = as_f64(acceleration, "acceleration")
-        if not trusted and (position.shape != (n, 3) or velocity.shape != (n, 3) or rotation.shape != (n, 3, 3)
-                            or angular_velocity.shape != (n, 3) or acceleration.shape != (n, 3)):
+        position, velocity = as_f64(position, "position"), as_f64(velocity, "velocity")
+        rotation, angular_velocity = as_f64(rotation, "rotation"), as_f64(angular_velocity, "angular_velocity")
+        acceleration = as_f64(acceleration, "acceleration")
+        if (position.shape != (n, 3) or velocity.shape != (n, 3) or rotation.shape != (n, 3, 3)
+                or angular_velocity.shape != (n, 3) or acceleration.shape != (n, 3)):
             raise ValueError(f"sensor inputs must be position, velocity, angular_velocity, acceleration (N, 3) and "
                              f"rotation (N, 3, 3) with N = {n}; got {position.shape}, {velocity.shape}, "
                              f"{angular_velocity.shape}, {acceleration.shape}, {rotation.shape}")
@@ -226,8 +229,7 @@ class BatchSensorModel:
                         gyro_bias, accel_bias, count, pose_every, pose[M.POSITION], pose[M.VELOCITY],
                         pose[M.ATTITUDE], out[M.POSITION], out[M.VELOCITY], out[M.ATTITUDE], out[M.ANGULAR_VELOCITY],
                         out[M.SPECIFIC_FORCE], out[M.GYRO], out[M.MAGNETOMETER]) >= 0:
-            raise ValueError("sensor measurement is not finite: check position, velocity, rotation, angular_velocity "
-                             "and acceleration for NaN/inf")
+            raise ValueError(SENSOR_NOT_FINITE)
         if rows is not None:
             self._count[rows] = count
             for key, value in pose.items():
