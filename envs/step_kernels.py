@@ -393,33 +393,50 @@ def step_params(**values: object) -> NDArray[np.float64]:
     return out
 
 
-#: per group: (key, start, stop, shape per row) of its array fields (scalars: shape ())
-_VIEW_TABLE = {group: tuple((key, INFO_START[g, key], INFO_START[g, key] + int(np.prod(shape, dtype=int)), shape)
-                            for g, key, shape in INFO_FIELDS if g == group)
-               for group in ("measurement", "applied", "truth", "reward_terms", "")}
-_MEAS, _APPLIED, _TRUTH, _TOP = (_VIEW_TABLE[g] for g in ("measurement", "applied", "truth", ""))
-_MEAS_ARRAYS, _APPLIED_ARRAYS = _MEAS[:-1], _APPLIED[1:]  # without the scalars measurement time / applied thrust
-
-
 def info_views(buf: NDArray[np.float64], n: int, single: bool) -> dict[str, Any]:
     """``info``'s arrays as views of one step's buffer ``buf`` (:data:`INFO_FIELDS`, N = ``n`` rows): (N, ...) arrays,
     or for ``single`` (N = 1, Gymnasium's single-env form) the row's arrays ((3,), (3, 3), ...), the applied thrust,
     the reward terms and the time as Python floats and the measurement time a numpy float64.  The caller adds
-    ``action_clipped`` and ``failure``."""
-    if not single:
-        def views(table: tuple[tuple[str, int, int, tuple[int, ...]], ...]) -> dict[str, Any]:
-            return {key: buf[a * n:b * n].reshape((n, *shape)) for key, a, b, shape in table}
+    ``action_clipped`` and ``failure``.  Written out field by field (the hot path of the single env; a test checks
+    it against :data:`INFO_FIELDS`)."""
+    m, ap, tr, te, sp, t = _I_MEAS, _I_THRUST, _I_TRUTH, _I_TERMS, _I_SETPOINT, _I_TIME
+    if single:
+        terms = buf[te:te + 6].tolist()
+        return {
+            "measurement": {"position": buf[m:m + 3], "velocity": buf[m + 3:m + 6],
+                            "attitude": buf[m + 6:m + 15].reshape(3, 3), "angular_velocity": buf[m + 15:m + 18],
+                            "specific_force": buf[m + 18:m + 21], "gyro": buf[m + 21:m + 24],
+                            "magnetometer": buf[m + 24:m + 27], "time": buf[m + 27]},
+            "applied": {"thrust": float(buf[ap]), "torque": buf[ap + 1:ap + 4], "rotor_thrusts": buf[ap + 4:ap + 8],
+                        "motor_speeds": buf[ap + 8:ap + 12]},
+            "truth": {"position": buf[tr:tr + 3], "velocity": buf[tr + 3:tr + 6],
+                      "attitude": buf[tr + 6:tr + 15].reshape(3, 3), "angular_velocity": buf[tr + 15:tr + 18],
+                      "wind": buf[tr + 18:tr + 21], "force": buf[tr + 21:tr + 24], "torque": buf[tr + 24:tr + 27]},
+            "reward_terms": {"pos": terms[0], "vel": terms[1], "att": terms[2], "rate": terms[3], "action": terms[4],
+                             "failure": terms[5]},
+            "setpoint": buf[sp:sp + 3], "time": float(buf[t])}
 
-        return {"measurement": views(_MEAS), "applied": views(_APPLIED), "truth": views(_TRUTH),
-                "reward_terms": views(_VIEW_TABLE["reward_terms"]), **views(_TOP)}
-    meas = {key: buf[a:b] if len(shape) < 2 else buf[a:b].reshape(shape) for key, a, b, shape in _MEAS_ARRAYS}
-    meas[_MEAS[-1][0]] = buf[_I_MEAS_TIME]  # a numpy float64, as row 0 of the batch's (N,) time
-    applied: dict[str, Any] = {"thrust": float(buf[_I_THRUST])}
-    applied.update((key, buf[a:b]) for key, a, b, _ in _APPLIED_ARRAYS)
-    truth = {key: buf[a:b] if len(shape) < 2 else buf[a:b].reshape(shape) for key, a, b, shape in _TRUTH}
-    terms = dict(zip(REWARD_TERMS, buf[_I_TERMS:_I_TERMS + 6].tolist(), strict=True))
-    return {"measurement": meas, "applied": applied, "truth": truth, "reward_terms": terms,
-            "setpoint": buf[_I_SETPOINT:_I_SETPOINT + 3], "time": float(buf[_I_TIME])}
+    def vec(start: int, width: int = 3) -> NDArray[np.float64]:
+        return buf[start * n:(start + width) * n].reshape(n, width)
+
+    def mat(start: int) -> NDArray[np.float64]:
+        return buf[start * n:(start + 9) * n].reshape(n, 3, 3)
+
+    def col(start: int) -> NDArray[np.float64]:
+        return buf[start * n:(start + 1) * n]
+
+    return {
+        "measurement": {"position": vec(m), "velocity": vec(m + 3), "attitude": mat(m + 6),
+                        "angular_velocity": vec(m + 15), "specific_force": vec(m + 18), "gyro": vec(m + 21),
+                        "magnetometer": vec(m + 24), "time": col(m + 27)},
+        "applied": {"thrust": col(ap), "torque": vec(ap + 1), "rotor_thrusts": vec(ap + 4, 4),
+                    "motor_speeds": vec(ap + 8, 4)},
+        "truth": {"position": vec(tr), "velocity": vec(tr + 3), "attitude": mat(tr + 6),
+                  "angular_velocity": vec(tr + 15), "wind": vec(tr + 18), "force": vec(tr + 21),
+                  "torque": vec(tr + 24)},
+        "reward_terms": {"pos": col(te), "vel": col(te + 1), "att": col(te + 2), "rate": col(te + 3),
+                         "action": col(te + 4), "failure": col(te + 5)},
+        "setpoint": vec(sp), "time": col(t)}
 
 
 @njit(cache=True)
