@@ -329,7 +329,8 @@ class HoverBatchEnv(VectorEnv):
             t_end=self._t_end if self._rate_loop is None else _MJ_T0 + self.physics_dt,  # ctbr: one-substep rollouts
             physics_dt=self.physics_dt, dt=self.dt, max_position_error=opts.max_position_error,
             max_steps=opts.max_steps, pose_every=sensor.pose_every if sensor.noisy else 1, sigma=sensor.sigma,
-            field=M.EARTH_FIELD_NED, act_low=self._act_low, act_high=self._act_high, obs_low=self._obs_low,
+            field=M.EARTH_FIELD_NED, act_low=self._act_low, act_high=self._act_high, hover=self._hover,
+            omega_min=self._omega_min, omega_span=self._omega_span, k_thrust=self._k_thrust, obs_low=self._obs_low,
             obs_high=self._obs_high, reward_weights=self._reward_w, alloc_t=self._alloc_t, rotor_pos=self._rotor_pos,
             hull=self._hull, cop=aero.cop, body_drag=aero.body_drag, k_d=aero.k_d, k_r=aero.k_r)
 
@@ -542,10 +543,9 @@ class HoverBatchEnv(VectorEnv):
         stepping = ~resetting if any_reset else self._all_rows
         clipped, action_clipped = np.empty((n, 4)), np.empty(n, dtype=bool)
         motors = self._rate_loop is None
-        bad = act_rows(a, self._params, stepping, self._hover, motors, self._omega_min, self._omega_span,
-                       self._k_thrust, self._decay_up, self._decay_down, self.rotor_speeds, self._force,
-                       self.external_force, self._torque, self.external_torque, clipped, action_clipped, self._ctrl,
-                       self._applied)
+        bad = act_rows(a, self._params, stepping, motors, self._decay_up, self._decay_down, self.rotor_speeds,
+                       self._force, self.external_force, self._torque, self.external_torque, clipped, action_clipped,
+                       self._ctrl, self._applied)
         if bad >= 0:
             row, entry = divmod(bad, 4)
             idx = (entry,) if name == "action" else (row, entry)
@@ -554,7 +554,8 @@ class HoverBatchEnv(VectorEnv):
             final, diverged = self._rollout_rows(self._mj_state, self._ctrl, self._out), self._no_rows
         else:
             final, diverged = self._run_ctbr(clipped)
-        terminated, truncated = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+        flags = np.empty((2, n), dtype=bool)
+        terminated, truncated = flags  # two (N,) views of one fresh array
         points = np.empty((n, 5, 3))
         buf = np.empty(n * INFO_WIDTH)  # the step's info numbers (fresh: handed out as views)
         obs, reward = np.empty((n, OBS_SIZE), dtype=np.float32), np.empty(n)
@@ -563,9 +564,8 @@ class HoverBatchEnv(VectorEnv):
         z = s.noise() if not any_reset else s.no_noise  # drawn after the restarts below if any row restarts
         n_ended, status = step_rows(self._params, final, stepping, diverged, self._mj_state, self._pos, self._vel,
                                     self._rot, self._omega, self._accel, self._setpoint, self._failure_code,
-                                    self.time, self._steps, terminated, truncated, points, not any_reset, z, s.count,
-                                    s.pose_pos, s.pose_vel, s.pose_att, s.gyro_bias, s.accel_bias, clipped, prev,
-                                    self._applied, self.rotor_speeds, buf, obs, reward)
+                                    self.time, self._steps, flags, points, not any_reset, z, s.count, s.state,
+                                    clipped, prev, self._applied, self.rotor_speeds, buf, obs, reward)
         codes = self._failure_code
         self._failure = FAILURES[codes] if n_ended else self._no_failure.copy()  # a fresh array (not mutated later)
         self._last_action = clipped
@@ -707,9 +707,8 @@ class HoverBatchEnv(VectorEnv):
         s = self.sensor
         obs, reward = np.empty((n, OBS_SIZE), dtype=np.float32), np.empty(n)
         status = observe_rows(self._params, z, measure, self._pos, self._vel, self._rot, self._omega, self._accel,
-                              self.time, self._setpoint, self._failure_code, s.count, s.pose_pos, s.pose_vel,
-                              s.pose_att, s.gyro_bias, s.accel_bias, action, prev_action, self._applied,
-                              self.rotor_speeds, buf, obs, reward)
+                              self.time, self._setpoint, self._failure_code, s.count, s.state, action, prev_action,
+                              self._applied, self.rotor_speeds, buf, obs, reward)
         if status >= 0:
             self._raise_observe(status, buf, action)
         return obs, reward
