@@ -172,6 +172,8 @@ _SIGN = SIGN_MJ_NED
 AUTORESET_MODES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP}
 #: what a randomizer's draws may set, one value per starting row (module docstring)
 RANDOMIZER_KEYS = ("mass_scale", "inertia_scale", "drag_scale", "gyro_bias", "accel_bias", "wind")
+#: the failure names by code as Python str (the single env's ``info["failure"]``)
+_FAILURE_NAMES = tuple(FAILURES.tolist())
 #: below this many rows the rollout runs on the calling thread (a thread hand-off costs more than it saves)
 THREADED_ROWS = 64
 
@@ -313,15 +315,16 @@ class HoverBatchEnv(VectorEnv):
         self._out = np.zeros((n, k, self._mj_state.shape[1]))
         self._out1 = np.zeros((n, 1, mujoco.mj_stateSize(self.model, _STATE_SPEC)))  # ctbr: one substep
         self._ctrl1 = np.zeros((n, 1, self._ctrl.shape[2]))
-        self.external_force = np.zeros((n, 3))
-        self.external_torque = np.zeros((n, 3))
+        #: per row the held disturbance: aero force NED 0-2, aero torque FRD 3-5, the CoM wind 6-8 (held over the
+        #: next step), and the external force 9-11 / torque 12-14 (:meth:`set_external_wrench`); one array, the
+        #: step kernels' one argument (the properties ``_force``, ``external_force``, ... are views of it)
+        self._wrench = np.zeros((n, 15))
         self._row_rngs: list[np.random.Generator] | None = None
         self._autoreset = np.zeros(n, dtype=bool)
         self._n_autoreset = 0  # rows of _autoreset set
         self._no_rows, self._all_rows = np.zeros(n, dtype=bool), np.ones(n, dtype=bool)
         self._failure_code = np.zeros(n, dtype=np.int8)
         self._no_failure = np.full(n, "", dtype="<U14")
-        self._failure: NDArray[np.str_] = self._no_failure.copy()
         self._t_end = _MJ_T0 + self.n_substeps * self.physics_dt  # MuJoCo time after a control step's rollout
         self.time = np.zeros(n)
         sensor, aero = self.sensor, self.aero
@@ -333,6 +336,31 @@ class HoverBatchEnv(VectorEnv):
             omega_min=self._omega_min, omega_span=self._omega_span, k_thrust=self._k_thrust, obs_low=self._obs_low,
             obs_high=self._obs_high, reward_weights=self._reward_w, alloc_t=self._alloc_t, rotor_pos=self._rotor_pos,
             hull=self._hull, cop=aero.cop, body_drag=aero.body_drag, k_d=aero.k_d, k_r=aero.k_r)
+
+    @property
+    def _force(self) -> NDArray[np.float64]:
+        """The held aero force (N, 3) world NED [N] (a view of ``_wrench``)."""
+        return self._wrench[:, 0:3]
+
+    @property
+    def _torque(self) -> NDArray[np.float64]:
+        """The held aero torque (N, 3) body FRD [N m] (a view of ``_wrench``)."""
+        return self._wrench[:, 3:6]
+
+    @property
+    def _wind_com(self) -> NDArray[np.float64]:
+        """The wind at the CoM (N, 3) NED [m/s] of the held disturbance (a view of ``_wrench``)."""
+        return self._wrench[:, 6:9]
+
+    @property
+    def external_force(self) -> NDArray[np.float64]:
+        """The constant external force (N, 3) world NED [N] (:meth:`set_external_wrench`; a view)."""
+        return self._wrench[:, 9:12]
+
+    @property
+    def external_torque(self) -> NDArray[np.float64]:
+        """The constant external torque (N, 3) body FRD [N m] (:meth:`set_external_wrench`; a view)."""
+        return self._wrench[:, 12:15]
 
     @property
     def max_steps(self) -> int:
@@ -381,7 +409,7 @@ class HoverBatchEnv(VectorEnv):
                              f"{np.shape(force_ned)}, {np.shape(torque_frd)}") from exc
         if not (np.all(np.isfinite(f)) and np.all(np.isfinite(t))):
             raise ValueError(f"external wrench must be finite, got {force_ned!r}, {torque_frd!r}")
-        self.external_force, self.external_torque = f, t
+        self._wrench[:, 9:12], self._wrench[:, 12:15] = f, t
 
     # ---- state ------------------------------------------------------------------------------
     def _reset_rows(self, rows: NDArray[np.intp]) -> list[np.random.Generator]:
@@ -423,8 +451,6 @@ class HoverBatchEnv(VectorEnv):
         self._accel[rows] = 0.0
         self._steps[rows] = 0
         self.time[rows] = 0.0
-        self._failure = self._failure.copy()  # handed out in the last info: replaced, not written in place
-        self._failure[rows] = ""
         self._failure_code[rows] = 0
         self.sensor.reset_rows(rows, sensor_rngs)
         winds = None if self.randomizer is None else self._apply_draws(rows, self.randomizer(rows, draw_rngs))
@@ -514,8 +540,7 @@ class HoverBatchEnv(VectorEnv):
         self.rotor_speeds, self._applied = np.zeros((n, 4)), np.zeros((n, 4))
         self._last_action, self._accel = np.zeros((n, 4)), np.zeros((n, 3))
         self._steps = np.zeros(n, dtype=np.int64)
-        self._failure = np.full(n, "", dtype="<U14")
-        self._force, self._torque, self._wind_com = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+        self._wrench[:, :9] = 0.0  # the held aero wrench and wind (the external wrench is kept)
         self._autoreset = np.zeros(n, dtype=bool)
         self._n_autoreset = 0  # rows of _autoreset set
         self._reset_rows(np.arange(n))
@@ -544,8 +569,7 @@ class HoverBatchEnv(VectorEnv):
         clipped, action_clipped = np.empty((n, 4)), np.empty(n, dtype=bool)
         motors = self._rate_loop is None
         bad = act_rows(a, self._params, stepping, motors, self._decay_up, self._decay_down, self.rotor_speeds,
-                       self._force, self.external_force, self._torque, self.external_torque, clipped, action_clipped,
-                       self._ctrl, self._applied)
+                       self._wrench, clipped, action_clipped, self._ctrl, self._applied)
         if bad >= 0:
             row, entry = divmod(bad, 4)
             idx = (entry,) if name == "action" else (row, entry)
@@ -555,7 +579,7 @@ class HoverBatchEnv(VectorEnv):
         else:
             final, diverged = self._run_ctbr(clipped)
         flags = np.empty((2, n), dtype=bool)
-        terminated, truncated = flags  # two (N,) views of one fresh array
+        terminated, truncated = flags[0], flags[1]  # two (N,) views of one fresh array
         points = np.empty((n, 5, 3))
         buf = np.empty(n * INFO_WIDTH)  # the step's info numbers (fresh: handed out as views)
         obs, reward = np.empty((n, OBS_SIZE), dtype=np.float32), np.empty(n)
@@ -567,7 +591,6 @@ class HoverBatchEnv(VectorEnv):
                                     self.time, self._steps, flags, points, not any_reset, z, s.count, s.state,
                                     clipped, prev, self._applied, self.rotor_speeds, buf, obs, reward)
         codes = self._failure_code
-        self._failure = FAILURES[codes] if n_ended else self._no_failure.copy()  # a fresh array (not mutated later)
         self._last_action = clipped
         if any_reset:
             self._reset_rows(np.flatnonzero(resetting))
@@ -580,14 +603,13 @@ class HoverBatchEnv(VectorEnv):
             reward[resetting] = 0.0
             start = INFO_START["reward_terms", "pos"]
             buf[start * n:(start + 6) * n].reshape(6, n)[:, resetting] = 0.0
-        info = self._info(buf, action_clipped, single)
-        ended = terminated | truncated
+        info = self._info(buf, action_clipped, single, n_ended)
         if not self._autoreset_on:
             pass
         elif not self._same_step:
-            self._autoreset, self._n_autoreset = ended, n_ended
+            self._autoreset, self._n_autoreset = terminated | truncated, n_ended
         elif n_ended:
-            obs, info = self._restart(ended, obs, info)
+            obs, info = self._restart(terminated | truncated, obs, info)
         return obs, reward, terminated, truncated, info
 
     def _restart(self, ended: NDArray[np.bool_], obs: NDArray[np.float32], info: dict[str, Any]
@@ -686,8 +708,7 @@ class HoverBatchEnv(VectorEnv):
         truth's wind, force and torque into ``buf`` (:func:`disturbance_rows`)."""
         wind = as_f64(wind, "wind")
         if disturbance_rows(self._params, self._rot, self._vel, self._omega, self.rotor_speeds, wind, self.drag_scale,
-                            keep, self._force, self._torque, self._wind_com, self.external_force,
-                            self.external_torque, buf) >= 0:
+                            keep, self._wrench, buf) >= 0:
             self.aero.wrench(self._rot, self._vel, self._omega, self.rotor_speeds, wind)  # raises, naming the inputs
 
     def _update_disturbance(self, rows: NDArray[np.bool_], buf: NDArray[np.float64],
@@ -722,15 +743,18 @@ class HoverBatchEnv(VectorEnv):
         hover_observation(meas, self._setpoint, action, self._obs_low, self._obs_high)  # raises, naming the entry
         raise AssertionError(f"observe_rows flagged observation entry {status}, hover_observation found it finite")
 
-    def _info(self, buf: NDArray[np.float64], action_clipped: NDArray[np.bool_], single: bool = False
-              ) -> dict[str, Any]:
-        """The step's ``info`` (module docstring): views of the step's fresh buffer ``buf`` (:func:`info_views`), the
-        ``failure`` names (replaced by every step, never written in place); ``single``: the single env's form."""
+    def _info(self, buf: NDArray[np.float64], action_clipped: NDArray[np.bool_], single: bool = False,
+              n_ended: int | None = None) -> dict[str, Any]:
+        """The step's ``info`` (module docstring): views of the step's fresh buffer ``buf`` (:func:`info_views`) and
+        the rows' ``failure`` names (a fresh array; all "" if ``n_ended`` is 0: no row ended in the step);
+        ``single``: the single env's form."""
         info = info_views(buf, self.num_envs, single)
+        codes = self._failure_code
         if single:
-            info["action_clipped"], info["failure"] = bool(action_clipped[0]), str(self._failure[0])
+            info["action_clipped"], info["failure"] = bool(action_clipped[0]), _FAILURE_NAMES[codes[0]]
         else:
-            info["action_clipped"], info["failure"] = action_clipped, self._failure
+            info["action_clipped"] = action_clipped
+            info["failure"] = self._no_failure.copy() if n_ended == 0 else FAILURES[codes]
         return info
 
     def close_extras(self, **kwargs: Any) -> None:

@@ -460,18 +460,18 @@ def _block(buf: NDArray[np.float64], start: int, width: int, n: int) -> NDArray[
 @njit(cache=True)
 def act_rows(a: NDArray[np.float64], params: NDArray[np.float64], stepping: NDArray[np.bool_], motors: bool,
              decay_up: NDArray[np.float64], decay_down: NDArray[np.float64], speeds: NDArray[np.float64],
-             force: NDArray[np.float64], external_force: NDArray[np.float64], torque: NDArray[np.float64],
-             external_torque: NDArray[np.float64], clipped: NDArray[np.float64], flagged: NDArray[np.bool_],
+             wrench: NDArray[np.float64], clipped: NDArray[np.float64], flagged: NDArray[np.bool_],
              ctrl: NDArray[np.float64], applied: NDArray[np.float64]) -> int:  # pragma: no cover - jitted
     """:func:`clip_actions` (to the action space's bounds in ``params``; a row not stepping: its hover action), then
-    for ``motors`` :func:`action_motor_controls` (speed map and thrust coefficient in ``params``).  Returns -1, or
-    :func:`clip_actions`' code of the first non-finite action of a stepping row (nothing written)."""
+    for ``motors`` :func:`action_motor_controls` (speed map and thrust coefficient in ``params``; the held wrench:
+    ``wrench`` (N, 15), :func:`disturbance_rows`' layout).  Returns -1, or :func:`clip_actions`' code of the first
+    non-finite action of a stepping row (nothing written)."""
     bad = clip_actions(a, params[_P_ACT_LOW:_P_ACT_LOW + 4], params[_P_ACT_HIGH:_P_ACT_HIGH + 4], stepping,
                        params[_P_HOVER:_P_HOVER + 4], clipped, flagged)
     if bad >= 0 or not motors:
         return bad
     action_motor_controls(clipped, params[_P_OMEGA_MIN], params[_P_OMEGA_SPAN], speeds, params[_P_K_THRUST], decay_up,
-                          decay_down, force, external_force, torque, external_torque, ctrl, applied)
+                          decay_down, wrench[:, 0:3], wrench[:, 9:12], wrench[:, 3:6], wrench[:, 12:15], ctrl, applied)
     return -1
 
 
@@ -565,13 +565,13 @@ def step_rows(params: NDArray[np.float64], final: NDArray[np.float64], stepping:
 @njit(cache=True)
 def disturbance_rows(params: NDArray[np.float64], rot: NDArray[np.float64], vel: NDArray[np.float64],
                      omega: NDArray[np.float64], speeds: NDArray[np.float64], wind: NDArray[np.float64],
-                     drag_scale: NDArray[np.float64], keep: NDArray[np.bool_], force: NDArray[np.float64],
-                     torque: NDArray[np.float64], wind_com: NDArray[np.float64], external_force: NDArray[np.float64],
-                     external_torque: NDArray[np.float64], buf: NDArray[np.float64]) -> int:  # pragma: no cover
+                     drag_scale: NDArray[np.float64], keep: NDArray[np.bool_], wrench: NDArray[np.float64],
+                     buf: NDArray[np.float64]) -> int:  # pragma: no cover - jitted
     """The held disturbance for the next step: the aero wrench (:func:`fawtgym.envs.aero.aero_wrench_rows`) of every
     row in ``wind`` (N, 5, 3) at [CoM, hubs], scaled by the rows' ``drag_scale`` (the wrench is linear in the drag
-    coefficients), kept with the CoM wind in ``force``, ``torque``, ``wind_com`` for the rows of ``keep``; then the
-    truth's wind, force and torque (aero + external) of every row into the info buffer ``buf``.  Returns -1, or the
+    coefficients), kept with the CoM wind for the rows of ``keep`` in ``wrench`` (N, 15): per row aero force NED
+    0-2, aero torque FRD 3-5, CoM wind 6-8, external force 9-11 and torque 12-14; then the truth's wind, force and
+    torque (aero + external) of every row into the info buffer ``buf``.  Returns -1, or the
     first row whose wrench is not finite (nothing written; the caller raises)."""
     n = rot.shape[0]
     new_force, new_torque = np.empty((n, 3)), np.empty((n, 3))
@@ -585,10 +585,10 @@ def disturbance_rows(params: NDArray[np.float64], rot: NDArray[np.float64], vel:
     for i in range(n):
         for c in range(3):
             if keep[i]:
-                force[i, c] = new_force[i, c] * drag_scale[i]
-                torque[i, c] = new_torque[i, c] * drag_scale[i]
-                wind_com[i, c] = wind[i, 0, c]
-            t_wind[i, c] = wind_com[i, c]
-            t_force[i, c] = force[i, c] + external_force[i, c]
-            t_torque[i, c] = torque[i, c] + external_torque[i, c]
+                wrench[i, c] = new_force[i, c] * drag_scale[i]
+                wrench[i, 3 + c] = new_torque[i, c] * drag_scale[i]
+                wrench[i, 6 + c] = wind[i, 0, c]
+            t_wind[i, c] = wrench[i, 6 + c]
+            t_force[i, c] = wrench[i, c] + wrench[i, 9 + c]
+            t_torque[i, c] = wrench[i, 3 + c] + wrench[i, 12 + c]
     return -1
