@@ -30,10 +30,12 @@ divergence) and truncation.  What is batched:
   disabled so no warm start matters), control spec ``mjSTATE_CTRL | mjSTATE_QFRC_APPLIED`` with the
   whole (N, n_substeps, 10) array (rotor thrusts per substep, held world force and body torque as the
   free joint's generalized force, see :mod:`fawtgym.envs.mjcf`);
-* motor lag, rollout controls, state readout, divergence and termination, reward
-  (:mod:`fawtgym.envs.step_kernels`) and the observation (:func:`fawtgym.envs.observation.observation_rows`):
-  compiled row kernels (numba), the same code at N = 1 and N = 1024; wind (:mod:`fawtgym.envs.wind_cohorts`),
-  aero, sensors (:mod:`fawtgym.envs.sensors_batch`): batch-first over the leading axis N.
+* motor lag, rollout controls, state readout, divergence and termination, sensors
+  (:func:`fawtgym.envs.sensors_batch.measure_rows`), observation (:func:`fawtgym.envs.observation.observation_rows`),
+  reward, aero and the info numbers: compiled row kernels (numba), the same code at N = 1 and N = 1024, composed
+  into three calls per control step (:mod:`fawtgym.envs.step_kernels`: ``act_rows`` before the rollout, ``step_rows``
+  after it, ``disturbance_rows`` after the wind); wind (:mod:`fawtgym.envs.wind_cohorts`): batch-first over the
+  leading axis N.
 
 Pickling and ``copy.deepcopy`` copy the whole state (models, data, generators); the rollout's thread pool is
 rebuilt on load.  ``setpoint`` is a checked property ((3,) or (N, 3), above the floor); ``reset`` checks
@@ -99,7 +101,10 @@ draws one stream set per cohort); cost grows with the number of distinct reset t
 ``info`` holds batched arrays with HoverEnv's keys: ``measurement``/``applied``/``truth`` dicts of
 (N, ...) arrays, ``reward_terms`` (a dict of (N,) arrays: the reward's terms, HoverEnv's table),
 ``setpoint`` (N, 3), ``action_clipped`` (N,), ``failure`` (N,) str, ``time`` (N,).  A row that
-autoresets in the next-step mode reports reward 0 and all terms 0 on its reset step.
+autoresets in the next-step mode reports reward 0 and all terms 0 on its reset step.  The float arrays are
+C-contiguous views of one float64 buffer filled by the step's kernels and allocated afresh every step
+(:data:`fawtgym.envs.step_kernels.INFO_FIELDS`), so nothing handed out is written by a later step;
+:class:`HoverEnv` gets the same numbers as row views and Python scalars (:func:`~fawtgym.envs.step_kernels.info_views`).
 
 ``action_type="ctbr"``: the inner rate loop (:mod:`fawtgym.envs.ctbr`) runs at the physics rate on the
 true body rates, so the physics is one single-substep rollout per substep (``n_substeps`` calls per
