@@ -334,7 +334,7 @@ class HoverBatchEnv(VectorEnv):
         self.time = np.zeros(n)
         sensor, aero = self.sensor, self.aero
         self._params = step_params(  # the constants of the step kernels, one array
-            t_end=self._t_end if self._rate_loop is None else _MJ_T0 + self.physics_dt,  # ctbr: one-substep rollouts
+            t0=_MJ_T0, t_end=self._t_end if self._rate_loop is None else _MJ_T0 + self.physics_dt,  # ctbr: 1 substep
             physics_dt=self.physics_dt, dt=self.dt, max_position_error=opts.max_position_error,
             max_steps=opts.max_steps, pose_every=sensor.pose_every if sensor.noisy else 1, sigma=sensor.sigma,
             field=M.EARTH_FIELD_NED, act_low=self._act_low, act_high=self._act_high, hover=self._hover,
@@ -442,6 +442,7 @@ class HoverBatchEnv(VectorEnv):
             sensor_rngs.append(np.random.default_rng(sensor_seed))
             draw_rngs.extend(np.random.default_rng(d) for d in draw_seed)
         s = np.zeros((k, self._mj_state.shape[1]))
+        s[:, 0] = _MJ_T0  # MuJoCo time at the start of every rollout (module docstring: divergence test)
         s[:, 1:4] = (self.setpoint[rows] + du[:, 0]) * _SIGN
         s[:, 4:8] = rot_ned_to_quat_mj(exp_so3(du[:, 2]))
         s[:, 8:11] = du[:, 1] * _SIGN
@@ -580,9 +581,9 @@ class HoverBatchEnv(VectorEnv):
             idx = (entry,) if name == "action" else (row, entry)
             raise_action_not_finite(a[0] if name == "action" else a, idx, name, self._act_low, self._act_high)
         if motors:
-            final, diverged = self._rollout_rows(self._mj_state, self._ctrl, self._out), self._no_rows
+            states, diverged = self._rollout_rows(self._mj_state, self._ctrl, self._out), self._no_rows
         else:
-            final, diverged = self._run_ctbr(clipped)
+            states, diverged = self._run_ctbr(clipped)
         flags = np.empty((2, n), dtype=bool)
         terminated, truncated = flags[0], flags[1]  # two (N,) views of one fresh array
         points = np.empty((n, 5, 3))
@@ -591,7 +592,7 @@ class HoverBatchEnv(VectorEnv):
         prev = self._last_action
         s = self.sensor
         z = s.noise() if not any_reset else s.no_noise  # drawn after the restarts below if any row restarts
-        n_ended, status = step_rows(self._params, final, stepping, diverged, self._mj_state, self._pos, self._vel,
+        n_ended, status = step_rows(self._params, states, stepping, diverged, self._mj_state, self._pos, self._vel,
                                     self._rot, self._omega, self._accel, self._setpoint, self._failure_code,
                                     self.time, self._steps, flags, points, not any_reset, z, s.count, s.state,
                                     clipped, prev, self._applied, self.rotor_speeds, buf, obs, reward)
@@ -671,17 +672,18 @@ class HoverBatchEnv(VectorEnv):
 
     def _rollout_rows(self, state: NDArray[np.float64], ctrl: NDArray[np.float64], out: NDArray[np.float64]
                       ) -> NDArray[np.float64]:
-        """One rollout from ``state`` (N, 14) with controls ``ctrl`` (N, nstep, 10) into ``out`` (N, nstep, 14)
-        (all C-contiguous float64: the checks are skipped); returns the final states (N, 14), MuJoCo time
+        """One rollout from ``state`` (N, 14) at MuJoCo time ``_MJ_T0`` (the step kernels and the resets keep the
+        env's state there) with controls ``ctrl`` (N, nstep, 10) into ``out`` (N, nstep, 14) (all C-contiguous float64:
+        the checks are skipped); returns ``out``: the final states ``out[:, -1]`` are at MuJoCo time
         ``_MJ_T0 + nstep physics_dt`` unless MuJoCo reset a diverging row."""
-        state[:, 0] = _MJ_T0
         self._rollout.rollout(self._models, self._datas, state, ctrl, control_spec=_CONTROL_SPEC,
                               skip_checks=True, nstep=ctrl.shape[1], state=out, chunk_size=self._chunk)
-        return out[:, -1]
+        return out
 
     def _run_ctbr(self, a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         """The rate loop (:mod:`.ctbr`) on the true rates at each physics substep, then the rotor lag and a
-        one-substep rollout; returns the final states and the rows that diverged before the last substep."""
+        one-substep rollout; returns the last rollout's states (N, 1, 14) and the rows that diverged before the last
+        substep."""
         collective = a[:, 0] * self._max_thrust
         rate_sp = a[:, 1:] * MAX_RATES
         force, torque = self._force + self.external_force, self._torque + self.external_torque
@@ -698,9 +700,10 @@ class HoverBatchEnv(VectorEnv):
                          (loop.integral, loop.prev_rate, loop.has_prev), self.rotor_speeds, self._k_thrust,
                          self._sub_decay_up, self._sub_decay_down, force, torque, self._ctrl1, self._applied, total,
                          diverged)
-            final = self._rollout_rows(state, self._ctrl1, self._out1)
+            state[:, 0] = _MJ_T0  # ctbr_substep carried the last substep's final state (and its time) over
+            final = self._rollout_rows(state, self._ctrl1, self._out1)[:, 0]
         self._applied = total / self.n_substeps
-        return final, diverged
+        return self._out1, diverged
 
     def _wind_points(self) -> NDArray[np.float64]:
         """The wind sample points (N, 5, 3) NED: CoM and rotor hubs."""

@@ -364,7 +364,7 @@ _I_TRUTH, _I_WIND = INFO_START["truth", "position"], INFO_START["truth", "wind"]
 _I_TERMS, _I_SETPOINT, _I_TIME = INFO_START["reward_terms", "pos"], INFO_START["", "setpoint"], INFO_START["", "time"]
 
 #: the env's constant step parameters, one float64 array (:func:`step_params`): (name, size), in order
-STEP_PARAMS = (("t_end", 1), ("physics_dt", 1), ("dt", 1), ("max_position_error", 1), ("max_steps", 1),
+STEP_PARAMS = (("t0", 1), ("t_end", 1), ("physics_dt", 1), ("dt", 1), ("max_position_error", 1), ("max_steps", 1),
                ("pose_every", 1), ("sigma", 7), ("field", 3), ("act_low", 4), ("act_high", 4), ("hover", 4),
                ("omega_min", 1), ("omega_span", 1), ("k_thrust", 1), ("obs_low", OBS_SIZE),
                ("obs_high", OBS_SIZE), ("reward_weights", 6), ("alloc_t", 16), ("rotor_pos", 12), ("hull", 36),
@@ -375,9 +375,9 @@ for _name, _size in STEP_PARAMS:
     _P[_name] = _col
     _col += _size
 STEP_PARAMS_SIZE = _col
-(_P_T_END, _P_PHYSICS_DT, _P_DT, _P_MAX_ERR, _P_MAX_STEPS, _P_POSE_EVERY, _P_SIGMA, _P_FIELD, _P_ACT_LOW, _P_ACT_HIGH,
- _P_HOVER, _P_OMEGA_MIN, _P_OMEGA_SPAN, _P_K_THRUST, _P_OBS_LOW, _P_OBS_HIGH, _P_REWARD_W, _P_ALLOC_T, _P_ROTOR_POS,
- _P_HULL, _P_COP, _P_BODY_DRAG, _P_K_D, _P_K_R) = (_P[k] for k, _ in STEP_PARAMS)
+(_P_T0, _P_T_END, _P_PHYSICS_DT, _P_DT, _P_MAX_ERR, _P_MAX_STEPS, _P_POSE_EVERY, _P_SIGMA, _P_FIELD, _P_ACT_LOW,
+ _P_ACT_HIGH, _P_HOVER, _P_OMEGA_MIN, _P_OMEGA_SPAN, _P_K_THRUST, _P_OBS_LOW, _P_OBS_HIGH, _P_REWARD_W, _P_ALLOC_T,
+ _P_ROTOR_POS, _P_HULL, _P_COP, _P_BODY_DRAG, _P_K_D, _P_K_R) = (_P[k] for k, _ in STEP_PARAMS)
 
 
 def step_params(**values: object) -> NDArray[np.float64]:
@@ -536,7 +536,7 @@ def observe_rows(params: NDArray[np.float64], z: NDArray[np.float64], measure: b
 
 
 @njit(cache=True)
-def step_rows(params: NDArray[np.float64], final: NDArray[np.float64], stepping: NDArray[np.bool_],
+def step_rows(params: NDArray[np.float64], states: NDArray[np.float64], stepping: NDArray[np.bool_],
               diverged_before: NDArray[np.bool_], mj_state: NDArray[np.float64], pos: NDArray[np.float64],
               vel: NDArray[np.float64], rot: NDArray[np.float64], omega: NDArray[np.float64],
               accel: NDArray[np.float64], setpoint: NDArray[np.float64], failure: NDArray[np.int8],
@@ -546,15 +546,19 @@ def step_rows(params: NDArray[np.float64], final: NDArray[np.float64], stepping:
               prev_action: NDArray[np.float64], applied: NDArray[np.float64],
               speeds: NDArray[np.float64], buf: NDArray[np.float64], obs: NDArray[np.float32],
               reward: NDArray[np.float64]) -> tuple[int, int]:  # pragma: no cover - jitted
-    """After a control step's rollout: :func:`finish_step` (state readout, termination, clock, wind sample points),
-    then, if ``observe`` (no row restarts in this step, else the caller resets those rows first),
-    :func:`observe_rows` with the sensors' normals ``z``; ``ended_flags`` (2, N): terminated, truncated.  Returns
-    (rows ended, :func:`observe_rows`' status; -1 when not observed)."""
+    """After a control step's rollout (``states`` (N, K, 14): the rollout's states; the last substep's are the
+    final ones): :func:`finish_step` (state readout, termination, clock, wind sample points; the kept MuJoCo states
+    set back to the rollouts' start time ``t0``), then, if ``observe`` (no row restarts in this step, else the caller
+    resets those rows first), :func:`observe_rows` with the sensors' normals ``z``; ``ended_flags`` (2, N):
+    terminated, truncated.  Returns (rows ended, :func:`observe_rows`' status; -1 when not observed)."""
     hull = params[_P_HULL:_P_HULL + 36].reshape((12, 3))
     rotor_pos = params[_P_ROTOR_POS:_P_ROTOR_POS + 12].reshape((4, 3))
+    final = states[:, states.shape[1] - 1]
     ended = finish_step(final, params[_P_T_END], params[_P_PHYSICS_DT], params[_P_DT], stepping, diverged_before,
                         mj_state, pos, vel, rot, omega, accel, hull, setpoint, params[_P_MAX_ERR], failure,
                         int(params[_P_MAX_STEPS]), time, steps, ended_flags[0], ended_flags[1], rotor_pos, points)
+    for i in range(mj_state.shape[0]):
+        mj_state[i, 0] = params[_P_T0]  # the next rollout starts at t0 (its end time is the divergence test)
     if not observe:
         return ended, -1
     status = observe_rows(params, z, True, pos, vel, rot, omega, accel, time, setpoint, failure, sensor_count,
