@@ -147,6 +147,7 @@ from .options import (
     hover_action,
     hover_action_space,
     hover_options,
+    positive_number,
     raise_action_not_finite,
 )
 from .sensors_batch import SENSOR_NOT_FINITE, BatchSensorModel
@@ -156,6 +157,7 @@ from .step_kernels import (
     INFO_START,
     INFO_WIDTH,
     REWARD_TERMS,
+    STEP_PARAM_START,
     act_rows,
     ctbr_substep,
     disturbance_rows,
@@ -369,13 +371,25 @@ class HoverBatchEnv(VectorEnv):
 
     @property
     def max_steps(self) -> int:
-        """Steps per episode before truncation (fixed at construction: ``episode_seconds / dt``)."""
-        return self.options.max_steps
+        """Steps per episode before truncation (``episode_seconds / dt``); assign an int >= 1 (from the next step)."""
+        return int(self._params[STEP_PARAM_START["max_steps"]])
+
+    @max_steps.setter
+    def max_steps(self, value: Any) -> None:
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1 \
+                or value > 2**52:
+            raise ValueError(f"max_steps must be an int >= 1, got {value!r}")
+        self._params[STEP_PARAM_START["max_steps"]] = int(value)
 
     @property
     def max_position_error(self) -> float:
-        """Half-size of the termination box [m] (fixed at construction)."""
-        return self.options.max_position_error
+        """Half-size of the termination box [m]; assign a finite positive number (the box from the next step on; the
+        observation bounds stay those of construction)."""
+        return float(self._params[STEP_PARAM_START["max_position_error"]])
+
+    @max_position_error.setter
+    def max_position_error(self, value: Any) -> None:
+        self._params[STEP_PARAM_START["max_position_error"]] = positive_number(value, "max_position_error")
 
     # ---- public helpers -------------------------------------------------------------------
     def hover_action(self) -> NDArray[np.float32]:

@@ -375,6 +375,7 @@ for _name, _size in STEP_PARAMS:
     _P[_name] = _col
     _col += _size
 STEP_PARAMS_SIZE = _col
+STEP_PARAM_START = dict(_P)  #: where each of :data:`STEP_PARAMS` starts in the array
 (_P_T0, _P_T_END, _P_PHYSICS_DT, _P_DT, _P_MAX_ERR, _P_MAX_STEPS, _P_POSE_EVERY, _P_SIGMA, _P_FIELD, _P_ACT_LOW,
  _P_ACT_HIGH, _P_HOVER, _P_OMEGA_MIN, _P_OMEGA_SPAN, _P_K_THRUST, _P_OBS_LOW, _P_OBS_HIGH, _P_REWARD_W, _P_ALLOC_T,
  _P_ROTOR_POS, _P_HULL, _P_COP, _P_BODY_DRAG, _P_K_D, _P_K_R) = (_P[k] for k, _ in STEP_PARAMS)

@@ -1,4 +1,5 @@
-"""The step's info numbers live in one fresh float64 buffer per step (envs/step_kernels.INFO_FIELDS), handed out as
+"""The step kernels' constants (one array, envs/step_kernels.step_params; the termination box and episode length stay
+settable) and the info numbers: one fresh float64 buffer per step (envs/step_kernels.INFO_FIELDS), handed out as
 views: the written-out builder matches the layout table, the single env's info is the batch's row 0 with the single
 env's Python types, and nothing handed out is written by later steps."""
 
@@ -100,3 +101,25 @@ def test_step_params_checks_its_names_and_sizes() -> None:
         step_params(**{k: v for k, v in values.items() if k != "hull"})
     with pytest.raises(ValueError, match="step parameter 'hull' must have 36 numbers, got 3"):
         step_params(**{**values, "hull": np.zeros(3)})
+
+
+@pytest.mark.parametrize("n", [1, 3])
+def test_termination_box_and_episode_length_set_after_construction_act_from_the_next_step(n: int) -> None:
+    env = HoverBatchEnv(n, init_noise=0.0)
+    env.reset(seed=0)
+    env.set_external_wrench([5.0, 0.0, 0.0])  # pushes every row north
+    env.max_position_error = 0.01
+    assert env.max_position_error == 0.01
+    for _ in range(30):
+        _, _, terminated, _, info = env.step(env.hover_action())
+        if terminated.any():
+            break
+    assert terminated.all() and list(info["failure"]) == ["out_of_bounds"] * n
+    env.reset(seed=0)
+    env.max_steps = 3
+    truncated = [env.step(env.hover_action())[3].all() for _ in range(3)]
+    assert truncated == [False, False, True] and env.max_steps == 3
+    for bad, name in ((float("nan"), "max_position_error"), (-1.0, "max_position_error"), (0, "max_steps"),
+                      (2.5, "max_steps")):
+        with pytest.raises(ValueError, match=name):
+            setattr(env, name, bad)
