@@ -68,7 +68,7 @@ def states_to_ned(states: NDArray[np.float64], pos: NDArray[np.float64], vel: ND
 
 @njit(cache=True)
 def clip_actions(a: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64],
-                 stepping: NDArray[np.bool_], hover: NDArray[np.float32], clipped: NDArray[np.float64],
+                 stepping: NDArray[np.bool_], hover: NDArray[np.float64], clipped: NDArray[np.float64],
                  flagged: NDArray[np.bool_]) -> int:  # pragma: no cover - jitted
     """The applied actions: finite actions (N, 4) clipped to [low, high] (``flagged`` rows where that changed an
     entry); a row not stepping (it autoresets) applies the hover action and is not flagged.
@@ -414,7 +414,7 @@ def info_views(buf: NDArray[np.float64], n: int, single: bool) -> dict[str, Any]
     if single:  # precomputed slices (~0.08 us a view instead of ~0.12)
         mp, mv, ma, mr, mf, mg, mm = _MEAS_ROW
         at, ar, asp = _APPLIED_ROW
-        tp, tv, ta, tr, tw, tf, tt = _TRUTH_ROW
+        tp, tv, ta, t_rate, tw, tf, tt = _TRUTH_ROW
         terms = buf[_TERMS_ROW].tolist()
         return {
             "measurement": {"position": buf[mp], "velocity": buf[mv], "attitude": buf[ma].reshape(3, 3),
@@ -423,7 +423,7 @@ def info_views(buf: NDArray[np.float64], n: int, single: bool) -> dict[str, Any]
             "applied": {"thrust": float(buf[_I_THRUST]), "torque": buf[at], "rotor_thrusts": buf[ar],
                         "motor_speeds": buf[asp]},
             "truth": {"position": buf[tp], "velocity": buf[tv], "attitude": buf[ta].reshape(3, 3),
-                      "angular_velocity": buf[tr], "wind": buf[tw], "force": buf[tf], "torque": buf[tt]},
+                      "angular_velocity": buf[t_rate], "wind": buf[tw], "force": buf[tf], "torque": buf[tt]},
             "reward_terms": {"pos": terms[0], "vel": terms[1], "att": terms[2], "rate": terms[3], "action": terms[4],
                              "failure": terms[5]},
             "setpoint": buf[_SETPOINT_ROW], "time": float(buf[_I_TIME])}
