@@ -121,17 +121,18 @@ class BatchSensorModel:
         self.sig_rate = spec.angular_velocity_density / root_dt
         self.sig_gyro = spec.gyro_density / root_dt
         self.sig_acc = spec.accel_density / root_dt
-        self.sigma = self._sigma = np.array([self.sig_pos, self.sig_vel, self.sig_att, self.sig_rate, self.sig_acc,
-                                self.sig_gyro, spec.mag_sigma])
-        self.noisy = bool(np.any(self._sigma > 0) or spec.gyro_bias_sigma > 0 or spec.accel_bias_sigma > 0)
+        #: the per-sample sigmas of :func:`measure_rows` (position, velocity, attitude, rate, accel, gyro, mag)
+        self.sigma = np.array([self.sig_pos, self.sig_vel, self.sig_att, self.sig_rate, self.sig_acc, self.sig_gyro,
+                               spec.mag_sigma])
+        self.noisy = bool(np.any(self.sigma > 0) or spec.gyro_bias_sigma > 0 or spec.accel_bias_sigma > 0)
         #: per row: the held pose sample (position 3, velocity 3, attitude 9) and the turn-on biases (gyro 3,
         #: accelerometer 3), one (N, 21) array (the kernel's one argument; the properties below are views of it)
         self.state = np.zeros((self.n, 21))
         self.state[:, 6:15] = np.eye(3).ravel()
         #: steps since each row's episode start (the pose hold's clock), updated in place by the kernel
-        self.count = self._count = np.zeros(self.n, dtype=np.int64)
+        self.count = np.zeros(self.n, dtype=np.int64)
         #: exact sensors: the kernel reads zero normals (never written)
-        self.no_noise = self._no_noise = np.zeros((self.n, 21))
+        self.no_noise = np.zeros((self.n, 21))
         self._z = np.empty((self.n, 21))  # the noisy sensors' normals, drawn into in place (never handed out)
         self.rng = np.random.default_rng(0)
 
@@ -189,7 +190,7 @@ class BatchSensorModel:
         for row, rng in zip(rows.tolist(), rngs, strict=True):  # reset path only (not per step)
             self.gyro_bias[row] = rng.normal(0.0, sg, 3) if sg else 0.0
             self.accel_bias[row] = rng.normal(0.0, sa, 3) if sa else 0.0
-        self._count[rows] = 0
+        self.count[rows] = 0
 
     def measure(self, t: NDArray[np.float64], position: NDArray[np.float64], velocity: NDArray[np.float64],
                 rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],
@@ -205,7 +206,7 @@ class BatchSensorModel:
         numbers of ``rng.standard_normal((N, 21))``, drawn into one array that the next call overwrites); the zeros
         :attr:`no_noise` (nothing drawn) for exact sensors.  What :meth:`measure` draws: the env draws it and runs the
         kernel in its own step kernel (:func:`fawtgym.envs.step_kernels.observe_rows`)."""
-        return self.rng.standard_normal(out=self._z) if self.noisy else self._no_noise
+        return self.rng.standard_normal(out=self._z) if self.noisy else self.no_noise
 
     def measure_rows(self, rows: NDArray[np.intp], rngs: list[np.random.Generator], t: NDArray[np.float64],
                      position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
@@ -239,17 +240,17 @@ class BatchSensorModel:
                              f"{angular_velocity.shape}, {acceleration.shape}, {rotation.shape}")
         pose_every = self.pose_every if self.noisy else 1  # exact measurements every step (no hold without noise)
         state = self.state if every else self.state[rows]  # the rows' copy, written back below
-        count = self._count if every else self._count[rows]
+        count = self.count if every else self.count[rows]
         e = np.empty
         out = {M.POSITION: e((n, 3)), M.VELOCITY: e((n, 3)), M.ATTITUDE: e((n, 3, 3)), M.ANGULAR_VELOCITY: e((n, 3)),
                M.SPECIFIC_FORCE: e((n, 3)), M.GYRO: e((n, 3)), M.MAGNETOMETER: e((n, 3)),
                M.TIME: np.array(t, dtype=float)}
-        if measure_rows(position, velocity, rotation, angular_velocity, acceleration, z, self._sigma, _FIELD,
+        if measure_rows(position, velocity, rotation, angular_velocity, acceleration, z, self.sigma, _FIELD,
                         state, count, pose_every, out[M.POSITION], out[M.VELOCITY], out[M.ATTITUDE],
                         out[M.ANGULAR_VELOCITY],
                         out[M.SPECIFIC_FORCE], out[M.GYRO], out[M.MAGNETOMETER]) >= 0:
             raise ValueError(SENSOR_NOT_FINITE)
         if rows is not None:
-            self._count[rows] = count
+            self.count[rows] = count
             self.state[rows] = state
         return out
