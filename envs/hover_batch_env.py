@@ -364,10 +364,18 @@ class HoverBatchEnv(VectorEnv):
         """The constant external force (N, 3) world NED [N] (:meth:`set_external_wrench`; a view)."""
         return self._wrench[:, 9:12]
 
+    @external_force.setter
+    def external_force(self, value: ArrayLike) -> None:
+        self.set_external_wrench(value, self.external_torque.copy())
+
     @property
     def external_torque(self) -> NDArray[np.float64]:
         """The constant external torque (N, 3) body FRD [N m] (:meth:`set_external_wrench`; a view)."""
         return self._wrench[:, 12:15]
+
+    @external_torque.setter
+    def external_torque(self, value: ArrayLike) -> None:
+        self.set_external_wrench(self.external_force.copy(), value)
 
     @property
     def max_steps(self) -> int:

@@ -123,3 +123,14 @@ def test_termination_box_and_episode_length_set_after_construction_act_from_the_
                       (2.5, "max_steps")):
         with pytest.raises(ValueError, match=name):
             setattr(env, name, bad)
+
+
+def test_external_wrench_attributes_assign_through_the_checked_setter() -> None:
+    env = HoverBatchEnv(2)
+    env.external_force = [1.0, 2.0, 3.0]
+    env.external_torque = np.array([[0.1, 0.0, 0.0], [0.0, 0.2, 0.0]])
+    np.testing.assert_array_equal(env.external_force, [[1.0, 2.0, 3.0]] * 2)
+    np.testing.assert_array_equal(env.external_torque, [[0.1, 0.0, 0.0], [0.0, 0.2, 0.0]])
+    with pytest.raises(ValueError, match="external wrench must be finite"):
+        env.external_force = [np.nan, 0.0, 0.0]
+    np.testing.assert_array_equal(env.external_force, [[1.0, 2.0, 3.0]] * 2)  # unchanged by the refused value
