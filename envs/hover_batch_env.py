@@ -30,10 +30,12 @@ divergence) and truncation.  What is batched:
   disabled so no warm start matters), control spec ``mjSTATE_CTRL | mjSTATE_QFRC_APPLIED`` with the
   whole (N, n_substeps, 10) array (rotor thrusts per substep, held world force and body torque as the
   free joint's generalized force, see :mod:`fawtgym.envs.mjcf`);
-* motor lag, rollout controls, state readout, divergence and termination, reward
-  (:mod:`fawtgym.envs.step_kernels`) and the observation (:func:`fawtgym.envs.observation.observation_rows`):
-  compiled row kernels (numba), the same code at N = 1 and N = 1024; wind (:mod:`fawtgym.envs.wind_cohorts`),
-  aero, sensors (:mod:`fawtgym.envs.sensors_batch`): batch-first over the leading axis N.
+* motor lag, rollout controls, state readout, divergence and termination, sensors
+  (:func:`fawtgym.envs.sensors_batch.measure_rows`), observation (:func:`fawtgym.envs.observation.observation_rows`),
+  reward, aero and the info numbers: compiled row kernels (numba), the same code at N = 1 and N = 1024, composed
+  into three calls per control step (:mod:`fawtgym.envs.step_kernels`: ``act_rows`` before the rollout, ``step_rows``
+  after it, ``disturbance_rows`` after the wind); wind (:mod:`fawtgym.envs.wind_cohorts`): batch-first over the
+  leading axis N.
 
 Pickling and ``copy.deepcopy`` copy the whole state (models, data, generators); the rollout's thread pool is
 rebuilt on load.  ``setpoint`` is a checked property ((3,) or (N, 3), above the floor); ``reset`` checks
@@ -99,7 +101,10 @@ draws one stream set per cohort); cost grows with the number of distinct reset t
 ``info`` holds batched arrays with HoverEnv's keys: ``measurement``/``applied``/``truth`` dicts of
 (N, ...) arrays, ``reward_terms`` (a dict of (N,) arrays: the reward's terms, HoverEnv's table),
 ``setpoint`` (N, 3), ``action_clipped`` (N,), ``failure`` (N,) str, ``time`` (N,).  A row that
-autoresets in the next-step mode reports reward 0 and all terms 0 on its reset step.
+autoresets in the next-step mode reports reward 0 and all terms 0 on its reset step.  The float arrays are
+C-contiguous views of one float64 buffer filled by the step's kernels and allocated afresh every step
+(:data:`fawtgym.envs.step_kernels.INFO_FIELDS`), so nothing handed out is written by a later step;
+:class:`HoverEnv` gets the same numbers as row views and Python scalars (:func:`~fawtgym.envs.step_kernels.info_views`).
 
 ``action_type="ctbr"``: the inner rate loop (:mod:`fawtgym.envs.ctbr`) runs at the physics rate on the
 true body rates, so the physics is one single-substep rollout per substep (``n_substeps`` calls per
@@ -129,7 +134,7 @@ from fawtgym.core.arrays import as_f64
 from fawtgym.core.frames import SIGN_MJ_NED, rot_ned_to_quat_mj
 from fawtgym.core.so3 import exp_so3
 
-from .aero import AeroModel, aero_wrench_rows
+from .aero import AeroModel
 from .ctbr import MAX_RATES, RateLoop
 from .mjcf import hull_points, vehicle_mjcf
 from .motors import allocation_matrix, decay_factors, substep_times
@@ -142,19 +147,25 @@ from .options import (
     hover_action,
     hover_action_space,
     hover_options,
+    positive_number,
     raise_action_not_finite,
 )
-from .sensors_batch import BatchSensorModel
+from .sensors_batch import SENSOR_NOT_FINITE, BatchSensorModel
 from .step_kernels import (
     DIVERGED,
     FAILURES,
+    INFO_START,
+    INFO_WIDTH,
     REWARD_TERMS,
-    action_motor_controls,
-    clip_actions,
+    STEP_PARAM_START,
+    act_rows,
     ctbr_substep,
-    finish_step,
-    observe_and_reward,
+    disturbance_rows,
+    info_views,
+    observe_rows,
     states_to_ned,
+    step_params,
+    step_rows,
     wind_points,
 )
 from .wind import WindModel
@@ -168,6 +179,8 @@ _SIGN = SIGN_MJ_NED
 AUTORESET_MODES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP}
 #: what a randomizer's draws may set, one value per starting row (module docstring)
 RANDOMIZER_KEYS = ("mass_scale", "inertia_scale", "drag_scale", "gyro_bias", "accel_bias", "wind")
+#: the failure names by code as Python str (the single env's ``info["failure"]``)
+_FAILURE_NAMES = tuple(FAILURES.tolist())
 #: below this many rows the rollout runs on the calling thread (a thread hand-off costs more than it saves)
 THREADED_ROWS = 64
 
@@ -255,8 +268,7 @@ class HoverBatchEnv(VectorEnv):
         self.preset = opts.preset
         self.action_type = opts.action_type
         self.n_substeps, self.physics_dt, self.dt = opts.n_substeps, opts.physics_dt, opts.dt
-        self.episode_seconds, self.max_steps = opts.episode_seconds, opts.max_steps
-        self.max_position_error = opts.max_position_error
+        self.episode_seconds = opts.episode_seconds
         self.init_noise = opts.init_noise
         self.reward_weights = dict(opts.reward_weights)
         w = self.reward_weights
@@ -310,17 +322,82 @@ class HoverBatchEnv(VectorEnv):
         self._out = np.zeros((n, k, self._mj_state.shape[1]))
         self._out1 = np.zeros((n, 1, mujoco.mj_stateSize(self.model, _STATE_SPEC)))  # ctbr: one substep
         self._ctrl1 = np.zeros((n, 1, self._ctrl.shape[2]))
-        self.external_force = np.zeros((n, 3))
-        self.external_torque = np.zeros((n, 3))
+        #: per row the held disturbance: aero force NED 0-2, aero torque FRD 3-5, the CoM wind 6-8 (held over the
+        #: next step), and the external force 9-11 / torque 12-14 (:meth:`set_external_wrench`); one array, the
+        #: step kernels' one argument (the properties ``_force``, ``external_force``, ... are views of it)
+        self._wrench = np.zeros((n, 15))
         self._row_rngs: list[np.random.Generator] | None = None
         self._autoreset = np.zeros(n, dtype=bool)
         self._n_autoreset = 0  # rows of _autoreset set
         self._no_rows, self._all_rows = np.zeros(n, dtype=bool), np.ones(n, dtype=bool)
         self._failure_code = np.zeros(n, dtype=np.int8)
         self._no_failure = np.full(n, "", dtype="<U14")
-        self._failure: NDArray[np.str_] = self._no_failure.copy()
         self._t_end = _MJ_T0 + self.n_substeps * self.physics_dt  # MuJoCo time after a control step's rollout
         self.time = np.zeros(n)
+        sensor, aero = self.sensor, self.aero
+        self._params = step_params(  # the constants of the step kernels, one array
+            t0=_MJ_T0, t_end=self._t_end if self._rate_loop is None else _MJ_T0 + self.physics_dt,  # ctbr: 1 substep
+            physics_dt=self.physics_dt, dt=self.dt, max_position_error=opts.max_position_error,
+            max_steps=opts.max_steps, pose_every=sensor.pose_every if sensor.noisy else 1, sigma=sensor.sigma,
+            field=M.EARTH_FIELD_NED, act_low=self._act_low, act_high=self._act_high, hover=self._hover,
+            omega_min=self._omega_min, omega_span=self._omega_span, k_thrust=self._k_thrust, obs_low=self._obs_low,
+            obs_high=self._obs_high, reward_weights=self._reward_w, alloc_t=self._alloc_t, rotor_pos=self._rotor_pos,
+            hull=self._hull, cop=aero.cop, body_drag=aero.body_drag, k_d=aero.k_d, k_r=aero.k_r)
+
+    @property
+    def _force(self) -> NDArray[np.float64]:
+        """The held aero force (N, 3) world NED [N] (a view of ``_wrench``)."""
+        return self._wrench[:, 0:3]
+
+    @property
+    def _torque(self) -> NDArray[np.float64]:
+        """The held aero torque (N, 3) body FRD [N m] (a view of ``_wrench``)."""
+        return self._wrench[:, 3:6]
+
+    @property
+    def _wind_com(self) -> NDArray[np.float64]:
+        """The wind at the CoM (N, 3) NED [m/s] of the held disturbance (a view of ``_wrench``)."""
+        return self._wrench[:, 6:9]
+
+    @property
+    def external_force(self) -> NDArray[np.float64]:
+        """The constant external force (N, 3) world NED [N] (:meth:`set_external_wrench`; a view)."""
+        return self._wrench[:, 9:12]
+
+    @external_force.setter
+    def external_force(self, value: ArrayLike) -> None:
+        self.set_external_wrench(value, self.external_torque.copy())
+
+    @property
+    def external_torque(self) -> NDArray[np.float64]:
+        """The constant external torque (N, 3) body FRD [N m] (:meth:`set_external_wrench`; a view)."""
+        return self._wrench[:, 12:15]
+
+    @external_torque.setter
+    def external_torque(self, value: ArrayLike) -> None:
+        self.set_external_wrench(self.external_force.copy(), value)
+
+    @property
+    def max_steps(self) -> int:
+        """Steps per episode before truncation (``episode_seconds / dt``); assign an int >= 1 (from the next step)."""
+        return int(self._params[STEP_PARAM_START["max_steps"]])
+
+    @max_steps.setter
+    def max_steps(self, value: Any) -> None:
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1 \
+                or value > 2**52:
+            raise ValueError(f"max_steps must be an int >= 1, got {value!r}")
+        self._params[STEP_PARAM_START["max_steps"]] = int(value)
+
+    @property
+    def max_position_error(self) -> float:
+        """Half-size of the termination box [m]; assign a finite positive number (the box from the next step on; the
+        observation bounds stay those of construction)."""
+        return float(self._params[STEP_PARAM_START["max_position_error"]])
+
+    @max_position_error.setter
+    def max_position_error(self, value: Any) -> None:
+        self._params[STEP_PARAM_START["max_position_error"]] = positive_number(value, "max_position_error")
 
     # ---- public helpers -------------------------------------------------------------------
     def hover_action(self) -> NDArray[np.float32]:
@@ -359,7 +436,7 @@ class HoverBatchEnv(VectorEnv):
                              f"{np.shape(force_ned)}, {np.shape(torque_frd)}") from exc
         if not (np.all(np.isfinite(f)) and np.all(np.isfinite(t))):
             raise ValueError(f"external wrench must be finite, got {force_ned!r}, {torque_frd!r}")
-        self.external_force, self.external_torque = f, t
+        self._wrench[:, 9:12], self._wrench[:, 12:15] = f, t
 
     # ---- state ------------------------------------------------------------------------------
     def _reset_rows(self, rows: NDArray[np.intp]) -> list[np.random.Generator]:
@@ -387,6 +464,7 @@ class HoverBatchEnv(VectorEnv):
             sensor_rngs.append(np.random.default_rng(sensor_seed))
             draw_rngs.extend(np.random.default_rng(d) for d in draw_seed)
         s = np.zeros((k, self._mj_state.shape[1]))
+        s[:, 0] = _MJ_T0  # MuJoCo time at the start of every rollout (module docstring: divergence test)
         s[:, 1:4] = (self.setpoint[rows] + du[:, 0]) * _SIGN
         s[:, 4:8] = rot_ned_to_quat_mj(exp_so3(du[:, 2]))
         s[:, 8:11] = du[:, 1] * _SIGN
@@ -401,8 +479,6 @@ class HoverBatchEnv(VectorEnv):
         self._accel[rows] = 0.0
         self._steps[rows] = 0
         self.time[rows] = 0.0
-        self._failure = self._failure.copy()  # handed out in the last info: replaced, not written in place
-        self._failure[rows] = ""
         self._failure_code[rows] = 0
         self.sensor.reset_rows(rows, sensor_rngs)
         winds = None if self.randomizer is None else self._apply_draws(rows, self.randomizer(rows, draw_rngs))
@@ -466,6 +542,11 @@ class HoverBatchEnv(VectorEnv):
     # ---- gym API -------------------------------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None,
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        return self._reset(seed, options)
+
+    def _reset(self, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None,
+               single: bool = False) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        """:meth:`reset`; ``single``: the info in the single env's form (:func:`info_views`)."""
         n = self.num_envs
         seeds = _check_seeds(seed, n)
         sp, noise = check_reset_options(options, n)  # checked before anything changes
@@ -487,15 +568,14 @@ class HoverBatchEnv(VectorEnv):
         self.rotor_speeds, self._applied = np.zeros((n, 4)), np.zeros((n, 4))
         self._last_action, self._accel = np.zeros((n, 4)), np.zeros((n, 3))
         self._steps = np.zeros(n, dtype=np.int64)
-        self._failure = np.full(n, "", dtype="<U14")
-        self._force, self._torque, self._wind_com = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+        self._wrench[:, :9] = 0.0  # the held aero wrench and wind (the external wrench is kept)
         self._autoreset = np.zeros(n, dtype=bool)
         self._n_autoreset = 0  # rows of _autoreset set
         self._reset_rows(np.arange(n))
-        self._update_disturbance(np.ones(n, dtype=bool))
-        info = self._info(np.zeros(n, dtype=bool))
-        obs, _, info["reward_terms"] = self._observation_and_reward(info["measurement"], self._last_action)
-        return obs, info
+        buf = np.empty(n * INFO_WIDTH)
+        self._update_disturbance(self._all_rows, buf)
+        obs, _ = self._observe(buf, self.sensor.noise(), True, self._last_action, self._last_action)
+        return obs, self._info(buf, np.zeros(n, dtype=bool), single)
 
     def step(self, actions: ArrayLike) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_],
                                                  NDArray[np.bool_], dict[str, Any]]:
@@ -504,58 +584,60 @@ class HoverBatchEnv(VectorEnv):
         a = check_actions(actions, (self.num_envs, 4), self._act_low, self._act_high, "actions", finite=False)
         return self._step(a)
 
-    def _step(self, a: NDArray[np.float64], name: str = "actions") -> tuple[
+    def _step(self, a: NDArray[np.float64], name: str = "actions", single: bool = False) -> tuple[
             NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
         """One control step of every row with actions ``a`` (N, 4) C-contiguous float64 of checked shape and type
         (:func:`check_actions` with ``finite=False``: a non-finite entry of a stepping row raises here, before
-        anything changes, naming ``name[row, entry]``, or ``name[entry]`` if ``name`` is HoverEnv's ``"action"``)."""
+        anything changes, naming ``name[row, entry]``, or ``name[entry]`` if ``name`` is HoverEnv's ``"action"``);
+        ``single``: the info in the single env's form (:func:`info_views`)."""
         n = self.num_envs
         resetting = self._autoreset
         any_reset = self._n_autoreset > 0
         stepping = ~resetting if any_reset else self._all_rows
         clipped, action_clipped = np.empty((n, 4)), np.empty(n, dtype=bool)
-        bad = clip_actions(a, self._act_low, self._act_high, stepping, self._hover, clipped, action_clipped)
+        motors = self._rate_loop is None
+        bad = act_rows(a, self._params, stepping, motors, self._decay_up, self._decay_down, self.rotor_speeds,
+                       self._wrench, clipped, action_clipped, self._ctrl, self._applied)
         if bad >= 0:
             row, entry = divmod(bad, 4)
             idx = (entry,) if name == "action" else (row, entry)
             raise_action_not_finite(a[0] if name == "action" else a, idx, name, self._act_low, self._act_high)
-        if self._rate_loop is None:
-            action_motor_controls(clipped, self._omega_min, self._omega_span, self.rotor_speeds, self._k_thrust,
-                                  self._decay_up, self._decay_down, self._force, self.external_force, self._torque,
-                                  self.external_torque, self._ctrl, self._applied)
-            final, diverged = self._rollout_rows(self._mj_state, self._ctrl, self._out), self._no_rows
-            t_end = self._t_end
+        if motors:
+            states, diverged = self._rollout_rows(self._mj_state, self._ctrl, self._out), self._no_rows
         else:
-            final, diverged = self._run_ctbr(clipped)
-            t_end = _MJ_T0 + self.physics_dt
-        codes = self._failure_code
-        terminated, truncated = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+            states, diverged = self._run_ctbr(clipped)
+        flags = np.empty((2, n), dtype=bool)
+        terminated, truncated = flags[0], flags[1]  # two (N,) views of one fresh array
         points = np.empty((n, 5, 3))
-        n_ended = finish_step(final, t_end, self.physics_dt, self.dt, stepping, diverged, self._mj_state, self._pos,
-                              self._vel, self._rot, self._omega, self._accel, self._hull, self._setpoint,
-                              self.max_position_error, codes, self.max_steps, self.time, self._steps, terminated,
-                              truncated, self._rotor_pos, points)
-        self._failure = FAILURES[codes] if n_ended else self._no_failure.copy()  # a fresh array (not mutated later)
-        self._last_action_prev = self._last_action
-        if any_reset:
-            self._reset_rows(np.flatnonzero(resetting))
-        # the wind sample points of finish_step, unless reset rows moved (then sampled anew)
-        self._update_disturbance(codes != DIVERGED if n_ended else self._all_rows, None if any_reset else points)
-        info = self._info(action_clipped)
-        obs, reward, terms = self._observation_and_reward(info["measurement"], clipped, self._last_action_prev)
+        buf = np.empty(n * INFO_WIDTH)  # the step's info numbers (fresh: handed out as views)
+        obs, reward = np.empty((n, OBS_SIZE), dtype=np.float32), np.empty(n)
+        prev = self._last_action
+        s = self.sensor
+        z = s.noise() if not any_reset else s.no_noise  # drawn after the restarts below if any row restarts
+        n_ended, status = step_rows(self._params, states, stepping, diverged, self._mj_state, self._pos, self._vel,
+                                    self._rot, self._omega, self._accel, self._setpoint, self._failure_code,
+                                    self.time, self._steps, flags, points, not any_reset, z, s.count, s.state,
+                                    clipped, prev, self._applied, self.rotor_speeds, buf, obs, reward)
+        codes = self._failure_code
         self._last_action = clipped
         if any_reset:
+            self._reset_rows(np.flatnonzero(resetting))
+            obs, reward = self._observe(buf, s.noise(), True, clipped, prev)
+        elif status >= 0:
+            self._raise_observe(status, buf, clipped)
+        # the wind sample points of step_rows, unless reset rows moved (then sampled anew)
+        self._update_disturbance(codes != DIVERGED if n_ended else self._all_rows, buf, None if any_reset else points)
+        if any_reset:  # a restarting row's step: reward 0, every term 0
             reward[resetting] = 0.0
-            for v in terms.values():
-                v[resetting] = 0.0
-        info["reward_terms"] = terms
-        ended = terminated | truncated
+            start = INFO_START["reward_terms", "pos"]
+            buf[start * n:(start + 6) * n].reshape(6, n)[:, resetting] = 0.0
+        info = self._info(buf, action_clipped, single, n_ended)
         if not self._autoreset_on:
             pass
         elif not self._same_step:
-            self._autoreset, self._n_autoreset = ended, n_ended
+            self._autoreset, self._n_autoreset = terminated | truncated, n_ended
         elif n_ended:
-            obs, info = self._restart(ended, obs, info)
+            obs, info = self._restart(terminated | truncated, obs, info)
         return obs, reward, terminated, truncated, info
 
     def _restart(self, ended: NDArray[np.bool_], obs: NDArray[np.float32], info: dict[str, Any]
@@ -571,57 +653,59 @@ class HoverBatchEnv(VectorEnv):
             final_obs[i] = obs[i]
         final_info = _with_masks(info, mask)
         sensor_rngs = self._reset_rows(rows)
+        buf = np.empty(n * INFO_WIDTH)
         if rows.size == n:  # every row restarts: the regular path (N = 1: exactly the next-step reset)
-            self._update_disturbance(np.ones(n, dtype=bool))
-            meas = None
+            self._update_disturbance(self._all_rows, buf)
+            measure, z = True, self.sensor.noise()
         else:
-            self._start_disturbance(rows)
-            meas = self._measure_restarted(rows, sensor_rngs, info["measurement"])
-        new_info = self._info(info["action_clipped"] & ~ended, meas)
-        new_obs, _, new_info["reward_terms"] = self._observation_and_reward(new_info["measurement"], self._last_action)
+            self._start_disturbance(rows, buf)
+            measure, z = self._measure_restarted(rows, sensor_rngs, info["measurement"], buf)
+        new_obs, _ = self._observe(buf, z, measure, self._last_action, self._last_action)
+        new_info = self._info(buf, info["action_clipped"] & ~ended)
         new_info["final_obs"], new_info["_final_obs"] = final_obs, mask
         new_info["final_info"], new_info["_final_info"] = final_info, mask
         return new_obs, new_info
 
-    def _start_disturbance(self, rows: NDArray[np.intp]) -> None:
+    def _start_disturbance(self, rows: NDArray[np.intp], buf: NDArray[np.float64]) -> None:
         """The held disturbance of restarted ``rows`` (their first wind sample), the other rows untouched; the aero
-        wrench over all N rows (the arithmetic of a full step), kept for ``rows``."""
+        wrench over all N rows (the arithmetic of a full step), kept for ``rows``; the truth's part into ``buf``."""
         points = self._wind_points()
         wind = np.zeros(points.shape)
         wind[rows] = self.wind.first_step(self.dt, points[rows], self._vel[rows])
-        force, torque = self._aero_wrench(wind)
         keep = np.zeros(self.num_envs, dtype=bool)
         keep[rows] = True
-        self._force = np.where(keep[:, None], force, self._force)
-        self._torque = np.where(keep[:, None], torque, self._torque)
-        self._wind_com = np.where(keep[:, None], wind[:, 0], self._wind_com)
+        self._disturbance(wind, keep, buf)
 
     def _measure_restarted(self, rows: NDArray[np.intp], rngs: list[np.random.Generator],
-                           measurement: Mapping[str, NDArray[np.float64]]) -> dict[str, NDArray[np.float64]]:
-        """``measurement`` with the first samples of the restarted ``rows`` (module docstring: their own noise)."""
+                           measurement: Mapping[str, NDArray[np.float64]], buf: NDArray[np.float64]
+                           ) -> tuple[bool, NDArray[np.float64]]:
+        """The restarted ``rows``' first measurement (module docstring: their own noise), the other rows' from
+        ``measurement``: written into ``buf`` for noisy sensors (returns False and unused normals), else (exact
+        sensors have no state) every row is measured as in a full step (returns True and the zero normals)."""
+        s = self.sensor
+        if not s.noisy:
+            return True, s.noise()
         state = (self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
-        if not self.sensor.noisy:  # exact sensors have no state: every row measured as in a full step
-            return self.sensor.measure(*state)
-        fresh = self.sensor.measure_rows(rows, rngs, *(x[rows] for x in state))
-        out = {}
-        for key, value in measurement.items():
-            out[key] = value.copy()
-            out[key][rows] = fresh[key]
-        return out
+        fresh = s.measure_rows(rows, rngs, *(x[rows] for x in state))
+        for key, view in info_views(buf, self.num_envs, False)["measurement"].items():
+            view[...] = measurement[key]
+            view[rows] = fresh[key]
+        return False, s.no_noise
 
     def _rollout_rows(self, state: NDArray[np.float64], ctrl: NDArray[np.float64], out: NDArray[np.float64]
                       ) -> NDArray[np.float64]:
-        """One rollout from ``state`` (N, 14) with controls ``ctrl`` (N, nstep, 10) into ``out`` (N, nstep, 14)
-        (all C-contiguous float64: the checks are skipped); returns the final states (N, 14), MuJoCo time
+        """One rollout from ``state`` (N, 14) at MuJoCo time ``_MJ_T0`` (the step kernels and the resets keep the
+        env's state there) with controls ``ctrl`` (N, nstep, 10) into ``out`` (N, nstep, 14) (all C-contiguous float64:
+        the checks are skipped); returns ``out``: the final states ``out[:, -1]`` are at MuJoCo time
         ``_MJ_T0 + nstep physics_dt`` unless MuJoCo reset a diverging row."""
-        state[:, 0] = _MJ_T0
         self._rollout.rollout(self._models, self._datas, state, ctrl, control_spec=_CONTROL_SPEC,
                               skip_checks=True, nstep=ctrl.shape[1], state=out, chunk_size=self._chunk)
-        return out[:, -1]
+        return out
 
     def _run_ctbr(self, a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         """The rate loop (:mod:`.ctbr`) on the true rates at each physics substep, then the rotor lag and a
-        one-substep rollout; returns the final states and the rows that diverged before the last substep."""
+        one-substep rollout; returns the last rollout's states (N, 1, 14) and the rows that diverged before the last
+        substep."""
         collective = a[:, 0] * self._max_thrust
         rate_sp = a[:, 1:] * MAX_RATES
         force, torque = self._force + self.external_force, self._torque + self.external_torque
@@ -638,9 +722,10 @@ class HoverBatchEnv(VectorEnv):
                          (loop.integral, loop.prev_rate, loop.has_prev), self.rotor_speeds, self._k_thrust,
                          self._sub_decay_up, self._sub_decay_down, force, torque, self._ctrl1, self._applied, total,
                          diverged)
-            final = self._rollout_rows(state, self._ctrl1, self._out1)
+            state[:, 0] = _MJ_T0  # ctbr_substep carried the last substep's final state (and its time) over
+            final = self._rollout_rows(state, self._ctrl1, self._out1)[:, 0]
         self._applied = total / self.n_substeps
-        return final, diverged
+        return self._out1, diverged
 
     def _wind_points(self) -> NDArray[np.float64]:
         """The wind sample points (N, 5, 3) NED: CoM and rotor hubs."""
@@ -648,68 +733,59 @@ class HoverBatchEnv(VectorEnv):
         wind_points(self._pos, self._rot, self._rotor_pos, points)
         return points
 
-    def _aero_wrench(self, wind: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The aero wrench of every row in ``wind`` (N, 5, 3), scaled by the rows' drag draws (if any)."""
-        aero = self.aero  # its law's kernel on the env's own state arrays (AeroModel.wrench checks other callers')
-        n = self.num_envs
-        force, torque = np.empty((n, 3)), np.empty((n, 3))
-        if aero_wrench_rows(self._rot, self._vel, self._omega, self.rotor_speeds, as_f64(wind, "wind"),
-                            aero.rotor_positions, aero.cop, aero.body_drag, aero.k_d, aero.k_r, force, torque) >= 0:
-            aero.wrench(self._rot, self._vel, self._omega, self.rotor_speeds, wind)  # raises, naming the inputs
-        if self._drag_scaled:  # the wrench is linear in the three drag coefficients (module docstring)
-            force, torque = force * self.drag_scale[:, None], torque * self.drag_scale[:, None]
-        return force, torque
+    def _disturbance(self, wind: NDArray[np.float64], keep: NDArray[np.bool_], buf: NDArray[np.float64]) -> None:
+        """The aero wrench of every row in ``wind`` (N, 5, 3) held for the next step by the rows of ``keep``, and the
+        truth's wind, force and torque into ``buf`` (:func:`disturbance_rows`)."""
+        wind = as_f64(wind, "wind")
+        if disturbance_rows(self._params, self._rot, self._vel, self._omega, self.rotor_speeds, wind, self.drag_scale,
+                            keep, self._wrench, buf) >= 0:
+            self.aero.wrench(self._rot, self._vel, self._omega, self.rotor_speeds, wind)  # raises, naming the inputs
 
-    def _update_disturbance(self, rows: NDArray[np.bool_], points: NDArray[np.float64] | None = None) -> None:
+    def _update_disturbance(self, rows: NDArray[np.bool_], buf: NDArray[np.float64],
+                            points: NDArray[np.float64] | None = None) -> None:
         """Wind at [CoM, hubs] (``points`` (N, 5, 3), if the caller has them) and the aero wrench for the next step
         (rows not diverged); the external wrench is added where the wrench is applied and reported, so a new one
         acts from the next step on."""
         if points is None:
             points = self._wind_points()
-        wind = self.wind.step(self.time, self.dt, points, self._vel)
-        force, torque = self._aero_wrench(wind)
-        if rows is self._all_rows or rows.all():
-            self._force, self._torque, self._wind_com = force, torque, wind[:, 0].copy()
-        else:
-            self._force = np.where(rows[:, None], force, self._force)
-            self._torque = np.where(rows[:, None], torque, self._torque)
-            self._wind_com = np.where(rows[:, None], wind[:, 0], self._wind_com)
+        self._disturbance(self.wind.step(self.time, self.dt, points, self._vel), rows, buf)
 
-    def _info(self, action_clipped: NDArray[np.bool_],
-              meas: dict[str, NDArray[np.float64]] | None = None) -> dict[str, Any]:
-        """The step's ``info`` (module docstring): fresh arrays only (``_wind_com`` and ``_failure`` are replaced by
-        every step, never written in place, so they are handed out as they are; the other state is copied)."""
-        if meas is None:
-            meas = self.sensor.measure_trusted(self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
-        f_torque = self._applied @ self._alloc_t
-        return {
-            "measurement": meas,
-            "applied": {"thrust": f_torque[:, 0].copy(), "torque": f_torque[:, 1:].copy(),
-                        "rotor_thrusts": self._applied.copy(), "motor_speeds": self.rotor_speeds.copy()},
-            "truth": {M.POSITION: self._pos.copy(), M.VELOCITY: self._vel.copy(), M.ATTITUDE: self._rot.copy(),
-                      M.ANGULAR_VELOCITY: self._omega.copy(), "wind": self._wind_com,
-                      "force": self._force + self.external_force, "torque": self._torque + self.external_torque},
-            "setpoint": self._setpoint.copy(),
-            "action_clipped": action_clipped,
-            "failure": self._failure,
-            "time": self.time.copy(),
-        }
-
-    def _observation_and_reward(self, meas: Mapping[str, NDArray[np.float64]], action: NDArray[np.float64],
-                                prev_action: NDArray[np.float64] | None = None
-                                ) -> tuple[NDArray[np.float32], NDArray[np.float64], dict[str, NDArray[np.float64]]]:
-        """Observations (N, 19) (:func:`hover_observation`), rewards (N,) and the reward's terms (dict of (N,)) (the
-        law :func:`fawtgym.envs.step_kernels.hover_reward`; the terms are HoverEnv's module docstring's table)."""
+    def _observe(self, buf: NDArray[np.float64], z: NDArray[np.float64], measure: bool, action: NDArray[np.float64],
+                 prev_action: NDArray[np.float64]) -> tuple[NDArray[np.float32], NDArray[np.float64]]:
+        """Observations (N, 19) and rewards (N,), the info numbers but the disturbance into ``buf``
+        (:func:`observe_rows`; ``measure``: the sensors with normals ``z``, else ``buf`` holds the measurement)."""
         n = self.num_envs
-        pos, vel, att, rate = meas[M.POSITION], meas[M.VELOCITY], meas[M.ATTITUDE], meas[M.ANGULAR_VELOCITY]
-        obs = np.empty((n, OBS_SIZE), dtype=np.float32)
-        reward, terms = np.empty(n), np.empty((6, n))
-        prev = self._last_action if prev_action is None else prev_action
-        if observe_and_reward(pos, vel, att, rate, self._setpoint, action, prev, self._obs_low, self._obs_high,
-                              self._reward_w, self._failure_code, obs, reward, terms) >= 0:
-            hover_observation(meas, self._setpoint, action, self._obs_low, self._obs_high)  # raises, naming the entry
-        return obs, reward, {"pos": terms[0], "vel": terms[1], "att": terms[2], "rate": terms[3], "action": terms[4],
-                             "failure": terms[5]}  # REWARD_TERMS
+        s = self.sensor
+        obs, reward = np.empty((n, OBS_SIZE), dtype=np.float32), np.empty(n)
+        status = observe_rows(self._params, z, measure, self._pos, self._vel, self._rot, self._omega, self._accel,
+                              self.time, self._setpoint, self._failure_code, s.count, s.state, action, prev_action,
+                              self._applied, self.rotor_speeds, buf, obs, reward)
+        if status >= 0:
+            self._raise_observe(status, buf, action)
+        return obs, reward
+
+    def _raise_observe(self, status: int, buf: NDArray[np.float64], action: NDArray[np.float64]) -> None:
+        """Raise the error of :func:`observe_rows`' ``status`` (a measurement or an observation entry not finite)."""
+        n = self.num_envs
+        if status >= OBS_SIZE * n:
+            raise ValueError(SENSOR_NOT_FINITE)
+        meas = info_views(buf, n, False)["measurement"]
+        hover_observation(meas, self._setpoint, action, self._obs_low, self._obs_high)  # raises, naming the entry
+        raise AssertionError(f"observe_rows flagged observation entry {status}, hover_observation found it finite")
+
+    def _info(self, buf: NDArray[np.float64], action_clipped: NDArray[np.bool_], single: bool = False,
+              n_ended: int | None = None) -> dict[str, Any]:
+        """The step's ``info`` (module docstring): views of the step's fresh buffer ``buf`` (:func:`info_views`) and
+        the rows' ``failure`` names (a fresh array; all "" if ``n_ended`` is 0: no row ended in the step);
+        ``single``: the single env's form."""
+        info = info_views(buf, self.num_envs, single)
+        codes = self._failure_code
+        if single:
+            info["action_clipped"], info["failure"] = bool(action_clipped[0]), _FAILURE_NAMES[codes[0]]
+        else:
+            info["action_clipped"] = action_clipped
+            info["failure"] = self._no_failure.copy() if n_ended == 0 else FAILURES[codes]
+        return info
 
     def close_extras(self, **kwargs: Any) -> None:
         if getattr(self, "_rollout", None) is not None:

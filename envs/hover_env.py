@@ -247,7 +247,6 @@ class HoverEnv(gym.Env):
         self.model = b.model
         self._data = mujoco.MjData(self.model)
         self._body = self.model.body("vehicle").id
-        self._wind_com = np.zeros(3)
 
     # ---- the batch of one's parts and state --------------------------------------------------
     @property
@@ -310,38 +309,19 @@ class HoverEnv(gym.Env):
                                  or seed < 0):
             raise ValueError(f"seed must be None or an int >= 0, got {seed!r}")
         check_reset_options(options)  # one vehicle: a (3,) set point
-        obs, info = self._batch.reset(seed=seed, options=options)
+        obs, info = self._batch._reset(seed, options, single=True)
         rngs = self._batch._row_rngs
         assert rngs is not None  # the batch's reset made them
         self._np_random = rngs[0]  # the row's generator is this env's (gym.Env.np_random)
         self._np_random_seed = seed if seed is not None else getattr(self, "_np_random_seed", None)
-        return self._single(obs, info)
+        return obs[0], info
 
     def step(self, action: ArrayLike) -> tuple[NDArray[np.float32], float, bool, bool, dict]:
         if self._batch._row_rngs is None:
             raise RuntimeError("HoverEnv.step() called before reset(): call reset() first")
         a = check_actions(action, (4,), self._act_low, self._act_high, "action", finite=False)
-        obs, reward, terminated, truncated, info = self._batch._step(a[None], "action")
-        obs, info = self._single(obs, info)
-        return obs, float(reward[0]), bool(terminated[0]), bool(truncated[0]), info
-
-    def _single(self, obs: NDArray[np.float32], info: dict[str, Any]) -> tuple[NDArray[np.float32], dict[str, Any]]:
-        """Row 0 of the batch's outputs (Gymnasium's single-env shapes and Python scalars)."""
-        applied = {key: value[0] for key, value in info["applied"].items()}
-        applied["thrust"] = float(applied["thrust"])
-        truth = {key: value[0] for key, value in info["truth"].items()}
-        self._wind_com = truth["wind"]
-        out = {
-            "measurement": {key: value[0] for key, value in info["measurement"].items()},
-            "applied": applied,
-            "truth": truth,
-            "reward_terms": {key: float(value[0]) for key, value in info["reward_terms"].items()},
-            "setpoint": info["setpoint"][0],
-            "action_clipped": bool(info["action_clipped"][0]),
-            "failure": str(info["failure"][0]),
-            "time": float(info["time"][0]),
-        }
-        return obs[0], out
+        obs, reward, terminated, truncated, info = self._batch._step(a[None], "action", single=True)
+        return obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), info
 
     @property
     def data(self) -> mujoco.MjData:
@@ -382,7 +362,9 @@ class HoverEnv(gym.Env):
         if self._renderer is None:
             height, width = self._render_size
             self._renderer = HoverRenderer(self.model, width, height, self._body)
-        return self._renderer.render(self.data, self.setpoint, np.asarray(self._wind_com, dtype=float))
+        b = self._batch
+        wind = b._wind_com[0].copy() if b._row_rngs is not None else np.zeros(3)  # the wind at the CoM (info's truth)
+        return self._renderer.render(self.data, self.setpoint, wind)
 
     def close(self) -> None:
         if self._renderer is not None:

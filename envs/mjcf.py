@@ -71,7 +71,7 @@ def vehicle_mjcf(preset: VehiclePreset, physics_dt: float = 0.001, integrator: s
     return f"""<mujoco model="fawtgym_{preset.name}">
   <compiler angle="radian" autolimits="true"/>
   <option timestep="{physics_dt:.9g}" integrator="{integrator}" gravity="0 0 {-GRAVITY:.9g}" density="0" viscosity="0">
-    <flag contact="disable"/>
+    <flag contact="disable" constraint="disable"/>
   </option>
   <visual>
     <global offwidth="{render_width}" offheight="{render_height}"/>

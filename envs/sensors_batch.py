@@ -34,46 +34,55 @@ from .sensors import SensorSpec, make_sensor_spec, pose_rate_error
 from .vehicles import GRAVITY
 
 _FIELD = np.ascontiguousarray(M.EARTH_FIELD_NED, dtype=float)
+#: the error of a measurement that is not finite (the same at every N, whoever calls the kernel)
+SENSOR_NOT_FINITE = ("sensor measurement is not finite: check position, velocity, rotation, angular_velocity and "
+                     "acceleration for NaN/inf")
+
+
 @njit(cache=True)
 def measure_rows(position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
                  rate: NDArray[np.float64], accel: NDArray[np.float64], z: NDArray[np.float64],
-                 sigma: NDArray[np.float64], field: NDArray[np.float64], gyro_bias: NDArray[np.float64],
-                 accel_bias: NDArray[np.float64], count: NDArray[np.int64], pose_every: int,
-                 pose_pos: NDArray[np.float64], pose_vel: NDArray[np.float64], pose_att: NDArray[np.float64],
-                 out_pos: NDArray[np.float64], out_vel: NDArray[np.float64], out_att: NDArray[np.float64],
+                 sigma: NDArray[np.float64], field: NDArray[np.float64], state: NDArray[np.float64],
+                 count: NDArray[np.int64], pose_every: int, out_pos: NDArray[np.float64],
+                 out_vel: NDArray[np.float64], out_att: NDArray[np.float64],
                  out_rate: NDArray[np.float64], out_fsp: NDArray[np.float64], out_gyro: NDArray[np.float64],
                  out_mag: NDArray[np.float64]) -> int:
     """Every row's measurement (module docstring) into the ``out_*`` arrays; returns -1, or the first row whose
     measurement is not finite (NaN/inf in its state).
 
     ``sigma`` = (position, velocity, attitude, angular_velocity, accelerometer, gyro, magnetometer) per-sample
-    sigmas; ``z`` (N, 21) the step's normals; the pose hold ``pose_*`` and ``count`` are updated in place.
+    sigmas; ``z`` (N, 21) the step's normals; ``state`` (N, 21) per row the held pose sample (position 0-2, velocity
+    3-5, attitude 6-14 row-major) and the turn-on biases (gyro 15-17, accelerometer 18-20): the pose hold and
+    ``count`` are updated in place.
     """
     s_pos, s_vel, s_att, s_rate, s_acc, s_gyro, s_mag = (sigma[0], sigma[1], sigma[2], sigma[3], sigma[4],
                                                          sigma[5], sigma[6])
-    delta, noise_rot = np.empty(3), np.empty((3, 3))
+    delta, noise_rot, att = np.empty(3), np.empty((3, 3)), np.empty((3, 3))
     for i in range(position.shape[0]):
         r = rotation[i]
         if count[i] % pose_every == 0:  # pose group: a new sample, held until the next one
             for c in range(3):
-                pose_pos[i, c] = position[i, c] + s_pos * z[i, c]
-                pose_vel[i, c] = velocity[i, c] + s_vel * z[i, 3 + c]
+                state[i, c] = position[i, c] + s_pos * z[i, c]
+                state[i, 3 + c] = velocity[i, c] + s_vel * z[i, 3 + c]
                 delta[c] = s_att * z[i, 6 + c]
             exp_so3_row(delta, noise_rot)
-            mat_mul_row(r, noise_rot, pose_att[i])  # attitude noise R exp(Delta^x) (Wang 2024, eq. 39)
+            mat_mul_row(r, noise_rot, att)  # attitude noise R exp(Delta^x) (Wang 2024, eq. 39)
+            for c in range(3):
+                for k in range(3):
+                    state[i, 6 + 3 * c + k] = att[c, k]
         count[i] += 1
         ax, ay, az = accel[i, 0], accel[i, 1], accel[i, 2] - GRAVITY  # a - g e3 (NED)
         for c in range(3):
             f_sp = r[0, c] * ax + r[1, c] * ay + r[2, c] * az  # R^T (a - g e3)
             mag = r[0, c] * field[0] + r[1, c] * field[1] + r[2, c] * field[2]  # R^T m_E
-            out_pos[i, c] = pose_pos[i, c]
-            out_vel[i, c] = pose_vel[i, c]
+            out_pos[i, c] = state[i, c]
+            out_vel[i, c] = state[i, 3 + c]
             out_rate[i, c] = rate[i, c] + s_rate * z[i, 9 + c]
-            out_fsp[i, c] = f_sp + accel_bias[i, c] + s_acc * z[i, 12 + c]
-            out_gyro[i, c] = rate[i, c] + gyro_bias[i, c] + s_gyro * z[i, 15 + c]
+            out_fsp[i, c] = f_sp + state[i, 18 + c] + s_acc * z[i, 12 + c]  # + accelerometer bias
+            out_gyro[i, c] = rate[i, c] + state[i, 15 + c] + s_gyro * z[i, 15 + c]  # + gyro bias
             out_mag[i, c] = mag + s_mag * z[i, 18 + c]
             for k in range(3):
-                out_att[i, c, k] = pose_att[i, c, k]
+                out_att[i, c, k] = state[i, 6 + 3 * c + k]
         total = 0.0
         for c in range(3):
             total += (out_pos[i, c] + out_vel[i, c] + out_rate[i, c] + out_fsp[i, c] + out_gyro[i, c] + out_mag[i, c]
@@ -112,34 +121,55 @@ class BatchSensorModel:
         self.sig_rate = spec.angular_velocity_density / root_dt
         self.sig_gyro = spec.gyro_density / root_dt
         self.sig_acc = spec.accel_density / root_dt
-        self._sigma = np.array([self.sig_pos, self.sig_vel, self.sig_att, self.sig_rate, self.sig_acc,
-                                self.sig_gyro, spec.mag_sigma])
-        self.noisy = bool(np.any(self._sigma > 0) or spec.gyro_bias_sigma > 0 or spec.accel_bias_sigma > 0)
-        self.gyro_bias = np.zeros((self.n, 3))
-        self.accel_bias = np.zeros((self.n, 3))
-        self._count = np.zeros(self.n, dtype=np.int64)
-        self._no_noise = np.zeros((self.n, 21))  # exact sensors: the kernel reads zero normals (never written)
-        self._pose = {M.POSITION: np.zeros((self.n, 3)), M.VELOCITY: np.zeros((self.n, 3)),
-                      M.ATTITUDE: np.broadcast_to(np.eye(3), (self.n, 3, 3)).copy()}
+        #: the per-sample sigmas of :func:`measure_rows` (position, velocity, attitude, rate, accel, gyro, mag)
+        self.sigma = np.array([self.sig_pos, self.sig_vel, self.sig_att, self.sig_rate, self.sig_acc, self.sig_gyro,
+                               spec.mag_sigma])
+        self.noisy = bool(np.any(self.sigma > 0) or spec.gyro_bias_sigma > 0 or spec.accel_bias_sigma > 0)
+        #: per row: the held pose sample (position 3, velocity 3, attitude 9) and the turn-on biases (gyro 3,
+        #: accelerometer 3), one (N, 21) array (the kernel's one argument; the properties below are views of it)
+        self.state = np.zeros((self.n, 21))
+        self.state[:, 6:15] = np.eye(3).ravel()
+        #: steps since each row's episode start (the pose hold's clock), updated in place by the kernel
+        self.count = np.zeros(self.n, dtype=np.int64)
+        #: exact sensors: the kernel reads zero normals (never written)
+        self.no_noise = np.zeros((self.n, 21))
+        self._z = np.empty((self.n, 21))  # the noisy sensors' normals, drawn into in place (never handed out)
         self.rng = np.random.default_rng(0)
 
     @property
+    def pose_pos(self) -> NDArray[np.float64]:
+        """The held position samples (N, 3) (a view of :attr:`state`)."""
+        return self.state[:, 0:3]
+
+    @property
+    def pose_vel(self) -> NDArray[np.float64]:
+        """The held velocity samples (N, 3) (a view of :attr:`state`)."""
+        return self.state[:, 3:6]
+
+    @property
+    def pose_att(self) -> NDArray[np.float64]:
+        """The held attitude samples (N, 3, 3) (a view of :attr:`state`)."""
+        return self.state[:, 6:15].reshape(self.n, 3, 3)
+
+    @property
     def gyro_bias(self) -> NDArray[np.float64]:
-        """Turn-on gyro biases (N, 3) [rad/s]; assign (3,) or (N, 3) finite values (checked)."""
-        return self._gyro_bias
+        """Turn-on gyro biases (N, 3) [rad/s] (a view of :attr:`state`); assign (3,) or (N, 3) finite values
+        (checked)."""
+        return self.state[:, 15:18]
 
     @gyro_bias.setter
     def gyro_bias(self, value: Any) -> None:
-        self._gyro_bias = self._bias("gyro_bias", value)
+        self.state[:, 15:18] = self._bias("gyro_bias", value)
 
     @property
     def accel_bias(self) -> NDArray[np.float64]:
-        """Turn-on accelerometer biases (N, 3) [m/s^2]; assign (3,) or (N, 3) finite values (checked)."""
-        return self._accel_bias
+        """Turn-on accelerometer biases (N, 3) [m/s^2] (a view of :attr:`state`); assign (3,) or (N, 3) finite
+        values (checked)."""
+        return self.state[:, 18:21]
 
     @accel_bias.setter
     def accel_bias(self, value: Any) -> None:
-        self._accel_bias = self._bias("accel_bias", value)
+        self.state[:, 18:21] = self._bias("accel_bias", value)
 
     def _bias(self, name: str, value: Any) -> NDArray[np.float64]:
         b = np.asarray(value, dtype=float)
@@ -160,7 +190,7 @@ class BatchSensorModel:
         for row, rng in zip(rows.tolist(), rngs, strict=True):  # reset path only (not per step)
             self.gyro_bias[row] = rng.normal(0.0, sg, 3) if sg else 0.0
             self.accel_bias[row] = rng.normal(0.0, sa, 3) if sa else 0.0
-        self._count[rows] = 0
+        self.count[rows] = 0
 
     def measure(self, t: NDArray[np.float64], position: NDArray[np.float64], velocity: NDArray[np.float64],
                 rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],
@@ -169,17 +199,14 @@ class BatchSensorModel:
 
         Every array handed out is a fresh C-contiguous array.
         """
-        n = self.n
-        z = self.rng.standard_normal((n, 21)) if self.noisy else self._no_noise
-        return self._measure(None, z, t, position, velocity, rotation, angular_velocity, acceleration)
+        return self._measure(None, self.noise(), t, position, velocity, rotation, angular_velocity, acceleration)
 
-    def measure_trusted(self, t: NDArray[np.float64], position: NDArray[np.float64], velocity: NDArray[np.float64],
-                        rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],
-                        acceleration: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
-        """:meth:`measure` for a caller whose inputs are its own C-contiguous float64 arrays of the right shapes (the
-        env's state): the same law and noise stream, without the input conversion and shape checks."""
-        z = self.rng.standard_normal((self.n, 21)) if self.noisy else self._no_noise
-        return self._measure(None, z, t, position, velocity, rotation, angular_velocity, acceleration, trusted=True)
+    def noise(self) -> NDArray[np.float64]:
+        """One step's normals of every row, (N, 21) (module docstring's columns) from the noise generator (the
+        numbers of ``rng.standard_normal((N, 21))``, drawn into one array that the next call overwrites); the zeros
+        :attr:`no_noise` (nothing drawn) for exact sensors.  What :meth:`measure` draws: the env draws it and runs the
+        kernel in its own step kernel (:func:`fawtgym.envs.step_kernels.observe_rows`)."""
+        return self.rng.standard_normal(out=self._z) if self.noisy else self.no_noise
 
     def measure_rows(self, rows: NDArray[np.intp], rngs: list[np.random.Generator], t: NDArray[np.float64],
                      position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
@@ -198,38 +225,32 @@ class BatchSensorModel:
 
     def _measure(self, rows: NDArray[np.intp] | None, z: NDArray[np.float64], t: NDArray[np.float64],
                  position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
-                 angular_velocity: NDArray[np.float64], acceleration: NDArray[np.float64], trusted: bool = False
+                 angular_velocity: NDArray[np.float64], acceleration: NDArray[np.float64]
                  ) -> dict[str, NDArray[np.float64]]:
-        """The kernel on ``rows`` (None: every row, the model's own state in place; else their state, written back);
-        ``trusted``: the inputs are C-contiguous float64 of the right shapes (not checked)."""
+        """The kernel on ``rows`` (None: every row, the model's own state in place; else their state, written back)."""
         every = rows is None
         n = self.n if rows is None else rows.size
-        if not trusted:
-            position, velocity = as_f64(position, "position"), as_f64(velocity, "velocity")
-            rotation, angular_velocity = as_f64(rotation, "rotation"), as_f64(angular_velocity, "angular_velocity")
-            acceleration = as_f64(acceleration, "acceleration")
-        if not trusted and (position.shape != (n, 3) or velocity.shape != (n, 3) or rotation.shape != (n, 3, 3)
-                            or angular_velocity.shape != (n, 3) or acceleration.shape != (n, 3)):
+        position, velocity = as_f64(position, "position"), as_f64(velocity, "velocity")
+        rotation, angular_velocity = as_f64(rotation, "rotation"), as_f64(angular_velocity, "angular_velocity")
+        acceleration = as_f64(acceleration, "acceleration")
+        if (position.shape != (n, 3) or velocity.shape != (n, 3) or rotation.shape != (n, 3, 3)
+                or angular_velocity.shape != (n, 3) or acceleration.shape != (n, 3)):
             raise ValueError(f"sensor inputs must be position, velocity, angular_velocity, acceleration (N, 3) and "
                              f"rotation (N, 3, 3) with N = {n}; got {position.shape}, {velocity.shape}, "
                              f"{angular_velocity.shape}, {acceleration.shape}, {rotation.shape}")
         pose_every = self.pose_every if self.noisy else 1  # exact measurements every step (no hold without noise)
-        pose = self._pose if every else {key: value[rows] for key, value in self._pose.items()}
-        count = self._count if every else self._count[rows]
-        gyro_bias = self.gyro_bias if every else self.gyro_bias[rows]
-        accel_bias = self.accel_bias if every else self.accel_bias[rows]
+        state = self.state if every else self.state[rows]  # the rows' copy, written back below
+        count = self.count if every else self.count[rows]
         e = np.empty
         out = {M.POSITION: e((n, 3)), M.VELOCITY: e((n, 3)), M.ATTITUDE: e((n, 3, 3)), M.ANGULAR_VELOCITY: e((n, 3)),
                M.SPECIFIC_FORCE: e((n, 3)), M.GYRO: e((n, 3)), M.MAGNETOMETER: e((n, 3)),
                M.TIME: np.array(t, dtype=float)}
-        if measure_rows(position, velocity, rotation, angular_velocity, acceleration, z, self._sigma, _FIELD,
-                        gyro_bias, accel_bias, count, pose_every, pose[M.POSITION], pose[M.VELOCITY],
-                        pose[M.ATTITUDE], out[M.POSITION], out[M.VELOCITY], out[M.ATTITUDE], out[M.ANGULAR_VELOCITY],
+        if measure_rows(position, velocity, rotation, angular_velocity, acceleration, z, self.sigma, _FIELD,
+                        state, count, pose_every, out[M.POSITION], out[M.VELOCITY], out[M.ATTITUDE],
+                        out[M.ANGULAR_VELOCITY],
                         out[M.SPECIFIC_FORCE], out[M.GYRO], out[M.MAGNETOMETER]) >= 0:
-            raise ValueError("sensor measurement is not finite: check position, velocity, rotation, angular_velocity "
-                             "and acceleration for NaN/inf")
+            raise ValueError(SENSOR_NOT_FINITE)
         if rows is not None:
-            self._count[rows] = count
-            for key, value in pose.items():
-                self._pose[key][rows] = value
+            self.count[rows] = count
+            self.state[rows] = state
         return out
