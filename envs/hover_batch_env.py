@@ -64,10 +64,10 @@ Autoreset (``autoreset_mode``, in ``metadata["autoreset_mode"]``):
   starts the rows from a k-row copy, the other rows untouched), and with noisy sensors their first
   measurement draws its noise from each row's own sensor generator (the shared per-step stream of the
   other rows is untouched).  When every row ends at once the restart is the regular reset (at N = 1
-  the row's own generator *is* the stream).  So with deterministic wind and
-  exact sensors, or at N = 1, every episode (length, rewards, observations, terminal observation)
-  equals the next-step mode's bitwise; with random wind or sensor noise at N > 1 the episodes are
-  draws of the same distributions from other samples of the streams.
+  the row's own generator *is* the stream).  So with exact sensors (any wind: each row's wind comes
+  from its own seed, see Wind), or at N = 1, every episode (length, rewards, observations, terminal
+  observation) equals the next-step mode's; with sensor noise at N > 1 the episodes are draws of the
+  same distributions from other samples of the shared noise stream.
 
 Domain randomization (``randomizer``, e.g. :mod:`fawtgym.train.randomization`): a callable
 ``randomizer(rows, rngs) -> draws`` called at every episode start (full reset and autoreset) with the
@@ -92,11 +92,13 @@ N > 1 rows comes from one generator seeded by ``s`` (fixed-size draws, rows stay
 with N = 1 it is the row's own generator, so N = 1 reproduces ``HoverEnv`` with any sensors.
 
 Wind: a wind model whose output does not depend on time (``calm``, steady ``fawt-*``, ``dryden-*``)
-is stepped once for all N rows; a row that resets gets a fresh draw of its gust-filter state from
-the stationary distribution.  Any other model (a fan schedule, ``gust-1cos``, a user class) is run
-in cohorts: rows that reset at the same step share one copy of the model, stepped with their episode
-time as each single env would (a deterministic model reproduces the single envs exactly; a random one
-draws one stream set per cohort); cost grows with the number of distinct reset times alive.
+is stepped once for all N rows; a row that resets restarts its own gust field.  Any other model (a fan
+schedule, ``gust-1cos``, a user class) is run in cohorts: rows that reset at the same step share one
+copy of the model, stepped with their episode time as each single env would; cost grows with the number
+of distinct reset times alive.  Either way every row's gust field (FAWT, Dryden: initial state and noise)
+comes from that row's own wind seed, so a row's wind is the one the single env gets with the row's seed,
+whatever the other rows do (a user model in a cohort of several rows gets one seed pooled from theirs;
+:mod:`fawtgym.envs.wind_cohorts`, ``tests/test_wind_row_independence.py``).
 
 ``info`` holds batched arrays with HoverEnv's keys: ``measurement``/``applied``/``truth`` dicts of
 (N, ...) arrays, ``reward_terms`` (a dict of (N,) arrays: the reward's terms, HoverEnv's table),
