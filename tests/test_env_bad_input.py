@@ -104,7 +104,11 @@ def test_batch_setpoint_is_a_checked_property(n):
 
 
 def test_step_before_reset_is_a_runtime_error():
-    for env in (HoverEnv(), HoverBatchEnv(1), HoverBatchEnv(3)):
+    import gymnasium as gym
+
+    made = gym.make("fawtgym/Hover-v0")  # no OrderEnforcing / PassiveEnvChecker: the env's own checks answer
+    assert made is made.unwrapped
+    for env in (HoverEnv(), made, HoverBatchEnv(1), HoverBatchEnv(3)):
         with pytest.raises(RuntimeError, match=r"step\(\) called before reset\(\)"):
             env.step(np.zeros(env.action_space.shape))
 
