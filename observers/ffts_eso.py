@@ -60,9 +60,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3 import project_so3
-from fawtgym.core.so3_kernels import cross_row, exp_so3_row, mat_mul_row, mat_t_vec_row, mat_vec_row
+from fawtgym.core.so3_kernels import cross_row, exp_so3_row, first_non_rotation, mat_mul_row, mat_t_vec_row, mat_vec_row
+from fawtgym.observers._checks import ROTATION_TOL, first_bad_estimate, first_nonfinite_input, first_nonfinite_row
 from fawtgym.observers._obs_common import batch_vec
-from fawtgym.observers.base import BufferStates, Observer, ObserverEstimate, register_observer
+from fawtgym.observers.base import BufferStates, Observer, ObserverEstimate, fast_inputs, register_observer
 from fawtgym.observers.hc_ffts import (
     DEFAULT_EPS,
     check_p,
@@ -217,11 +218,30 @@ class FFTSESO(Observer):
                 dt: float) -> tuple[ObserverEstimate, NDArray[np.float64]]:
         x = self._state
         eps_t, eps_a = self.eps_at(dt)
-        x_new = np.empty(x.shape)
-        est = np.empty(x.shape)
+        out = np.empty((2, *x.shape))     # (new state, estimate): see _update_checked
         ffts_eso_step(x, m["position"], m["velocity"], m["attitude"], m["angular_velocity"], f, tau, dt, eps_t,
-                      eps_a, self._gains, x_new, est)
-        return _estimate(est), x_new
+                      eps_a, self._gains, out[0], out[1])
+        return _estimate(out[1]), out[0]
+
+    def _update_checked(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike, dt: float,
+                        n: int) -> ObserverEstimate | None:
+        """The checks and the law in one compiled call (:func:`ffts_eso_update`; :meth:`Observer._update_checked`).
+
+        The new state and the estimate are the two halves of one fresh buffer (2, N, 24): no later update writes
+        into either (each update makes a new buffer and a per-row reset a new state array)."""
+        arrays = fast_inputs(measurement, _KEYS, thrust, torque, n)
+        if arrays is None:
+            return None
+        pos, vel, att, omega, f, tau = arrays
+        x = self._state
+        eps_t, eps_a = self.eps_at(dt)
+        force_bound, torque_bound = self.estimate_bounds()
+        out = np.empty((2, *x.shape))
+        if ffts_eso_update(x, pos, vel, att, omega, f, tau, dt, eps_t, eps_a, self._gains, force_bound, torque_bound,
+                           out):
+            return None
+        self._state = out[0]
+        return _estimate(out[1])
 
     def estimate(self) -> ObserverEstimate:
         if self._n_rows is None:
@@ -260,6 +280,31 @@ def ffts_eso_estimate(x: NDArray[np.float64], est: NDArray[np.float64]) -> None:
     """:func:`_estimate_row` of every row of the state ``x`` (N, 24) into ``est`` (N, 24)."""
     for i in range(x.shape[0]):
         _estimate_row(x[i], est[i])
+
+
+#: :func:`ffts_eso_update` status codes
+CHECKS_PASSED, BAD_INPUT, BAD_ESTIMATE = 0, 1, 2
+
+
+@njit(cache=True)
+def ffts_eso_update(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray[np.float64],
+                    att: NDArray[np.float64], omega: NDArray[np.float64], thrust: NDArray[np.float64],
+                    torque: NDArray[np.float64], dt: float, eps_t: float, eps_a: float, gains: NDArray[np.float64],
+                    force_bound: float, torque_bound: float, out: NDArray[np.float64]) -> int:
+    """:meth:`Observer.update`'s checks around :func:`ffts_eso_step`, in one call: the measurement rows finite
+    and the attitude a rotation (:func:`~fawtgym.observers.base.check_measurement`), thrust and torque finite
+    (:func:`~fawtgym.observers.base.check_inputs`), then the step into ``out[0]`` (new state) and ``out[1]``
+    (estimate), then the estimate bounded and finite (:meth:`~fawtgym.observers.base.Observer._check_estimate`).
+    Returns ``CHECKS_PASSED``, ``BAD_INPUT`` (nothing computed) or ``BAD_ESTIMATE``; the caller words the error."""
+    if (first_nonfinite_row(pos) >= 0 or first_nonfinite_row(vel) >= 0 or first_non_rotation(att, ROTATION_TOL) >= 0
+            or first_nonfinite_row(omega) >= 0 or first_nonfinite_input(thrust, torque) >= 0):
+        return BAD_INPUT
+    est = out[1]
+    ffts_eso_step(x, pos, vel, att, omega, thrust, torque, dt, eps_t, eps_a, gains, out[0], est)
+    if first_bad_estimate(est[:, E_FORCE:E_FORCE + 3], est[:, E_TORQUE:E_TORQUE + 3], force_bound, torque_bound,
+                          est) != -1:
+        return BAD_ESTIMATE
+    return CHECKS_PASSED
 
 
 @njit(cache=True)
