@@ -277,7 +277,7 @@ class PX4Agent(Agent):
             if sp is not None:  # one NED point (3,) for every row is passed as a (1, 3) view, not copied
                 if type(sp) is not np.ndarray or sp.dtype is not _F64:
                     sp = np.asarray(sp, dtype=float)
-                self._setpoint = np.ascontiguousarray(sp.reshape(1, 3) if sp.shape == (3,) else _rows3(sp, n))
+                self._setpoint = np.ascontiguousarray(sp[None] if sp.shape == (3,) else _rows3(sp, n))
         force_hat, torque_hat = self._estimate(meas, info, self.dt)
         self.last_estimate = (force_hat, torque_hat)
         raw = self.raw_estimate
@@ -293,7 +293,7 @@ class PX4Agent(Agent):
             self.rate_control.state, self._att_sp, self._action)
         if code:
             self._raise_status(code, row, meas)
-        return self._action.copy() if batched else match_batch(self._action, batched).copy()
+        return self._action.copy() if batched else match_batch(self._action, False).copy()
 
     def _raise_status(self, code: int, row: int, meas: Mapping[str, NDArray[np.float64]]) -> None:
         """The FloatingPointError of a cascade status code (:data:`~fawtgym.agents.px4_cascade.BAD_ESTIMATE`,
@@ -377,7 +377,8 @@ class PX4ObserverAgent(PX4Agent):
     def _estimate(self, meas: dict[str, NDArray[np.float64]], info: Mapping[str, Any],
                   dt: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
         n = meas["position"].shape[0]
-        thrust, torque = applied_from_info(self.known_inputs(info), n, self.preset.mass * GRAVITY)
+        known = info if self.observer_inputs == "applied" else self.known_inputs(info)
+        thrust, torque = applied_from_info(known, n, self.preset.mass * GRAVITY)
         est = self.observer.update(meas, thrust, torque, dt)
         force = np.ascontiguousarray(est.force, dtype=float)
         tau = np.ascontiguousarray(est.torque, dtype=float)

@@ -79,6 +79,7 @@ GAIN_NAMES = ("mass", "gravity", "p", "kt1", "kt2", "kt3", "kappa_t", "ka1", "ka
               "J (9, row-major)", "J^-1 (9, row-major)")
 #: columns of the state (N, 24): b_hat, v_hat, phi_hat, Omega_hat, tau_hat, R_hat (row-major 9)
 B, V, PHI, W, TAU, R = 0, 3, 6, 9, 12, 15
+N_STATE = 24
 #: columns of the estimate buffer (N, 24): force, torque, position, velocity, angular_velocity, attitude (9)
 E_FORCE, E_TORQUE, E_POS, E_VEL, E_W, E_ATT = 0, 3, 6, 9, 12, 15
 
@@ -234,9 +235,10 @@ class FFTSESO(Observer):
             return None
         pos, vel, att, omega, f, tau = arrays
         x = self._state
-        eps_t, eps_a = self.eps_at(dt)
+        cache = self._eps_cache
+        eps_t, eps_a = (cache[1], cache[2]) if dt == cache[0] else self.eps_at(dt)
         force_bound, torque_bound = self.estimate_bounds()
-        out = np.empty((2, *x.shape))
+        out = np.empty((2, n, N_STATE))
         if ffts_eso_update(x, pos, vel, att, omega, f, tau, dt, eps_t, eps_a, self._gains, force_bound, torque_bound,
                            out):
             return None
@@ -258,8 +260,7 @@ _STATES = {"position": (E_POS, E_POS + 3, (3,)), "velocity": (E_VEL, E_VEL + 3, 
 
 def _estimate(est: NDArray[np.float64]) -> ObserverEstimate:
     """The estimate from the kernel's buffer (N, 24) (views of a fresh buffer, not of the state)."""
-    return ObserverEstimate(force=est[:, E_FORCE:E_FORCE + 3], torque=est[:, E_TORQUE:E_TORQUE + 3],
-                            states=BufferStates(est, _STATES))
+    return ObserverEstimate(est[:, E_FORCE:E_FORCE + 3], est[:, E_TORQUE:E_TORQUE + 3], BufferStates(est, _STATES))
 
 
 @njit(cache=True)
