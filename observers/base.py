@@ -322,16 +322,18 @@ class Observer:
                     "as before this update (check dt, the gains and the measurement)")
 
 
-def fast_inputs(measurement: object, keys: tuple[str, ...], thrust: object, torque: object,
-                n: int) -> list[NDArray[np.float64]] | None:
-    """The arrays ``measurement[key]`` for ``keys``, then ``thrust`` and ``torque``, if every one is already a float64
-    ndarray of the shape :func:`check_measurement` / :func:`check_inputs` pass on as is ((n, *trailing), (n,),
-    (n, 3)); None otherwise (the caller then goes through those checks).  Values are not checked here."""
+def fast_inputs(measurement: object, shapes: tuple[tuple[str, tuple[int, ...], int], ...], thrust: object,
+                torque: object, n: int) -> list[NDArray[np.float64]] | None:
+    """The arrays ``measurement[key]`` for the keys of ``shapes`` (:func:`input_shapes`), then ``thrust`` and
+    ``torque``, if every one is already a float64 ndarray of the shape :func:`check_measurement` /
+    :func:`check_inputs` pass on as is ((n, *trailing), (n,), (n, 3)); None otherwise (the caller then goes through
+    those checks).  Values are not checked here."""
     if type(measurement) is not dict:
         return None
     out = []
-    for key, shape, _ in _shapes(keys, n):
-        a = measurement.get(key)
+    get = measurement.get
+    for key, shape, _ in shapes:
+        a = get(key)
         if type(a) is not np.ndarray or a.dtype is not _F64 or a.shape != shape:
             return None
         out.append(a)
@@ -384,7 +386,7 @@ def check_measurement(measurement: Mapping[str, ArrayLike], keys: tuple[str, ...
         raise TypeError(f"{who}: measurement must be a mapping of arrays (info['measurement']), "
                         f"got {type(measurement).__name__}")
     out = {}
-    for key, shape, kind in _shapes(keys, n):
+    for key, shape, kind in input_shapes(keys, n):
         try:
             a = measurement[key]
         except KeyError:
@@ -423,7 +425,7 @@ _ROWS, _ROTATION, _OTHER = 0, 1, 2
 _SHAPES: dict[tuple[tuple[str, ...], int], tuple[tuple[str, tuple[int, ...], int], ...]] = {}
 
 
-def _shapes(keys: tuple[str, ...], n: int) -> tuple[tuple[str, tuple[int, ...], int], ...]:
+def input_shapes(keys: tuple[str, ...], n: int) -> tuple[tuple[str, tuple[int, ...], int], ...]:
     """(key, expected shape (n, *trailing), check kind) of each key (memoized: built once per key set and batch
     size)."""
     spec = _SHAPES.get((keys, n))

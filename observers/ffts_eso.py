@@ -55,15 +55,32 @@ import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-from numba import njit
+from numba import float64, int64, njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3 import project_so3
 from fawtgym.core.so3_kernels import cross_row, exp_so3_row, first_non_rotation, mat_mul_row, mat_t_vec_row, mat_vec_row
-from fawtgym.observers._checks import ROTATION_TOL, first_bad_estimate, first_nonfinite_input, first_nonfinite_row
+from fawtgym.observers._checks import (
+    ROTATION_TOL,
+    ROTATIONS,
+    ROWS,
+    ROWS_3D,
+    TYPED_DISPATCH,
+    VALUES,
+    first_bad_estimate,
+    first_nonfinite_input,
+    first_nonfinite_row,
+)
 from fawtgym.observers._obs_common import batch_vec
-from fawtgym.observers.base import BufferStates, Observer, ObserverEstimate, fast_inputs, register_observer
+from fawtgym.observers.base import (
+    BufferStates,
+    Observer,
+    ObserverEstimate,
+    fast_inputs,
+    input_shapes,
+    register_observer,
+)
 from fawtgym.observers.hc_ffts import (
     DEFAULT_EPS,
     check_p,
@@ -230,17 +247,28 @@ class FFTSESO(Observer):
 
         The new state and the estimate are the two halves of one fresh buffer (2, N, 24): no later update writes
         into either (each update makes a new buffer and a per-row reset a new state array)."""
-        arrays = fast_inputs(measurement, _KEYS, thrust, torque, n)
-        if arrays is None:
-            return None
-        pos, vel, att, omega, f, tau = arrays
+        if TYPED_DISPATCH:    # the typed kernel refuses (TypeError) anything but C-contiguous float64 arrays
+            if type(measurement) is not dict:
+                return None
+            get = measurement.get
+            pos, vel, att, omega, f, tau = (get("position"), get("velocity"), get("attitude"),
+                                            get("angular_velocity"), thrust, torque)
+        else:                 # plain Python kernels (NUMBA_DISABLE_JIT=1): the same types checked here
+            arrays = fast_inputs(measurement, input_shapes(_KEYS, n), thrust, torque, n)
+            if arrays is None:
+                return None
+            pos, vel, att, omega, f, tau = arrays
         x = self._state
         cache = self._eps_cache
         eps_t, eps_a = (cache[1], cache[2]) if dt == cache[0] else self.eps_at(dt)
         force_bound, torque_bound = self.estimate_bounds()
         out = np.empty((2, n, N_STATE))
-        if ffts_eso_update(x, pos, vel, att, omega, f, tau, dt, eps_t, eps_a, self._gains, force_bound, torque_bound,
-                           out):
+        try:
+            code = ffts_eso_update(x, pos, vel, att, omega, f, tau, dt, eps_t, eps_a, self._gains, force_bound,
+                                   torque_bound, out)
+        except TypeError:     # an input of another type, layout or ndim
+            return None
+        if code != CHECKS_PASSED:
             return None
         self._state = out[0]
         return _estimate(out[1])
@@ -281,31 +309,6 @@ def ffts_eso_estimate(x: NDArray[np.float64], est: NDArray[np.float64]) -> None:
     """:func:`_estimate_row` of every row of the state ``x`` (N, 24) into ``est`` (N, 24)."""
     for i in range(x.shape[0]):
         _estimate_row(x[i], est[i])
-
-
-#: :func:`ffts_eso_update` status codes
-CHECKS_PASSED, BAD_INPUT, BAD_ESTIMATE = 0, 1, 2
-
-
-@njit(cache=True)
-def ffts_eso_update(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray[np.float64],
-                    att: NDArray[np.float64], omega: NDArray[np.float64], thrust: NDArray[np.float64],
-                    torque: NDArray[np.float64], dt: float, eps_t: float, eps_a: float, gains: NDArray[np.float64],
-                    force_bound: float, torque_bound: float, out: NDArray[np.float64]) -> int:
-    """:meth:`Observer.update`'s checks around :func:`ffts_eso_step`, in one call: the measurement rows finite
-    and the attitude a rotation (:func:`~fawtgym.observers.base.check_measurement`), thrust and torque finite
-    (:func:`~fawtgym.observers.base.check_inputs`), then the step into ``out[0]`` (new state) and ``out[1]``
-    (estimate), then the estimate bounded and finite (:meth:`~fawtgym.observers.base.Observer._check_estimate`).
-    Returns ``CHECKS_PASSED``, ``BAD_INPUT`` (nothing computed) or ``BAD_ESTIMATE``; the caller words the error."""
-    if (first_nonfinite_row(pos) >= 0 or first_nonfinite_row(vel) >= 0 or first_non_rotation(att, ROTATION_TOL) >= 0
-            or first_nonfinite_row(omega) >= 0 or first_nonfinite_input(thrust, torque) >= 0):
-        return BAD_INPUT
-    est = out[1]
-    ffts_eso_step(x, pos, vel, att, omega, thrust, torque, dt, eps_t, eps_a, gains, out[0], est)
-    if first_bad_estimate(est[:, E_FORCE:E_FORCE + 3], est[:, E_TORQUE:E_TORQUE + 3], force_bound, torque_bound,
-                          est) != -1:
-        return BAD_ESTIMATE
-    return CHECKS_PASSED
 
 
 @njit(cache=True)
@@ -391,3 +394,38 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
             for k in range(3):
                 xo[R + 3 * j + k] = r_new[j, k]
         _estimate_row(xo, est[i])
+
+
+#: :func:`ffts_eso_update` status codes
+CHECKS_PASSED, BAD_INPUT, BAD_ESTIMATE = 0, 1, 2
+
+
+@njit(int64(ROWS, ROWS, ROWS, ROTATIONS, ROWS, VALUES, ROWS, float64, float64, float64, VALUES, float64, float64,
+            ROWS_3D), cache=True)
+def ffts_eso_update(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray[np.float64],
+                    att: NDArray[np.float64], omega: NDArray[np.float64], thrust: NDArray[np.float64],
+                    torque: NDArray[np.float64], dt: float, eps_t: float, eps_a: float, gains: NDArray[np.float64],
+                    force_bound: float, torque_bound: float, out: NDArray[np.float64]) -> int:
+    """:meth:`Observer.update`'s checks around :func:`ffts_eso_step`, in one call: the measurement rows finite
+    and the attitude a rotation (:func:`~fawtgym.observers.base.check_measurement`), thrust and torque finite
+    (:func:`~fawtgym.observers.base.check_inputs`), then the step into ``out[0]`` (new state) and ``out[1]``
+    (estimate), then the estimate bounded and finite (:meth:`~fawtgym.observers.base.Observer._check_estimate`).
+    Returns ``CHECKS_PASSED``, ``BAD_INPUT`` (nothing computed) or ``BAD_ESTIMATE``; the caller words the error.
+
+    Compiled for C-contiguous float64 arrays only (a call with anything else raises TypeError, and the caller takes
+    the Python checks); the shapes are checked here: N = the state's rows."""
+    n = x.shape[0]
+    if (pos.shape[0] != n or pos.shape[1] != 3 or vel.shape[0] != n or vel.shape[1] != 3 or att.shape[0] != n
+            or att.shape[1] != 3 or att.shape[2] != 3 or omega.shape[0] != n or omega.shape[1] != 3
+            or thrust.shape[0] != n or torque.shape[0] != n or torque.shape[1] != 3 or x.shape[1] != N_STATE
+            or out.shape[0] != 2 or out.shape[1] != n or out.shape[2] != N_STATE):
+        return BAD_INPUT
+    if (first_nonfinite_row(pos) >= 0 or first_nonfinite_row(vel) >= 0 or first_non_rotation(att, ROTATION_TOL) >= 0
+            or first_nonfinite_row(omega) >= 0 or first_nonfinite_input(thrust, torque) >= 0):
+        return BAD_INPUT
+    est = out[1]
+    ffts_eso_step(x, pos, vel, att, omega, thrust, torque, dt, eps_t, eps_a, gains, out[0], est)
+    if first_bad_estimate(est[:, E_FORCE:E_FORCE + 3], est[:, E_TORQUE:E_TORQUE + 3], force_bound, torque_bound,
+                          est) != -1:
+        return BAD_ESTIMATE
+    return CHECKS_PASSED
