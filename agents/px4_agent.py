@@ -54,7 +54,7 @@ from fawtgym.envs.motors import allocation_matrix
 from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
 
 from . import px4_cascade as C
-from .base import Agent, applied_from_info, match_batch, measurement_from_info
+from .base import Agent, applied_from_info, measurement_from_info
 from .observer_inputs import (
     OBSERVER_INPUTS,
     POSE_KEYS,
@@ -293,7 +293,7 @@ class PX4Agent(Agent):
             self.rate_control.state, self._att_sp, self._action)
         if code:
             self._raise_status(code, row, meas)
-        return self._action.copy() if batched else match_batch(self._action, False).copy()
+        return self._action.copy() if batched else self._action[0].copy()  # unbatched: N = 1 (pos was (3,))
 
     def _raise_status(self, code: int, row: int, meas: Mapping[str, NDArray[np.float64]]) -> None:
         """The FloatingPointError of a cascade status code (:data:`~fawtgym.agents.px4_cascade.BAD_ESTIMATE`,
@@ -380,10 +380,10 @@ class PX4ObserverAgent(PX4Agent):
         known = info if self.observer_inputs == "applied" else self.known_inputs(info)
         thrust, torque = applied_from_info(known, n, self.preset.mass * GRAVITY)
         est = self.observer.update(meas, thrust, torque, dt)
-        force = np.ascontiguousarray(est.force, dtype=float)
-        tau = np.ascontiguousarray(est.torque, dtype=float)
-        if force.shape != (n, 3) or tau.shape != (n, 3):
-            force, tau = force.reshape(n, 3), tau.reshape(n, 3)
+        force, tau = np.ascontiguousarray(est.force), np.ascontiguousarray(est.torque)
+        if force.dtype is not _F64 or tau.dtype is not _F64 or force.shape != (n, 3) or tau.shape != (n, 3):
+            force = np.ascontiguousarray(force, dtype=float).reshape(n, 3)
+            tau = np.ascontiguousarray(tau, dtype=float).reshape(n, 3)
         self.raw_estimate = (force, tau)  # checked finite by the cascade kernel before it uses either
         return (force if self.force_ff else None), (tau if self.torque_ff else None)
 
