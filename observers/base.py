@@ -235,14 +235,15 @@ class Observer:
         FloatingPointError naming the observer and the channel, and the state is left as it was before the
         update (the law's new state is stored, by :meth:`_commit`, only after the estimate passed).
         """
-        who = self.name or type(self).__name__
         n = self._n_rows
+        if n is not None and type(dt) is float and 0.0 < dt <= self.max_dt:  # (check_dt's accepted float)
+            est = self._update_checked(measurement, thrust, torque, dt, n)
+            if est is not None:  # the law's kernel checked its inputs and its estimate (one compiled call)
+                return est
+        who = self.name or type(self).__name__
         if n is None:
             raise RuntimeError(f"{who}: update() before reset(); call reset(measurement) first")
         step = check_dt(dt, self.max_dt, who)
-        est = self._update_checked(measurement, thrust, torque, step, n)
-        if est is not None:      # the law's kernel checked its inputs and its estimate (one compiled call)
-            return est
         meas = check_measurement(measurement, self.required_keys, n, who)
         f, tau = check_inputs(thrust, torque, n, who)
         est, state = self._update(meas, f, tau, step)

@@ -286,9 +286,14 @@ _STATES = {"position": (E_POS, E_POS + 3, (3,)), "velocity": (E_VEL, E_VEL + 3, 
            "attitude": (E_ATT, E_ATT + 9, (3, 3)), "angular_velocity": (E_W, E_W + 3, (3,))}
 
 
+#: the force and torque columns of the estimate buffer (index tuples made once: a slice per call costs ~60 ns more)
+_FORCE_COLUMNS = (slice(None), slice(E_FORCE, E_FORCE + 3))
+_TORQUE_COLUMNS = (slice(None), slice(E_TORQUE, E_TORQUE + 3))
+
+
 def _estimate(est: NDArray[np.float64]) -> ObserverEstimate:
     """The estimate from the kernel's buffer (N, 24) (views of a fresh buffer, not of the state)."""
-    return ObserverEstimate(est[:, E_FORCE:E_FORCE + 3], est[:, E_TORQUE:E_TORQUE + 3], BufferStates(est, _STATES))
+    return ObserverEstimate(est[_FORCE_COLUMNS], est[_TORQUE_COLUMNS], BufferStates(est, _STATES))
 
 
 @njit(cache=True)
