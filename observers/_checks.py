@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import config, float64, njit
+from numba import njit
 from numpy.typing import NDArray
 
 #: a measured attitude R is a rotation if max |(R^T R - I)_ij| <= ROTATION_TOL and det R > 0
@@ -21,14 +21,6 @@ from numpy.typing import NDArray
 #: orthonormal to ~1e-15, from float32 entries to ~1e-7 (a flight log); a 1.001-scaled rotation is off by 2e-3,
 #: a reflection has det -1.
 ROTATION_TOL = 1e-6
-
-#: True when the kernels are compiled: a kernel given an explicit signature (the types below) then refuses, with a
-#: TypeError and before running, arguments of any other type, dtype, ndim or layout, which lets a caller skip those
-#: checks in Python.  False under ``NUMBA_DISABLE_JIT=1`` (plain Python functions accept anything).
-TYPED_DISPATCH = not config.DISABLE_JIT
-#: argument types of such signatures: C-contiguous float64 arrays (N,) / (N, k) / (N, 3, 3) or (2, N, k)
-VALUES, ROWS, ROTATIONS = float64[::1], float64[:, ::1], float64[:, :, ::1]
-ROWS_3D = ROTATIONS
 
 
 @njit(cache=True)

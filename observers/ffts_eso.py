@@ -53,21 +53,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from numba import float64, int64, njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.kernel_types import ROTATIONS, ROWS, TYPED_DISPATCH, VALUES
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3 import project_so3
 from fawtgym.core.so3_kernels import cross_row, exp_so3_row, first_non_rotation, mat_mul_row, mat_t_vec_row, mat_vec_row
 from fawtgym.observers._checks import (
     ROTATION_TOL,
-    ROTATIONS,
-    ROWS,
-    ROWS_3D,
-    TYPED_DISPATCH,
-    VALUES,
     first_bad_estimate,
     first_nonfinite_input,
     first_nonfinite_row,
@@ -247,6 +244,12 @@ class FFTSESO(Observer):
 
         The new state and the estimate are the two halves of one fresh buffer (2, N, 24): no later update writes
         into either (each update makes a new buffer and a per-row reset a new state array)."""
+        pos: Any
+        vel: Any
+        att: Any
+        omega: Any
+        f: Any
+        tau: Any
         if TYPED_DISPATCH:    # the typed kernel refuses (TypeError) anything but C-contiguous float64 arrays
             if type(measurement) is not dict:
                 return None
@@ -406,7 +409,7 @@ CHECKS_PASSED, BAD_INPUT, BAD_ESTIMATE = 0, 1, 2
 
 
 @njit(int64(ROWS, ROWS, ROWS, ROTATIONS, ROWS, VALUES, ROWS, float64, float64, float64, VALUES, float64, float64,
-            ROWS_3D), cache=True)
+            ROTATIONS), cache=True)
 def ffts_eso_update(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray[np.float64],
                     att: NDArray[np.float64], omega: NDArray[np.float64], thrust: NDArray[np.float64],
                     torque: NDArray[np.float64], dt: float, eps_t: float, eps_a: float, gains: NDArray[np.float64],
