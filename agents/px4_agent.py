@@ -171,8 +171,8 @@ class PX4Agent(Agent):
         self.__dict__.update(state)
         self._pack_constants()
 
-    #: (what the measurement keys depend on, the keys act reads): see :meth:`_measurement_keys`
-    _keys: tuple[Any, tuple[str, ...]] = (None, ())
+    #: (the gyro key and observer the measurement keys depend on, the keys act reads): see :meth:`_measurement_keys`
+    _keys: tuple[Any, Any, tuple[str, ...]] = (None, None, ())
     #: the observer's latest (force (N, 3), torque (N, 3)) estimates (None: no observer, or before the first act)
     raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
 
@@ -259,10 +259,10 @@ class PX4Agent(Agent):
         return tuple(dict.fromkeys((*POSE_KEYS, "angular_velocity", self.gyro_key, "specific_force")))
 
     def act(self, observation: Any, info: Mapping[str, Any]) -> NDArray[np.float64]:
-        spec = (self.gyro_key, getattr(self, "observer", None))
-        if self._keys[0] != spec:  # only the keys read are converted (rebuilt if the gyro key or observer changes)
-            self._keys = (spec, self._measurement_keys())
-        meas, batched = measurement_from_info(info, self._keys[1])
+        keys = self._keys  # only the keys read are converted (rebuilt if the gyro key or the observer changes)
+        if keys[0] != self.gyro_key or keys[1] is not getattr(self, "observer", None):
+            keys = self._keys = (self.gyro_key, getattr(self, "observer", None), self._measurement_keys())
+        meas, batched = measurement_from_info(info, keys[2])
         pos = meas["position"]
         n = pos.shape[0]
         if n != self._n:
