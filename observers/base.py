@@ -268,10 +268,12 @@ class Observer:
         also runs the checks of :func:`check_measurement`, :func:`check_inputs` and :meth:`_check_estimate` (the same
         compiled row checks, :mod:`fawtgym.observers._checks`) before it returns, in one compiled call.
 
-        Returns the estimate, after storing the new state, when the inputs are already float64 arrays of the checked
-        shapes (:func:`fast_inputs`) and the kernel reports every check passed; None otherwise, with the state
-        unchanged: :meth:`update` then runs its Python checks, which raise the one-line error (the same text and
-        type as without this path) or convert the inputs.  The default (None) always takes that path."""
+        Returns the estimate, after storing the new state, when the inputs are already C-contiguous float64 arrays
+        of the checked shapes (the kernel's explicit signature, :mod:`fawtgym.core.kernel_types`, refuses anything
+        else with a TypeError; :func:`fast_inputs` checks the same under ``NUMBA_DISABLE_JIT=1``) and the kernel
+        reports every check passed; None otherwise, with the state unchanged: :meth:`update` then runs its Python
+        checks, which raise the one-line error (the same text and type as without this path) or convert the inputs.
+        The default (None) always takes that path."""
         return None
 
     def _commit(self, state: Any) -> None:
