@@ -57,7 +57,16 @@ def batch_measurement(measurement: Mapping[str, object],
     out: dict[str, NDArray[np.float64]] = {}
     if keys is None:
         for key, value in measurement.items():
-            _batch_entry(out, key, value, TRAILING_SHAPES.get(key))
+            trailing = TRAILING_SHAPES.get(key)
+            if trailing is not None and type(value) is np.ndarray and value.dtype is _F64:
+                shape = value.shape
+                if shape == trailing:
+                    out[key] = value[None]
+                    continue
+                if shape[1:] == trailing and len(shape) == len(trailing) + 1:
+                    out[key] = value
+                    continue
+            _convert_entry(out, key, value, trailing)
         return out
     spec = _KEY_SPECS.get(keys)
     if spec is None:
@@ -65,11 +74,16 @@ def batch_measurement(measurement: Mapping[str, object],
     get = measurement.get
     for key, trailing in spec:
         value = get(key)
-        # the single env's float64 (*trailing) array: a (1, *trailing) view (the common case, first)
-        if type(value) is np.ndarray and value.dtype is _F64 and value.shape == trailing:
-            out[key] = value[None]
-        elif value is not None or key in measurement:
-            _batch_entry(out, key, value, trailing)
+        if trailing is not None and type(value) is np.ndarray and value.dtype is _F64:
+            shape = value.shape
+            if shape == trailing:       # the single env's (the common case): a (1, *trailing) view
+                out[key] = value[None]
+                continue
+            if shape[1:] == trailing and len(shape) == len(trailing) + 1:
+                out[key] = value
+                continue
+        if value is not None or key in measurement:
+            _convert_entry(out, key, value, trailing)
     return out
 
 
@@ -77,17 +91,10 @@ def batch_measurement(measurement: Mapping[str, object],
 _KEY_SPECS: dict[tuple[str, ...], tuple[tuple[str, tuple[int, ...] | None], ...]] = {}
 
 
-def _batch_entry(out: dict[str, NDArray[np.float64]], key: str, value: object,
-                 trailing: tuple[int, ...] | None) -> None:
-    """``out[key]`` = ``value`` with a leading batch axis (:func:`batch_measurement`)."""
-    if trailing is not None and type(value) is np.ndarray and value.dtype is _F64:
-        shape = value.shape
-        if shape == trailing:
-            out[key] = value[None]
-            return
-        if shape[1:] == trailing and len(shape) == len(trailing) + 1:
-            out[key] = value
-            return
+def _convert_entry(out: dict[str, NDArray[np.float64]], key: str, value: object,
+                   trailing: tuple[int, ...] | None) -> None:
+    """``out[key]`` = ``value`` as a float64 array with a leading batch axis (:func:`batch_measurement`, for what is
+    not already a float64 array of the key's shape)."""
     arr = np.asarray(value, dtype=float)
     if trailing is None:
         out[key] = arr
