@@ -59,7 +59,7 @@ import numpy as np
 from numba import float64, int64, njit
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.kernel_types import ROTATIONS, ROWS, TYPED_DISPATCH, VALUES
+from fawtgym.core.kernel_types import ROTATIONS, ROWS, TYPED_DISPATCH, VALUES, compile_only
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3 import project_so3
 from fawtgym.core.so3_kernels import cross_row, exp_so3_row, first_non_rotation, mat_mul_row, mat_t_vec_row, mat_vec_row
@@ -253,6 +253,9 @@ class FFTSESO(Observer):
         if TYPED_DISPATCH:    # the typed kernel refuses (TypeError) anything but C-contiguous float64 arrays
             if type(measurement) is not dict:
                 return None
+            if not _TYPED[0]:
+                compile_only(ffts_eso_update, UPDATE_SIGNATURE)
+                _TYPED[0] = True
             get = measurement.get
             pos, vel, att, omega, f, tau = (get("position"), get("velocity"), get("attitude"),
                                             get("angular_velocity"), thrust, torque)
@@ -284,6 +287,8 @@ class FFTSESO(Observer):
         return _estimate(est)
 
 
+#: whether :func:`ffts_eso_update` was compiled for :data:`UPDATE_SIGNATURE` only (on the first checked update)
+_TYPED = [False]
 #: the estimate's states: columns of the estimate buffer and trailing shapes
 _STATES = {"position": (E_POS, E_POS + 3, (3,)), "velocity": (E_VEL, E_VEL + 3, (3,)),
            "attitude": (E_ATT, E_ATT + 9, (3, 3)), "angular_velocity": (E_W, E_W + 3, (3,))}
@@ -408,8 +413,12 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
 CHECKS_PASSED, BAD_INPUT, BAD_ESTIMATE = 0, 1, 2
 
 
-@njit(int64(ROWS, ROWS, ROWS, ROTATIONS, ROWS, VALUES, ROWS, float64, float64, float64, VALUES, float64, float64,
-            ROTATIONS), cache=True)
+#: the only argument types :func:`ffts_eso_update` takes (:func:`~fawtgym.core.kernel_types.compile_only`)
+UPDATE_SIGNATURE = int64(ROWS, ROWS, ROWS, ROTATIONS, ROWS, VALUES, ROWS, float64, float64, float64, VALUES, float64,
+                         float64, ROTATIONS)
+
+
+@njit(cache=True)
 def ffts_eso_update(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray[np.float64],
                     att: NDArray[np.float64], omega: NDArray[np.float64], thrust: NDArray[np.float64],
                     torque: NDArray[np.float64], dt: float, eps_t: float, eps_a: float, gains: NDArray[np.float64],
