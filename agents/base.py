@@ -88,6 +88,7 @@ def measurement_from_info(info: Mapping[str, Any],
 
 
 _F64 = np.dtype(np.float64)
+_MISSING = object()
 
 
 def applied_from_info(info: Mapping[str, Any], n: int, default_thrust: float) -> tuple[NDArray[np.float64],
@@ -99,15 +100,16 @@ def applied_from_info(info: Mapping[str, Any], n: int, default_thrust: float) ->
     torque a view, not a copy).
     """
     applied = info.get("applied") if type(info) is dict or isinstance(info, Mapping) else None
-    if type(applied) is not dict and not isinstance(applied, Mapping) or "thrust" not in applied \
-            or "torque" not in applied:
-        return np.full(n, float(default_thrust)), np.zeros((n, 3))
-    thrust = applied["thrust"]
-    torque = applied["torque"]
-    if type(thrust) is float and n == 1:
-        thrust = np.array((thrust,))
+    if type(applied) is dict or isinstance(applied, Mapping):
+        thrust, torque = applied.get("thrust", _MISSING), applied.get("torque", _MISSING)
     else:
-        thrust = np.asarray(thrust, dtype=float)
+        thrust = torque = _MISSING
+    if thrust is _MISSING or torque is _MISSING:
+        return np.full(n, float(default_thrust)), np.zeros((n, 3))
+    if n == 1 and type(thrust) is float and type(torque) is np.ndarray and torque.dtype is _F64 \
+            and torque.shape == (3,):  # the single env's (the common case): (1,) and a (1, 3) view
+        return np.array((thrust,)), torque[None]
+    thrust = np.asarray(thrust, dtype=float)
     if type(torque) is not np.ndarray or torque.dtype is not _F64:
         torque = np.asarray(torque, dtype=float)
     if thrust.shape != (n,):  # a scalar / (1,) of the single env: a view when it already holds n values

@@ -54,7 +54,7 @@ from fawtgym.envs.motors import allocation_matrix
 from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
 
 from . import px4_cascade as C
-from .base import Agent, applied_from_info, match_batch, measurement_from_info
+from .base import Agent, applied_from_info, measurement_from_info
 from .observer_inputs import (
     OBSERVER_INPUTS,
     POSE_KEYS,
@@ -171,8 +171,8 @@ class PX4Agent(Agent):
         self.__dict__.update(state)
         self._pack_constants()
 
-    #: (what the measurement keys depend on, the keys act reads): see :meth:`_measurement_keys`
-    _keys: tuple[Any, tuple[str, ...]] = (None, ())
+    #: (the gyro key and observer the measurement keys depend on, the keys act reads): see :meth:`_measurement_keys`
+    _keys: tuple[Any, Any, tuple[str, ...]] = (None, None, ())
     #: the observer's latest (force (N, 3), torque (N, 3)) estimates (None: no observer, or before the first act)
     raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
 
@@ -259,10 +259,10 @@ class PX4Agent(Agent):
         return tuple(dict.fromkeys((*POSE_KEYS, "angular_velocity", self.gyro_key, "specific_force")))
 
     def act(self, observation: Any, info: Mapping[str, Any]) -> NDArray[np.float64]:
-        spec = (self.gyro_key, getattr(self, "observer", None))
-        if self._keys[0] != spec:  # only the keys read are converted (rebuilt if the gyro key or observer changes)
-            self._keys = (spec, self._measurement_keys())
-        meas, batched = measurement_from_info(info, self._keys[1])
+        keys = self._keys  # only the keys read are converted (rebuilt if the gyro key or the observer changes)
+        if keys[0] != self.gyro_key or keys[1] is not getattr(self, "observer", None):
+            keys = self._keys = (self.gyro_key, getattr(self, "observer", None), self._measurement_keys())
+        meas, batched = measurement_from_info(info, keys[2])
         pos = meas["position"]
         n = pos.shape[0]
         if n != self._n:
@@ -277,7 +277,7 @@ class PX4Agent(Agent):
             if sp is not None:  # one NED point (3,) for every row is passed as a (1, 3) view, not copied
                 if type(sp) is not np.ndarray or sp.dtype is not _F64:
                     sp = np.asarray(sp, dtype=float)
-                self._setpoint = np.ascontiguousarray(sp.reshape(1, 3) if sp.shape == (3,) else _rows3(sp, n))
+                self._setpoint = np.ascontiguousarray(sp[None] if sp.shape == (3,) else _rows3(sp, n))
         force_hat, torque_hat = self._estimate(meas, info, self.dt)
         self.last_estimate = (force_hat, torque_hat)
         raw = self.raw_estimate
@@ -293,7 +293,7 @@ class PX4Agent(Agent):
             self.rate_control.state, self._att_sp, self._action)
         if code:
             self._raise_status(code, row, meas)
-        return self._action.copy() if batched else match_batch(self._action, batched).copy()
+        return self._action.copy() if batched else self._action[0].copy()  # unbatched: N = 1 (pos was (3,))
 
     def _raise_status(self, code: int, row: int, meas: Mapping[str, NDArray[np.float64]]) -> None:
         """The FloatingPointError of a cascade status code (:data:`~fawtgym.agents.px4_cascade.BAD_ESTIMATE`,
@@ -377,12 +377,13 @@ class PX4ObserverAgent(PX4Agent):
     def _estimate(self, meas: dict[str, NDArray[np.float64]], info: Mapping[str, Any],
                   dt: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
         n = meas["position"].shape[0]
-        thrust, torque = applied_from_info(self.known_inputs(info), n, self.preset.mass * GRAVITY)
+        known = info if self.observer_inputs == "applied" else self.known_inputs(info)
+        thrust, torque = applied_from_info(known, n, self.preset.mass * GRAVITY)
         est = self.observer.update(meas, thrust, torque, dt)
-        force = np.ascontiguousarray(est.force, dtype=float)
-        tau = np.ascontiguousarray(est.torque, dtype=float)
-        if force.shape != (n, 3) or tau.shape != (n, 3):
-            force, tau = force.reshape(n, 3), tau.reshape(n, 3)
+        force, tau = np.ascontiguousarray(est.force), np.ascontiguousarray(est.torque)
+        if force.dtype is not _F64 or tau.dtype is not _F64 or force.shape != (n, 3) or tau.shape != (n, 3):
+            force = np.ascontiguousarray(force, dtype=float).reshape(n, 3)
+            tau = np.ascontiguousarray(tau, dtype=float).reshape(n, 3)
         self.raw_estimate = (force, tau)  # checked finite by the cascade kernel before it uses either
         return (force if self.force_ff else None), (tau if self.torque_ff else None)
 

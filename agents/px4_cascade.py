@@ -190,10 +190,12 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
                 return BAD_ESTIMATE, i
     gyro_coef = cfg[GYRO_COEF:GYRO_COEF + N_BIQUAD]
     dgyro_coef = cfg[DGYRO_COEF:DGYRO_COEF + N_BIQUAD]
-    zeros = np.zeros(3)
-    rate, ang_acc, raw, vel_dot, thr, torque = (np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3),
-                                                np.empty(3))
-    unallocated, work, q = np.empty(4), np.empty((3, 3, 3)), np.empty(4)
+    scratch = np.empty(7 * 3 + 2 * 4 + 27)  # the row's intermediates, in one allocation (each costs ~10 ns)
+    zeros = scratch[0:3]
+    zeros[:] = 0.0
+    rate, ang_acc, raw, vel_dot = scratch[3:6], scratch[6:9], scratch[9:12], scratch[12:15]
+    thr, torque = scratch[15:18], scratch[18:21]
+    unallocated, q, work = scratch[21:25], scratch[25:29], scratch[29:56].reshape((3, 3, 3))
     for i in range(n):
         s = state[i]
         # 1. gyro filters

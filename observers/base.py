@@ -235,8 +235,12 @@ class Observer:
         FloatingPointError naming the observer and the channel, and the state is left as it was before the
         update (the law's new state is stored, by :meth:`_commit`, only after the estimate passed).
         """
-        who = self.name or type(self).__name__
         n = self._n_rows
+        if n is not None and type(dt) is float and 0.0 < dt <= self.max_dt:  # (check_dt's accepted float)
+            est = self._update_checked(measurement, thrust, torque, dt, n)
+            if est is not None:  # the law's kernel checked its inputs and its estimate (one compiled call)
+                return est
+        who = self.name or type(self).__name__
         if n is None:
             raise RuntimeError(f"{who}: update() before reset(); call reset(measurement) first")
         step = check_dt(dt, self.max_dt, who)
@@ -258,17 +262,36 @@ class Observer:
         """
         raise NotImplementedError(f"{type(self).__name__} must implement _update (or override update)")
 
+    def _update_checked(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike, dt: float,
+                        n: int) -> ObserverEstimate | None:
+        """Optional fast path of :meth:`update` (after the update-before-reset and ``dt`` checks): a law whose kernel
+        also runs the checks of :func:`check_measurement`, :func:`check_inputs` and :meth:`_check_estimate` (the same
+        compiled row checks, :mod:`fawtgym.observers._checks`) before it returns, in one compiled call.
+
+        Returns the estimate, after storing the new state, when the inputs are already C-contiguous float64 arrays
+        of the checked shapes (the kernel's explicit signature, :mod:`fawtgym.core.kernel_types`, refuses anything
+        else with a TypeError; :func:`fast_inputs` checks the same under ``NUMBA_DISABLE_JIT=1``) and the kernel
+        reports every check passed; None otherwise, with the state unchanged: :meth:`update` then runs its Python
+        checks, which raise the one-line error (the same text and type as without this path) or convert the inputs.
+        The default (None) always takes that path."""
+        return None
+
     def _commit(self, state: Any) -> None:
         """Store the new state :meth:`_update` returned (default: as ``self._state``)."""
         self._state = state
+
+    def estimate_bounds(self) -> tuple[float, float]:
+        """(force bound [N], torque bound [N m]): an estimate component above one counts as divergence
+        (:attr:`MAX_FORCE_WEIGHTS` vehicle weights, :attr:`MAX_ANGULAR_ACCELERATION` times the largest principal
+        inertia)."""
+        return self.MAX_FORCE_WEIGHTS * self.mass * self.gravity, self.MAX_ANGULAR_ACCELERATION * self._j_max
 
     def _check_estimate(self, est: ObserverEstimate, who: str) -> None:
         """FloatingPointError naming the observer and the channel if an estimate is not finite or absurdly large.
 
         One compiled pass over force and torque; the states in one pass over their common buffer when they are
         views of one (what the kernels return), else one pass each."""
-        force_bound = self.MAX_FORCE_WEIGHTS * self.mass * self.gravity
-        torque_bound = self.MAX_ANGULAR_ACCELERATION * self._j_max
+        force_bound, torque_bound = self.estimate_bounds()
         states = est.states
         if type(states) is BufferStates:      # every state a view of one buffer: one pass, no views made
             code = first_bad_estimate(est.force, est.torque, force_bound, torque_bound, states.buffer)
@@ -300,6 +323,29 @@ class Observer:
                 raise FloatingPointError(
                     f"{who}: the {channel} estimate diverged (row {row} has a non-finite entry); the state is left "
                     "as before this update (check dt, the gains and the measurement)")
+
+
+def fast_inputs(measurement: object, shapes: tuple[tuple[str, tuple[int, ...], int], ...], thrust: object,
+                torque: object, n: int) -> list[NDArray[np.float64]] | None:
+    """The arrays ``measurement[key]`` for the keys of ``shapes`` (:func:`input_shapes`), then ``thrust`` and
+    ``torque``, if every one is already a float64 ndarray of the shape :func:`check_measurement` /
+    :func:`check_inputs` pass on as is ((n, *trailing), (n,), (n, 3)); None otherwise (the caller then goes through
+    those checks).  Values are not checked here."""
+    if type(measurement) is not dict:
+        return None
+    out = []
+    get = measurement.get
+    for key, shape, _ in shapes:
+        a = get(key)
+        if type(a) is not np.ndarray or a.dtype is not _F64 or a.shape != shape:
+            return None
+        out.append(a)
+    if (type(thrust) is not np.ndarray or thrust.dtype is not _F64 or thrust.shape != (n,)
+            or type(torque) is not np.ndarray or torque.dtype is not _F64 or torque.shape != (n, 3)):
+        return None
+    out.append(thrust)
+    out.append(torque)
+    return out
 
 
 _REAL_KINDS = "iuf"    # numpy dtype kinds accepted as real numbers (bool "b" and complex "c" are refused)
@@ -343,7 +389,7 @@ def check_measurement(measurement: Mapping[str, ArrayLike], keys: tuple[str, ...
         raise TypeError(f"{who}: measurement must be a mapping of arrays (info['measurement']), "
                         f"got {type(measurement).__name__}")
     out = {}
-    for key, shape, kind in _shapes(keys, n):
+    for key, shape, kind in input_shapes(keys, n):
         try:
             a = measurement[key]
         except KeyError:
@@ -382,7 +428,7 @@ _ROWS, _ROTATION, _OTHER = 0, 1, 2
 _SHAPES: dict[tuple[tuple[str, ...], int], tuple[tuple[str, tuple[int, ...], int], ...]] = {}
 
 
-def _shapes(keys: tuple[str, ...], n: int) -> tuple[tuple[str, tuple[int, ...], int], ...]:
+def input_shapes(keys: tuple[str, ...], n: int) -> tuple[tuple[str, tuple[int, ...], int], ...]:
     """(key, expected shape (n, *trailing), check kind) of each key (memoized: built once per key set and batch
     size)."""
     spec = _SHAPES.get((keys, n))

@@ -53,16 +53,31 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
-from numba import njit
+from numba import float64, int64, njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.kernel_types import ROTATIONS, ROWS, TYPED_DISPATCH, VALUES, compile_only
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3 import project_so3
-from fawtgym.core.so3_kernels import cross_row, exp_so3_row, mat_mul_row, mat_t_vec_row, mat_vec_row
+from fawtgym.core.so3_kernels import cross_row, exp_so3_row, first_non_rotation, mat_mul_row, mat_t_vec_row, mat_vec_row
+from fawtgym.observers._checks import (
+    ROTATION_TOL,
+    first_bad_estimate,
+    first_nonfinite_input,
+    first_nonfinite_row,
+)
 from fawtgym.observers._obs_common import batch_vec
-from fawtgym.observers.base import BufferStates, Observer, ObserverEstimate, register_observer
+from fawtgym.observers.base import (
+    BufferStates,
+    Observer,
+    ObserverEstimate,
+    fast_inputs,
+    input_shapes,
+    register_observer,
+)
 from fawtgym.observers.hc_ffts import (
     DEFAULT_EPS,
     check_p,
@@ -78,6 +93,7 @@ GAIN_NAMES = ("mass", "gravity", "p", "kt1", "kt2", "kt3", "kappa_t", "ka1", "ka
               "J (9, row-major)", "J^-1 (9, row-major)")
 #: columns of the state (N, 24): b_hat, v_hat, phi_hat, Omega_hat, tau_hat, R_hat (row-major 9)
 B, V, PHI, W, TAU, R = 0, 3, 6, 9, 12, 15
+N_STATE = 24
 #: columns of the estimate buffer (N, 24): force, torque, position, velocity, angular_velocity, attitude (9)
 E_FORCE, E_TORQUE, E_POS, E_VEL, E_W, E_ATT = 0, 3, 6, 9, 12, 15
 
@@ -217,11 +233,51 @@ class FFTSESO(Observer):
                 dt: float) -> tuple[ObserverEstimate, NDArray[np.float64]]:
         x = self._state
         eps_t, eps_a = self.eps_at(dt)
-        x_new = np.empty(x.shape)
-        est = np.empty(x.shape)
+        out = np.empty((2, *x.shape))     # (new state, estimate): see _update_checked
         ffts_eso_step(x, m["position"], m["velocity"], m["attitude"], m["angular_velocity"], f, tau, dt, eps_t,
-                      eps_a, self._gains, x_new, est)
-        return _estimate(est), x_new
+                      eps_a, self._gains, out[0], out[1])
+        return _estimate(out[1]), out[0]
+
+    def _update_checked(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike, dt: float,
+                        n: int) -> ObserverEstimate | None:
+        """The checks and the law in one compiled call (:func:`ffts_eso_update`; :meth:`Observer._update_checked`).
+
+        The new state and the estimate are the two halves of one fresh buffer (2, N, 24): no later update writes
+        into either (each update makes a new buffer and a per-row reset a new state array)."""
+        pos: Any
+        vel: Any
+        att: Any
+        omega: Any
+        f: Any
+        tau: Any
+        if TYPED_DISPATCH:    # the typed kernel refuses (TypeError) anything but C-contiguous float64 arrays
+            if type(measurement) is not dict:
+                return None
+            if not _TYPED[0]:
+                compile_only(ffts_eso_update, UPDATE_SIGNATURE)
+                _TYPED[0] = True
+            get = measurement.get
+            pos, vel, att, omega, f, tau = (get("position"), get("velocity"), get("attitude"),
+                                            get("angular_velocity"), thrust, torque)
+        else:                 # plain Python kernels (NUMBA_DISABLE_JIT=1): the same types checked here
+            arrays = fast_inputs(measurement, input_shapes(_KEYS, n), thrust, torque, n)
+            if arrays is None:
+                return None
+            pos, vel, att, omega, f, tau = arrays
+        x = self._state
+        cache = self._eps_cache
+        eps_t, eps_a = (cache[1], cache[2]) if dt == cache[0] else self.eps_at(dt)
+        force_bound, torque_bound = self.estimate_bounds()
+        out = np.empty((2, n, N_STATE))
+        try:
+            code = ffts_eso_update(x, pos, vel, att, omega, f, tau, dt, eps_t, eps_a, self._gains, force_bound,
+                                   torque_bound, out)
+        except TypeError:     # an input of another type, layout or ndim
+            return None
+        if code != CHECKS_PASSED:
+            return None
+        self._state = out[0]
+        return _estimate(out[1])
 
     def estimate(self) -> ObserverEstimate:
         if self._n_rows is None:
@@ -231,15 +287,21 @@ class FFTSESO(Observer):
         return _estimate(est)
 
 
+#: whether :func:`ffts_eso_update` was compiled for :data:`UPDATE_SIGNATURE` only (on the first checked update)
+_TYPED = [False]
 #: the estimate's states: columns of the estimate buffer and trailing shapes
 _STATES = {"position": (E_POS, E_POS + 3, (3,)), "velocity": (E_VEL, E_VEL + 3, (3,)),
            "attitude": (E_ATT, E_ATT + 9, (3, 3)), "angular_velocity": (E_W, E_W + 3, (3,))}
 
 
+#: the force and torque columns of the estimate buffer (index tuples made once: a slice per call costs ~60 ns more)
+_FORCE_COLUMNS = (slice(None), slice(E_FORCE, E_FORCE + 3))
+_TORQUE_COLUMNS = (slice(None), slice(E_TORQUE, E_TORQUE + 3))
+
+
 def _estimate(est: NDArray[np.float64]) -> ObserverEstimate:
     """The estimate from the kernel's buffer (N, 24) (views of a fresh buffer, not of the state)."""
-    return ObserverEstimate(force=est[:, E_FORCE:E_FORCE + 3], torque=est[:, E_TORQUE:E_TORQUE + 3],
-                            states=BufferStates(est, _STATES))
+    return ObserverEstimate(est[_FORCE_COLUMNS], est[_TORQUE_COLUMNS], BufferStates(est, _STATES))
 
 
 @njit(cache=True)
@@ -345,3 +407,42 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
             for k in range(3):
                 xo[R + 3 * j + k] = r_new[j, k]
         _estimate_row(xo, est[i])
+
+
+#: :func:`ffts_eso_update` status codes
+CHECKS_PASSED, BAD_INPUT, BAD_ESTIMATE = 0, 1, 2
+
+
+#: the only argument types :func:`ffts_eso_update` takes (:func:`~fawtgym.core.kernel_types.compile_only`)
+UPDATE_SIGNATURE = int64(ROWS, ROWS, ROWS, ROTATIONS, ROWS, VALUES, ROWS, float64, float64, float64, VALUES, float64,
+                         float64, ROTATIONS)
+
+
+@njit(cache=True)
+def ffts_eso_update(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray[np.float64],
+                    att: NDArray[np.float64], omega: NDArray[np.float64], thrust: NDArray[np.float64],
+                    torque: NDArray[np.float64], dt: float, eps_t: float, eps_a: float, gains: NDArray[np.float64],
+                    force_bound: float, torque_bound: float, out: NDArray[np.float64]) -> int:
+    """:meth:`Observer.update`'s checks around :func:`ffts_eso_step`, in one call: the measurement rows finite
+    and the attitude a rotation (:func:`~fawtgym.observers.base.check_measurement`), thrust and torque finite
+    (:func:`~fawtgym.observers.base.check_inputs`), then the step into ``out[0]`` (new state) and ``out[1]``
+    (estimate), then the estimate bounded and finite (:meth:`~fawtgym.observers.base.Observer._check_estimate`).
+    Returns ``CHECKS_PASSED``, ``BAD_INPUT`` (nothing computed) or ``BAD_ESTIMATE``; the caller words the error.
+
+    Compiled for C-contiguous float64 arrays only (a call with anything else raises TypeError, and the caller takes
+    the Python checks); the shapes are checked here: N = the state's rows."""
+    n = x.shape[0]
+    if (pos.shape[0] != n or pos.shape[1] != 3 or vel.shape[0] != n or vel.shape[1] != 3 or att.shape[0] != n
+            or att.shape[1] != 3 or att.shape[2] != 3 or omega.shape[0] != n or omega.shape[1] != 3
+            or thrust.shape[0] != n or torque.shape[0] != n or torque.shape[1] != 3 or x.shape[1] != N_STATE
+            or out.shape[0] != 2 or out.shape[1] != n or out.shape[2] != N_STATE):
+        return BAD_INPUT
+    if (first_nonfinite_row(pos) >= 0 or first_nonfinite_row(vel) >= 0 or first_non_rotation(att, ROTATION_TOL) >= 0
+            or first_nonfinite_row(omega) >= 0 or first_nonfinite_input(thrust, torque) >= 0):
+        return BAD_INPUT
+    est = out[1]
+    ffts_eso_step(x, pos, vel, att, omega, thrust, torque, dt, eps_t, eps_a, gains, out[0], est)
+    if first_bad_estimate(est[:, E_FORCE:E_FORCE + 3], est[:, E_TORQUE:E_TORQUE + 3], force_bound, torque_bound,
+                          est) != -1:
+        return BAD_ESTIMATE
+    return CHECKS_PASSED

@@ -9,8 +9,10 @@ measured in the same run.  Times are process CPU time (``time.process_time``, be
 that other jobs on a shared machine inflate them less (a VM's steal time still counts); the ratios are
 the robust figures.  Targets (issue 14, every observer): <= 10 us per single update (N = 1), and per vehicle at
 N = 1024 cheaper than one mj_step.  Each observer is updated once before timing, so the compiled kernels are
-loaded (or compiled) outside the timed loop.  A last line times the validation layer alone
-(:meth:`fawtgym.observers.base.Observer.update`'s checks in front of and behind the law, N = 1).
+loaded (or compiled) outside the timed loop.  The last lines time the Python validation layer alone
+(:meth:`fawtgym.observers.base.Observer.update`'s checks in front of and behind the law, N = 1) and the FFTS-ESO's
+checked update (the checks inside its kernel, :meth:`~fawtgym.observers.base.Observer._update_checked`) against its
+law alone.
 """
 
 from __future__ import annotations
@@ -130,6 +132,41 @@ def validation_seconds(repeats: int, rng: np.random.Generator) -> float:
     return best
 
 
+def checked_update_seconds(repeats: int, rng: np.random.Generator) -> tuple[float, float]:
+    """Best-of mean CPU seconds at N = 1 of an FFTS-ESO update (:meth:`~fawtgym.observers.base.Observer.update`:
+    its inputs checked, the law and the estimate check in one compiled call, the estimate built) and of its law alone
+    (:func:`~fawtgym.observers.ffts_eso.ffts_eso_step` on ready arrays): the difference is what the validation and
+    the Python around the law cost."""
+    from fawtgym.observers.ffts_eso import FFTSESO, ffts_eso_step
+
+    obs = FFTSESO(MASS, INERTIA)
+    meas = hover_measurement(1, rng)
+    obs.reset(meas)
+    f, tau, dt = np.full(1, MASS * G), np.zeros((1, 3)), 1e-3
+    est = obs.update(meas, f, tau, dt)
+    x = np.ascontiguousarray(np.concatenate([est.states["position"], est.states["velocity"], est.force,
+                                             est.states["angular_velocity"], est.torque,
+                                             est.states["attitude"].reshape(1, 9)], axis=1))
+    eps_t, eps_a = obs.eps_at(dt)
+    gains = np.asarray(obs._gains)
+    out = np.empty((2, 1, x.shape[1]))
+    args = (x, meas["position"], meas["velocity"], meas["attitude"], meas["angular_velocity"], f, tau, dt, eps_t,
+            eps_a, gains, out[0], out[1])
+    ffts_eso_step(*args)
+    calls = 5000
+    best_update = best_law = np.inf
+    for _ in range(repeats):
+        t0 = time.process_time()
+        for _k in range(calls):
+            obs.update(meas, f, tau, dt)
+        best_update = min(best_update, (time.process_time() - t0) / calls)
+        t0 = time.process_time()
+        for _k in range(calls):
+            ffts_eso_step(*args)
+        best_law = min(best_law, (time.process_time() - t0) / calls)
+    return best_update, best_law
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = ArgumentParser(prog="fawtgym bench observers", description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeats", type=positive_int, default=3, help="best-of repeats per measurement")
@@ -184,8 +221,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                   f"{'met by all ' + str(len(per)) if not slow else 'NOT met by ' + str(slow)}"
                   f" (largest {largest} {per[largest]:.3f})")
     layer = validation_seconds(ns.repeats, rng)
-    print(f"validation layer alone (N = 1, the FFTS-ESO's inputs and estimate): {layer * 1e6:.2f} us "
+    print(f"Python validation layer alone (N = 1, the FFTS-ESO's inputs and estimate; what an observer without a "
+          f"checked kernel pays, and the path of inputs a checked kernel refuses): {layer * 1e6:.2f} us "
           f"({layer / step:.2f} mj_step)")
+    update, law = checked_update_seconds(ns.repeats, rng)
+    print(f"ffts_eso checked update (N = 1): {update * 1e6:.2f} us, its law alone {law * 1e6:.2f} us: checks and "
+          f"Python around the law {(update - law) * 1e6:.2f} us ({(update - law) / step:.2f} mj_step)")
     return 0
 
 

@@ -55,24 +55,52 @@ def batch_measurement(measurement: Mapping[str, object],
     Raises ValueError naming a key whose trailing shape is wrong.
     """
     out: dict[str, NDArray[np.float64]] = {}
-    items = measurement.items() if keys is None else [(k, measurement[k]) for k in keys if k in measurement]
-    for key, value in items:
-        trailing = TRAILING_SHAPES.get(key)
+    if keys is None:
+        for key, value in measurement.items():
+            trailing = TRAILING_SHAPES.get(key)
+            if trailing is not None and type(value) is np.ndarray and value.dtype is _F64:
+                shape = value.shape
+                if shape == trailing:
+                    out[key] = value[None]
+                    continue
+                if shape[1:] == trailing and len(shape) == len(trailing) + 1:
+                    out[key] = value
+                    continue
+            _convert_entry(out, key, value, trailing)
+        return out
+    spec = _KEY_SPECS.get(keys)
+    if spec is None:
+        spec = _KEY_SPECS[keys] = tuple((k, TRAILING_SHAPES.get(k)) for k in keys)
+    get = measurement.get
+    for key, trailing in spec:
+        value = get(key)
         if trailing is not None and type(value) is np.ndarray and value.dtype is _F64:
             shape = value.shape
-            if shape == trailing:
+            if shape == trailing:       # the single env's (the common case): a (1, *trailing) view
                 out[key] = value[None]
                 continue
             if shape[1:] == trailing and len(shape) == len(trailing) + 1:
                 out[key] = value
                 continue
-        arr = np.asarray(value, dtype=float)
-        if trailing is None:
-            out[key] = arr
-            continue
-        if arr.shape == trailing:
-            arr = arr[None, ...]
-        elif arr.shape[1:] != trailing:
-            raise ValueError(f"measurement[{key!r}] must have shape {trailing} or (N, *{trailing}), got {arr.shape}")
-        out[key] = arr
+        if value is not None or key in measurement:
+            _convert_entry(out, key, value, trailing)
     return out
+
+
+#: (key, trailing shape or None) of each key tuple :func:`batch_measurement` was asked for (memoized)
+_KEY_SPECS: dict[tuple[str, ...], tuple[tuple[str, tuple[int, ...] | None], ...]] = {}
+
+
+def _convert_entry(out: dict[str, NDArray[np.float64]], key: str, value: object,
+                   trailing: tuple[int, ...] | None) -> None:
+    """``out[key]`` = ``value`` as a float64 array with a leading batch axis (:func:`batch_measurement`, for what is
+    not already a float64 array of the key's shape)."""
+    arr = np.asarray(value, dtype=float)
+    if trailing is None:
+        out[key] = arr
+        return
+    if arr.shape == trailing:
+        arr = arr[None, ...]
+    elif arr.shape[1:] != trailing:
+        raise ValueError(f"measurement[{key!r}] must have shape {trailing} or (N, *{trailing}), got {arr.shape}")
+    out[key] = arr

@@ -1,0 +1,29 @@
+"""Argument types of the kernels compiled with an explicit signature, and whether such signatures are enforced.
+
+A kernel compiled for one explicit signature (:func:`compile_only`, from the on-disk cache) then refuses,
+with a TypeError raised before it runs, arguments of any other type, dtype, ndim or layout (a list, a float32 or
+read-only array, a strided view, None).  A caller on a hot path can therefore skip those checks in Python: it
+calls the kernel and, on TypeError, takes its general path (conversion, the Python checks and their one-line
+errors).  Under ``NUMBA_DISABLE_JIT=1`` kernels are plain Python functions that accept anything, so
+:data:`TYPED_DISPATCH` is False and the caller must check the types itself.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from numba import config, float64
+
+#: True when kernels are compiled (explicit signatures enforced by numba's dispatch)
+TYPED_DISPATCH: bool = not getattr(config, "DISABLE_JIT", False)
+#: C-contiguous float64 arrays: (N,), (N, k), (N, 3, 3) (or any 3-d buffer)
+VALUES, ROWS, ROTATIONS = float64[::1], float64[:, ::1], float64[:, :, ::1]
+
+
+def compile_only(kernel: Any, signature: Any) -> None:
+    """Compile the numba dispatcher ``kernel`` for ``signature`` (loaded from numba's disk cache when it is there) and
+    refuse any other argument types from then on (TypeError).  Called on the kernel's first use rather than at import
+    (an explicit signature in the decorator would load it whenever its module is imported); only when
+    :data:`TYPED_DISPATCH` (plain Python functions have nothing to compile)."""
+    kernel.compile(signature)
+    kernel.disable_compile()
