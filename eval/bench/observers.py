@@ -5,11 +5,13 @@
 Every observer is built from the registry with its documented defaults (``make_observer(name, m, J)``,
 Wang et al. (2024) vehicle m = 4.34 kg, J = diag(0.082, 0.0845, 0.1377)) and updated with a hover-like measurement.
 The unit of comparison is one MuJoCo physics step (``mj_step``) of a 4-rotor free body built inline and
-measured in the same run.  Times are process CPU time (``time.process_time``, best of a few repeats), so
-that other jobs on a shared machine inflate them less (a VM's steal time still counts); the ratios are
-the robust figures.  Targets (issue 14, every observer): <= 10 us per single update (N = 1), and per vehicle at
-N = 1024 cheaper than one mj_step.  Each observer is updated once before timing, so the compiled kernels are
-loaded (or compiled) outside the timed loop.  The last lines time the Python validation layer alone
+measured in the same run.  Times are process CPU time (``time.process_time``, best of ``--repeats`` repeats,
+default 9), so that other jobs on a shared machine inflate them less (a VM's steal time still counts); the ratios
+are the robust figures.  Why 9: on the 2-core VM of 2026-11-24, idle but for this bench, one observer's mean
+update over 1000 calls swung 8.3 -> 14.9 us within seconds; the best of 3 repeats (~20 ms each at N = 1) landed in
+such a slow phase for some observer in most runs, the best of 9 (the whole bench ~4 s) did not.  Targets (issue 14,
+every observer): <= 10 us per single update (N = 1), and per vehicle at N = 1024 cheaper than one mj_step.  Each
+observer is updated once before timing, so the compiled kernels are loaded (or compiled) outside the timed loop.  The last lines time the Python validation layer alone
 (:meth:`fawtgym.observers.base.Observer.update`'s checks in front of and behind the law, N = 1) and the FFTS-ESO's
 checked update (the checks inside its kernel, :meth:`~fawtgym.observers.base.Observer._update_checked`) against its
 law alone.
@@ -169,7 +171,7 @@ def checked_update_seconds(repeats: int, rng: np.random.Generator) -> tuple[floa
 
 def main(argv: Sequence[str] | None = None) -> int:
     ap = ArgumentParser(prog="fawtgym bench observers", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--repeats", type=positive_int, default=3, help="best-of repeats per measurement")
+    ap.add_argument("--repeats", type=positive_int, default=9, help="best-of repeats per measurement (default 9)")
     ap.add_argument("--n", type=positive_int, nargs="+", default=[1, 1024], help="batch sizes")
     ap.add_argument("--only", nargs="*", default=None, help="observer names (default: all registered)")
     ns = ap.parse_args(list(argv) if argv is not None else None)
