@@ -2,19 +2,19 @@
 
 ``fawtgym bench observers [--repeats R] [--n N ...] [--only NAME ...]``
 
-Every observer is built from the registry with its documented defaults (``make_observer(name, m, J)``,
-Wang et al. (2024) vehicle m = 4.34 kg, J = diag(0.082, 0.0845, 0.1377)) and updated with a hover-like measurement.
-The unit of comparison is one MuJoCo physics step (``mj_step``) of a 4-rotor free body built inline and
-measured in the same run.  Times are process CPU time (``time.process_time``, best of ``--repeats`` repeats,
-default 9), so that other jobs on a shared machine inflate them less (a VM's steal time still counts); the ratios
-are the robust figures.  Why 9: on the 2-core VM of 2026-11-24, idle but for this bench, one observer's mean
-update over 1000 calls swung 8.3 -> 14.9 us within seconds; the best of 3 repeats (~20 ms each at N = 1) landed in
-such a slow phase for some observer in most runs, the best of 9 (the whole bench ~4 s) did not.  Targets (issue 14,
-every observer): <= 10 us per single update (N = 1), and per vehicle at N = 1024 cheaper than one mj_step.  Each
-observer is updated once before timing, so the compiled kernels are loaded (or compiled) outside the timed loop.  The last lines time the Python validation layer alone
-(:meth:`fawtgym.observers.base.Observer.update`'s checks in front of and behind the law, N = 1) and the FFTS-ESO's
-checked update (the checks inside its kernel, :meth:`~fawtgym.observers.base.Observer._update_checked`) against its
-law alone.
+Every observer is built from the registry with its documented defaults (``make_observer(name, m, J)``, Wang et al.
+(2024) vehicle m = 4.34 kg, J = diag(0.082, 0.0845, 0.1377)) and updated with a hover-like measurement.  The unit of
+comparison is one MuJoCo physics step (``mj_step``) of a 4-rotor free body built inline and measured in the same run.
+Times are process CPU time (``time.process_time``, best of ``--repeats`` repeats, default 9), so that other jobs on a
+shared machine inflate them less (a VM's steal time still counts); the ratios are the robust figures.  Why 9: on the
+2-core VM of 2026-11-24, idle but for this bench, one observer's mean update over 1000 calls swung 8.3 -> 14.9 us
+within seconds; the best of 3 repeats (~20 ms each at N = 1) landed in such a slow phase for some observer in most
+runs, the best of 9 (the whole bench ~4 s) did not.  Targets (issue 14, every observer): <= 10 us per single update
+(N = 1), and per vehicle at N = 1024 cheaper than one mj_step.  Each observer is updated once before timing, so the
+compiled kernels are loaded (or compiled) outside the timed loop.  The last lines time the Python validation layer
+alone (:meth:`fawtgym.observers.base.Observer.update`'s checks in front of and behind the law, N = 1) and the
+FFTS-ESO's checked update (the checks inside its kernel, :meth:`~fawtgym.observers.base.Observer._update_checked`)
+against its law alone.
 """
 
 from __future__ import annotations
