@@ -70,6 +70,7 @@ from .px4_hover_thrust import HoverThrustEstimator
 from .px4_params import PX4Params
 from .px4_position_control import PositionControl
 from .px4_rate_control import RateControl
+from .shared_params import InPlaceArray
 
 
 def _rate(name: str, value: float | None, default: float, control_rate: float) -> float:
@@ -157,14 +158,19 @@ class PX4Agent(Agent):
 
     def _pack_constants(self) -> None:
         """One constants vector for the cascade kernel (:func:`~fawtgym.agents.px4_cascade.pack_constants`); the
-        laws keep views of it as their parameter arrays (so a parameter changed in place reaches the kernel)."""
+        laws keep views of it as their parameter arrays (so a parameter changed in place, or an array assigned to a
+        law's parameter attribute, :class:`~fawtgym.agents.shared_params.InPlaceArray`, reaches the kernel)."""
         alloc = self.allocation
         self._constants, views = C.pack_constants(
             self._config, self.position_control.params, self.hover_thrust_estimator.params,
             self.attitude_control.params, self.rate_control.params, alloc.mix_t, alloc.effectiveness, alloc.scale,
             alloc.rotor_map)
-        (self._config, self.position_control.params, self.hover_thrust_estimator.params, self.attitude_control.params,
-         self.rate_control.params, alloc.mix_t, alloc.effectiveness, alloc.scale, alloc.rotor_map) = views
+        self._config = views[0]
+        owners = ((self.position_control, "params"), (self.hover_thrust_estimator, "params"),
+                  (self.attitude_control, "params"), (self.rate_control, "params"), (alloc, "mix_t"),
+                  (alloc, "effectiveness"), (alloc, "scale"), (alloc, "rotor_map"))
+        for (law, name), view in zip(owners, views[1:], strict=True):  # InPlaceArray: a later assignment writes here
+            InPlaceArray.bind(law, name, view)
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         """Unpickled / deep-copied: the views of the constants vector come back as separate arrays; share again."""
@@ -172,7 +178,7 @@ class PX4Agent(Agent):
         self._pack_constants()
 
     #: (the gyro key and observer the measurement keys depend on, the keys act reads): see :meth:`_measurement_keys`
-    _keys: tuple[Any, Any, tuple[str, ...]] = (None, None, ())
+    _keys: tuple[Any, Any, tuple[str, ...] | None] = (None, None, ())
     #: the observer's latest (force (N, 3), torque (N, 3)) estimates (None: no observer, or before the first act)
     raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
 
@@ -254,8 +260,8 @@ class PX4Agent(Agent):
         if yaw is not None:
             self.yaw_setpoint = float(yaw)
 
-    def _measurement_keys(self) -> tuple[str, ...]:
-        """The measurement keys ``act`` reads: the cascade's (pose, gyro, accelerometer)."""
+    def _measurement_keys(self) -> tuple[str, ...] | None:
+        """The measurement keys ``act`` reads: the cascade's (pose, gyro, accelerometer); None: every key."""
         return tuple(dict.fromkeys((*POSE_KEYS, "angular_velocity", self.gyro_key, "specific_force")))
 
     def act(self, observation: Any, info: Mapping[str, Any]) -> NDArray[np.float64]:
@@ -361,9 +367,14 @@ class PX4ObserverAgent(PX4Agent):
         else:
             self.observer.reset(meas, rows=rows)
 
-    def _measurement_keys(self) -> tuple[str, ...]:
-        """The cascade's measurement keys and the observer's."""
-        return tuple(dict.fromkeys((*super()._measurement_keys(), *self.observer.required_keys)))
+    def _measurement_keys(self) -> tuple[str, ...] | None:
+        """The cascade's measurement keys and the observer's; None (every key) for an observer that states none (e.g.
+        one that overrides ``update`` and reads what it likes)."""
+        if not self.observer.required_keys:
+            return None
+        cascade = super()._measurement_keys()
+        assert cascade is not None  # PX4Agent's own keys
+        return tuple(dict.fromkeys((*cascade, *self.observer.required_keys)))
 
     def known_inputs(self, info: Mapping[str, Any]) -> Mapping[str, Any]:
         """The info whose ``"applied"`` the observer reads: the env's (exact applied wrench) or, with
@@ -377,7 +388,9 @@ class PX4ObserverAgent(PX4Agent):
     def _estimate(self, meas: dict[str, NDArray[np.float64]], info: Mapping[str, Any],
                   dt: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
         n = meas["position"].shape[0]
-        known = info if self.observer_inputs == "applied" else self.known_inputs(info)
+        # known_inputs is info itself for "applied" (skipped then, unless a subclass overrides it)
+        own = type(self).known_inputs is PX4ObserverAgent.known_inputs
+        known = info if own and self.observer_inputs == "applied" else self.known_inputs(info)
         thrust, torque = applied_from_info(known, n, self.preset.mass * GRAVITY)
         est = self.observer.update(meas, thrust, torque, dt)
         force, tau = np.ascontiguousarray(est.force), np.ascontiguousarray(est.torque)

@@ -42,6 +42,8 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.envs.motors import allocation_matrix
 from fawtgym.envs.vehicles import VehiclePreset
 
+from .shared_params import InPlaceArray
+
 _FLT_EPS = 1.1920929e-07
 ROLL, PITCH, YAW, THRUST_Z = 0, 1, 2, 3
 #: the rotor-map vector layout (:attr:`QuadXAllocation.rotor_map`)
@@ -135,6 +137,10 @@ def _command_kernel(act: np.ndarray, rotor_map: np.ndarray, command: np.ndarray)
 
 class QuadXAllocation:
     """Normalized torque (N, 3) + collective thrust (N,) -> rotor thrusts in [0, 1] (N, 4) and motor commands."""
+    mix_t = InPlaceArray()  # the cascade reads it from a packed vector: assignment writes in place
+    effectiveness = InPlaceArray()  # the cascade reads it from a packed vector: assignment writes in place
+    scale = InPlaceArray()  # the cascade reads it from a packed vector: assignment writes in place
+    rotor_map = InPlaceArray()  # the cascade reads it from a packed vector: assignment writes in place
 
     def __init__(self, preset: VehiclePreset) -> None:
         self.preset = preset

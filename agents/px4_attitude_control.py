@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.core.so3_kernels import mat_mul_row, rot_to_quat_row
 
 from .px4_params import PX4Params
+from .shared_params import InPlaceArray
 
 #: parameter vector layout (:attr:`AttitudeControl.params`)
 GAIN, YAW_WEIGHT, RATE_MAX = 0, 3, 4  # gain (3,), yaw weight, rate limits (3,) [rad/s]
@@ -132,6 +133,7 @@ class AttitudeControl:
     d = e_z . e_z,d); ``qd_dyaw`` is the rotation about z by ``psi`` with ``|psi| <= pi`` (canonical
     quaternion), and PX4's ``(cos(w acos(qw)), 0, 0, sin(w asin(qz)))`` is the rotation by ``w psi``.
     """
+    params = InPlaceArray()  # the cascade reads it from a packed vector: assignment writes in place
 
     def __init__(self, params: PX4Params | None = None) -> None:
         p = params if params is not None else PX4Params.s500()

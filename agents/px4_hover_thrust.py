@@ -51,6 +51,7 @@ from fawtgym.core.rows import check_dt
 from fawtgym.envs.vehicles import GRAVITY
 
 from .px4_params import PX4Params
+from .shared_params import InPlaceArray
 
 _ACC_VAR_INIT = 5.0  # (m/s^2)^2 initial accelerometer noise variance (PX4 resetAccelNoise)
 _ACC_VAR_MIN, _ACC_VAR_MAX = 1.0, 400.0  # (m/s^2)^2 bounds of the adapted noise (PX4)
@@ -128,6 +129,7 @@ class HoverThrustEstimator:
     says whether PX4 would publish it as valid (the position controller uses only valid estimates).
     ``variance_bump`` is the variance-recovery factor (PX4: 1e3; 0 switches the recovery off, for studies).
     """
+    params = InPlaceArray()  # the cascade reads it from a packed vector: assignment writes in place
 
     def __init__(self, params: PX4Params | None = None, hover_thrust: float = 0.5) -> None:
         p = params if params is not None else PX4Params.s500()

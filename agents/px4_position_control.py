@@ -45,6 +45,7 @@ from fawtgym.core.rows import check_dt
 from fawtgym.envs.vehicles import GRAVITY
 
 from .px4_params import PX4Params
+from .shared_params import InPlaceArray
 
 _EPS = 1.1920929e-07  # FLT_EPSILON, as PX4 uses single precision
 #: PX4 version -> (hover-thrust bounds, vertical integrator clamped before the velocity step)
@@ -350,6 +351,7 @@ class PositionControl:
     :attr:`state` (N, ``N_STATE``); ``vel_int``, ``acc_sp``, ``vel_sp``, ``thr_sp`` (N, 3) and
     ``hover_thrust`` (N,) are views of it.
     """
+    params = InPlaceArray()  # the cascade reads it from a packed vector: assignment writes in place
 
     def __init__(self, params: PX4Params | None = None, hover_thrust: float | None = None,
                  px4_version: str = "1.13") -> None:

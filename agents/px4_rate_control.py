@@ -31,6 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.core.rows import check_dt
 
 from .px4_params import PX4Params
+from .shared_params import InPlaceArray
 
 _EPS = 1.1920929e-07
 _I_FACTOR_RATE = math.radians(400.0)  # rad/s: PX4's i-factor error scale
@@ -78,6 +79,7 @@ def _rows3(x: ArrayLike, n: int) -> NDArray[np.float64]:
 
 class RateControl:
     """PX4 RateControl for N vehicles; ``rate_int`` (N, 3), ``sat_pos`` / ``sat_neg`` (N, 3) bool are its state."""
+    params = InPlaceArray()  # the cascade reads it from a packed vector: assignment writes in place
 
     def __init__(self, params: PX4Params | None = None) -> None:
         p = params if params is not None else PX4Params.s500()

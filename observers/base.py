@@ -126,6 +126,17 @@ class Observer:
     #: an estimated torque component above this angular acceleration [rad/s^2] times the largest principal
     #: inertia counts as divergence
     MAX_ANGULAR_ACCELERATION: ClassVar[float] = 1e5
+    #: whether :meth:`update` may take :meth:`_update_checked` (set per class by :meth:`__init_subclass__`)
+    _checked_path: ClassVar[bool] = False
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """A class's :meth:`_update_checked` (the law and the checks in one compiled call) stands for :meth:`_update`,
+        :meth:`_check_estimate` and :meth:`_commit` of the class that wrote it: a subclass that overrides any of the
+        three (after it) goes the general path, so its overrides run."""
+        super().__init_subclass__(**kwargs)
+        owner = next(c for c in cls.__mro__ if "_update_checked" in c.__dict__)
+        cls._checked_path = owner is not Observer and all(
+            getattr(cls, hook) is getattr(owner, hook) for hook in ("_update", "_check_estimate", "_commit"))
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665) -> None:
         if not (np.isfinite(mass) and mass > 0):
@@ -233,10 +244,13 @@ class Observer:
         or absurdly large (a force component above :attr:`MAX_FORCE_WEIGHTS` vehicle weights, a torque
         component above :attr:`MAX_ANGULAR_ACCELERATION` times the largest principal inertia) ->
         FloatingPointError naming the observer and the channel, and the state is left as it was before the
-        update (the law's new state is stored, by :meth:`_commit`, only after the estimate passed).
+        update (the law's new state is stored, by :meth:`_commit`, only after the estimate passed).  A law with a
+        checked kernel (:meth:`_update_checked`) does the same checks, the law and the store in one compiled call
+        when its inputs are already C-contiguous float64 arrays (else, or on any failed check, this path runs and
+        words the error); a subclass that overrides ``_update``, ``_check_estimate`` or ``_commit`` never takes it.
         """
         n = self._n_rows
-        if n is not None and type(dt) is float and 0.0 < dt <= self.max_dt:  # (check_dt's accepted float)
+        if self._checked_path and n is not None and type(dt) is float and 0.0 < dt <= self.max_dt:
             est = self._update_checked(measurement, thrust, torque, dt, n)
             if est is not None:  # the law's kernel checked its inputs and its estimate (one compiled call)
                 return est

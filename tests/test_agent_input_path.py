@@ -113,3 +113,53 @@ def test_buffer_states_read_like_a_dict() -> None:
     obs.update(meas, np.full(2, 14.7), np.zeros((2, 3)), 1e-3)
     for k, v in states.items():
         np.testing.assert_array_equal(v, before[k])
+
+
+def test_an_array_assigned_to_a_law_parameter_reaches_the_cascade() -> None:
+    """Assigning a new parameter array to a law (InPlaceArray) writes it into the packed vector the cascade kernel
+    reads -- it must not rebind the law to an array the kernel never sees; a wrong shape is a one-line error."""
+    base = _fly(PX4ObserverAgent(observer="ffts_eso", control_rate=200.0))
+    agent = PX4ObserverAgent(observer="ffts_eso", control_rate=200.0)
+    agent.rate_control.params = agent.rate_control.params * 3.0
+    assert not np.array_equal(np.array(_fly(agent)), np.array(base))
+    again = PX4ObserverAgent(observer="ffts_eso", control_rate=200.0)
+    pc = again.position_control
+    pc.gain_pos_p = pc.gain_pos_p * 5.0
+    pc.params = pc.parameters()
+    assert not np.array_equal(np.array(_fly(again)), np.array(base))
+    with pytest.raises(ValueError, match=r"RateControl.params must keep its shape \(\d+,\)"):
+        again.rate_control.params = np.zeros(3)
+
+
+def test_subclass_overrides_of_the_input_hooks_run() -> None:
+    """A subclass's known_inputs runs with the default observer_inputs="applied" (the shortcut is for the base's own);
+    an observer that states no required_keys gets every measurement key."""
+    from fawtgym.envs.vehicles import make_vehicle
+    from fawtgym.observers.base import Observer, ObserverEstimate
+
+    calls = []
+
+    class Counting(PX4ObserverAgent):
+        def known_inputs(self, info):  # type: ignore[no-untyped-def]
+            calls.append(1)
+            return super().known_inputs(info)
+
+    class ReadsMagnetometer(Observer):  # overrides update and reads a key the cascade does not
+        def _reset(self, measurement, force, torque, rows):  # type: ignore[no-untyped-def]
+            return None
+
+        def update(self, measurement, thrust, torque, dt):  # type: ignore[no-untyped-def]
+            m = np.asarray(measurement["magnetometer"]).reshape(-1, 3)
+            return ObserverEstimate(np.zeros((m.shape[0], 3)), np.zeros((m.shape[0], 3)))
+
+    env = HoverEnv(sensors="mocap_imu")
+    agent = Counting.for_env(env, observer="ffts_eso")
+    obs, info = env.reset(seed=0)
+    agent.reset(info)
+    agent.act(obs, info)
+    assert calls == [1]
+    p = make_vehicle("s500")
+    mag = PX4ObserverAgent.for_env(env, observer=ReadsMagnetometer(p.mass, p.inertia_matrix))
+    mag.reset(info)
+    assert np.all(np.isfinite(mag.act(obs, info)))
+    env.close()

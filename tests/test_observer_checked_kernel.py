@@ -122,3 +122,33 @@ def _fresh_update(n: int, meas: object, f: object, tau: object) -> None:
     obs = make_observer("ffts_eso", MASS, J)
     obs.reset(_pair(n)[2])
     obs.update(meas, f, tau, DT)  # type: ignore[arg-type]
+
+
+def test_a_subclass_overriding_the_hooks_takes_the_general_path() -> None:
+    """The checked kernel stands for _update, _check_estimate and _commit of the FFTS-ESO: a subclass that
+    overrides any of them gets them called (and the same estimate as the base)."""
+    from fawtgym.observers.ffts_eso import FFTSESO
+
+    calls: dict[str, int] = {"_update": 0, "_check_estimate": 0, "_commit": 0}
+
+    class Hooked(FFTSESO):
+        def _update(self, meas, thrust, torque, dt):  # type: ignore[no-untyped-def]
+            calls["_update"] += 1
+            return super()._update(meas, thrust, torque, dt)
+
+        def _check_estimate(self, est, who):  # type: ignore[no-untyped-def]
+            calls["_check_estimate"] += 1
+            super()._check_estimate(est, who)
+
+        def _commit(self, state):  # type: ignore[no-untyped-def]
+            calls["_commit"] += 1
+            super()._commit(state)
+
+    assert FFTSESO._checked_path and not Hooked._checked_path
+    a, _, meas = _pair(2)
+    hooked = Hooked(MASS, J)
+    hooked.reset(meas)
+    for k in range(3):
+        m, f, tau = _inputs(2, k)
+        np.testing.assert_array_equal(hooked.update(m, f, tau, DT).force, a.update(m, f, tau, DT).force)
+    assert calls == {"_update": 3, "_check_estimate": 3, "_commit": 3}
