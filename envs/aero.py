@@ -106,15 +106,75 @@ def aero_wrench_rows(rotation: NDArray[np.float64], velocity: NDArray[np.float64
 
 
 class AeroModel:
-    """Wind + vehicle motion -> aerodynamic disturbance wrench, batch-first (module docstring)."""
+    """Wind + vehicle motion -> aerodynamic disturbance wrench, batch-first (module docstring).
+
+    The coefficients ``k_d``, ``k_r``, ``cop`` (3,) and ``body_drag`` (3,) may be assigned (checked) or edited in
+    place (``model.body_drag[2] = 0.05``) any time: they live in one array, :attr:`coefficients` (cop 0-2,
+    body_drag 3-5, k_d 6, k_r 7), which an env shares with its step kernels (``HoverBatchEnv`` makes it a view of its
+    parameter array), so a change acts from the env's next step on.  ``rotor_positions`` is the vehicle's geometry
+    (also in the MuJoCo model and the allocation): read-only; build the env with a vehicle preset instead.
+    """
 
     def __init__(self, preset: VehiclePreset) -> None:
         self.preset = preset
-        self.rotor_positions = np.ascontiguousarray(preset.rotor_positions, dtype=float)  # (R, 3) body FRD
-        self.n_rotors = self.rotor_positions.shape[0]
-        self.k_d, self.k_r = float(preset.rotor_drag), float(preset.rolling_moment)
-        self.cop = np.ascontiguousarray(preset.cop_offset, dtype=float)
-        self.body_drag = np.ascontiguousarray(preset.body_drag, dtype=float)
+        hubs = np.array(preset.rotor_positions, dtype=float)  # (R, 3) body FRD
+        hubs.flags.writeable = False
+        self._rotor_positions = hubs
+        self.n_rotors = hubs.shape[0]
+        #: cop 0-2, body_drag 3-5, k_d 6, k_r 7 (class docstring; the properties are views of it)
+        self.coefficients = np.concatenate([np.asarray(preset.cop_offset, dtype=float),
+                                            np.asarray(preset.body_drag, dtype=float),
+                                            [float(preset.rotor_drag), float(preset.rolling_moment)]])
+
+    @property
+    def rotor_positions(self) -> NDArray[np.float64]:
+        """Rotor hub positions (R, 3) body FRD [m], read-only (the vehicle's geometry)."""
+        view = self._rotor_positions.view()
+        view.flags.writeable = False  # (a copy of the model, e.g. deepcopy, would hold a writeable one)
+        return view
+
+    @rotor_positions.setter
+    def rotor_positions(self, value: object) -> None:
+        raise AttributeError("AeroModel.rotor_positions is the vehicle's geometry (also its MuJoCo model and "
+                             "allocation) and cannot change after construction: build the env with a vehicle preset "
+                             "(vehicle=VehiclePreset(...) or a mapping) instead")
+
+    @property
+    def k_d(self) -> float:
+        """Linear rotor drag coefficient (``F_i = k_d omega_i P a_i``); assign a finite number >= 0."""
+        return float(self.coefficients[6])
+
+    @k_d.setter
+    def k_d(self, value: object) -> None:
+        self.coefficients[6] = _coefficient("k_d", value, (), nonnegative=True)
+
+    @property
+    def k_r(self) -> float:
+        """Blade-flapping moment coefficient (``M_i = k_r omega_i (a_i x e3)``); assign a finite number."""
+        return float(self.coefficients[7])
+
+    @k_r.setter
+    def k_r(self, value: object) -> None:
+        self.coefficients[7] = _coefficient("k_r", value, (), nonnegative=False)
+
+    @property
+    def cop(self) -> NDArray[np.float64]:
+        """Centre of pressure (3,) body FRD [m] (a view of :attr:`coefficients`); assign 3 finite numbers."""
+        return self.coefficients[0:3]
+
+    @cop.setter
+    def cop(self, value: object) -> None:
+        self.coefficients[0:3] = _coefficient("cop", value, (3,), nonnegative=False)
+
+    @property
+    def body_drag(self) -> NDArray[np.float64]:
+        """Quadratic body drag per body axis (3,) [N/(m/s)^2] (a view of :attr:`coefficients`); assign 3 finite
+        numbers >= 0."""
+        return self.coefficients[3:6]
+
+    @body_drag.setter
+    def body_drag(self, value: object) -> None:
+        self.coefficients[3:6] = _coefficient("body_drag", value, (3,), nonnegative=True)
 
     def wrench(self, rotation: NDArray[np.float64], velocity: NDArray[np.float64],
                angular_velocity: NDArray[np.float64], rotor_speeds: NDArray[np.float64],
@@ -140,6 +200,18 @@ class AeroModel:
             raise ValueError("aerodynamic wrench is not finite: check rotation, velocity, angular_velocity, "
                              "rotor_speeds and wind for NaN/inf")
         return force, torque
+
+
+def _coefficient(name: str, value: object, shape: tuple[int, ...], nonnegative: bool) -> NDArray[np.float64]:
+    """An aero coefficient assigned to :class:`AeroModel`, checked: ``shape``, finite (and >= 0)."""
+    try:
+        v = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        v = np.array(np.nan)
+    if v.shape != shape or not np.all(np.isfinite(v)) or (nonnegative and np.any(v < 0)):
+        what = "a finite number" if not shape else f"{shape[0]} finite numbers"
+        raise ValueError(f"AeroModel.{name} must be {what}{' >= 0' if nonnegative else ''}, got {value!r}")
+    return v
 
 
 def hover_drag(preset: VehiclePreset, airspeed: float | NDArray[np.float64]) -> NDArray[np.float64]:

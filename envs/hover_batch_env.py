@@ -295,7 +295,6 @@ class HoverBatchEnv(VectorEnv):
         self._nominal_mass = float(self.model.body_mass[self._body])
         self._nominal_inertia = self.model.body_inertia[self._body].copy()
         self.mass_scale, self.inertia_scale, self.drag_scale = np.ones(n), np.ones(n), np.ones(n)
-        self._drag_scaled = False
         self._qfrc_col = self.model.nu  # qfrc_applied follows ctrl in the control vector
         self.wind = BatchWind(opts.wind, n)
         self.aero = AeroModel(opts.preset)
@@ -345,6 +344,15 @@ class HoverBatchEnv(VectorEnv):
             omega_min=self._omega_min, omega_span=self._omega_span, k_thrust=self._k_thrust, obs_low=self._obs_low,
             obs_high=self._obs_high, reward_weights=self._reward_w, alloc_t=self._alloc_t, rotor_pos=self._rotor_pos,
             hull=self._hull, cop=aero.cop, body_drag=aero.body_drag, k_d=aero.k_d, k_r=aero.k_r)
+        self._link_aero()
+
+    def _link_aero(self) -> None:
+        """Make the aero model's coefficients a view of the step parameters (cop, body_drag, k_d, k_r, in
+        :class:`AeroModel`'s order), so an assignment to ``env.aero.k_d`` etc. acts from the next step on."""
+        start = STEP_PARAM_START["cop"]
+        assert STEP_PARAM_START["k_r"] == start + 7  # cop 3, body_drag 3, k_d, k_r: AeroModel.coefficients' layout
+        self._params[start:start + 8] = self.aero.coefficients
+        self.aero.coefficients = self._params[start:start + 8]
 
     @property
     def _force(self) -> NDArray[np.float64]:
@@ -381,7 +389,8 @@ class HoverBatchEnv(VectorEnv):
 
     @property
     def max_steps(self) -> int:
-        """Steps per episode before truncation (``episode_seconds / dt``); assign an int >= 1 (from the next step)."""
+        """Steps per episode before truncation (``episode_seconds / dt`` at construction); assign an int >= 1 (from
+        the next step; ``episode_seconds`` keeps the constructed value, as in :attr:`options`)."""
         return int(self._params[STEP_PARAM_START["max_steps"]])
 
     @max_steps.setter
@@ -425,6 +434,7 @@ class HoverBatchEnv(VectorEnv):
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
         self._rollout = rollout.Rollout(nthread=self._nthread)
+        self._link_aero()  # a copy's aero coefficients are a view of the copy's parameters again
 
     def set_external_wrench(self, force_ned: ArrayLike = (0.0, 0.0, 0.0),
                             torque_frd: ArrayLike = (0.0, 0.0, 0.0)) -> None:
@@ -534,7 +544,6 @@ class HoverBatchEnv(VectorEnv):
                 mujoco.mj_setConst(model, self._data)  # derived constants (subtree masses, ...) of the new body
         if "drag_scale" in values:
             self.drag_scale[rows] = values["drag_scale"]
-            self._drag_scaled = bool(np.any(self.drag_scale != 1.0))
         if "gyro_bias" in values:
             self.sensor.gyro_bias[rows] = values["gyro_bias"]
         if "accel_bias" in values:

@@ -234,8 +234,7 @@ class HoverEnv(gym.Env):
         self.preset = b.preset
         self.action_type = b.action_type
         self.n_substeps, self.physics_dt, self.dt = b.n_substeps, b.physics_dt, b.dt
-        self.episode_seconds, self.max_steps = b.episode_seconds, b.max_steps
-        self.max_position_error = b.max_position_error
+        self.episode_seconds = b.episode_seconds
         self.reward_weights = b.reward_weights
         self.action_space = b.single_action_space
         self.observation_space = b.single_observation_space
@@ -270,6 +269,26 @@ class HoverEnv(gym.Env):
     @init_noise.setter
     def init_noise(self, value: Any) -> None:
         self._batch.init_noise = check_init_noise(value)
+
+    @property
+    def max_steps(self) -> int:
+        """Steps per episode before truncation (``episode_seconds / dt`` at construction); assign an int >= 1 (from
+        the next step; ``episode_seconds`` keeps the constructed value)."""
+        return self._batch.max_steps
+
+    @max_steps.setter
+    def max_steps(self, value: Any) -> None:
+        self._batch.max_steps = value
+
+    @property
+    def max_position_error(self) -> float:
+        """Half-size of the termination box [m]; assign a finite positive number (the box from the next step on; the
+        observation bounds stay those of construction)."""
+        return self._batch.max_position_error
+
+    @max_position_error.setter
+    def max_position_error(self, value: Any) -> None:
+        self._batch.max_position_error = value
 
     @property
     def setpoint(self) -> NDArray[np.float64]:
@@ -356,6 +375,8 @@ class HoverEnv(gym.Env):
 
     # ---- rendering ----------------------------------------------------------------------
     def render(self) -> NDArray[np.uint8] | None:
+        if self._batch._row_rngs is None:
+            raise RuntimeError("HoverEnv.render() called before reset(): call reset() first")
         if self.render_mode is None:
             gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array' to gym.make")
             return None
@@ -363,7 +384,7 @@ class HoverEnv(gym.Env):
             height, width = self._render_size
             self._renderer = HoverRenderer(self.model, width, height, self._body)
         b = self._batch
-        wind = b._wind_com[0].copy() if b._row_rngs is not None else np.zeros(3)  # the wind at the CoM (info's truth)
+        wind = b._wind_com[0].copy()  # the wind at the CoM (info's truth)
         return self._renderer.render(self.data, self.setpoint, wind)
 
     def close(self) -> None:

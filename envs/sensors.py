@@ -142,9 +142,18 @@ class SensorModel:
 
         self._batch = BatchSensorModel(spec, control_dt, 1, physics_dt)
         b = self._batch
-        self.spec, self.dt, self.pose_every, self.noisy = b.spec, b.dt, b.pose_every, b.noisy
+        self.spec, self.dt, self.noisy = b.spec, b.dt, b.noisy
         self.sig_pos, self.sig_vel, self.sig_att = b.sig_pos, b.sig_vel, b.sig_att
         self.sig_rate, self.sig_gyro, self.sig_acc = b.sig_rate, b.sig_gyro, b.sig_acc
+
+    @property
+    def pose_every(self) -> int:
+        """Control steps per pose sample (the batch model's; read-only: assigning raises)."""
+        return self._batch.pose_every
+
+    @pose_every.setter
+    def pose_every(self, value: object) -> None:
+        self._batch.pose_every = value  # raises (fixed at construction)
 
     def reset(self, rng: np.random.Generator) -> None:
         """A new episode: turn-on biases from ``rng``, which then draws the per-step noise too (the batch model's

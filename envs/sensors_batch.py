@@ -38,6 +38,11 @@ _FIELD = np.ascontiguousarray(M.EARTH_FIELD_NED, dtype=float)
 SENSOR_NOT_FINITE = ("sensor measurement is not finite: check position, velocity, rotation, angular_velocity and "
                      "acceleration for NaN/inf")
 
+#: the error of assigning a sensor setting fixed at construction
+_FIXED = ("BatchSensorModel.{} is fixed at construction (derived from the sensor spec, copied into the env's step "
+          "parameters): build the sensors (or the env, sensors=...) with a SensorSpec or a mapping of its fields "
+          "instead")
+
 
 @njit(cache=True)
 def measure_rows(position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
@@ -106,25 +111,26 @@ class BatchSensorModel:
         self.dt = control_dt
         self.n = int(n)
         if spec.pose_rate is None:
-            self.pose_every = 1
+            self._pose_every = 1
         else:
             ratio = 1.0 / (spec.pose_rate * control_dt)
             if ratio < 1.0 - 1e-9 or abs(ratio - round(ratio)) > 1e-6:
                 raise ValueError(pose_rate_error(spec, 1.0 / control_dt,
                                                  None if physics_dt is None else 1.0 / physics_dt))
-            self.pose_every = int(round(ratio))
+            self._pose_every = int(round(ratio))
         # white noise of density d sampled every dt has sigma d / sqrt(dt) (sensors module docstring)
-        root_dt, root_pose = math.sqrt(control_dt), math.sqrt(self.pose_every * control_dt)
+        root_dt, root_pose = math.sqrt(control_dt), math.sqrt(self._pose_every * control_dt)
         self.sig_pos = math.hypot(spec.position_density / root_pose, spec.position_sigma)
         self.sig_vel = math.hypot(spec.velocity_density / root_pose, spec.velocity_sigma)
         self.sig_att = math.hypot(spec.attitude_density / root_pose, spec.attitude_sigma)
         self.sig_rate = spec.angular_velocity_density / root_dt
         self.sig_gyro = spec.gyro_density / root_dt
         self.sig_acc = spec.accel_density / root_dt
-        #: the per-sample sigmas of :func:`measure_rows` (position, velocity, attitude, rate, accel, gyro, mag)
-        self.sigma = np.array([self.sig_pos, self.sig_vel, self.sig_att, self.sig_rate, self.sig_acc, self.sig_gyro,
-                               spec.mag_sigma])
-        self.noisy = bool(np.any(self.sigma > 0) or spec.gyro_bias_sigma > 0 or spec.accel_bias_sigma > 0)
+        sigma = np.array([self.sig_pos, self.sig_vel, self.sig_att, self.sig_rate, self.sig_acc, self.sig_gyro,
+                          spec.mag_sigma])
+        sigma.flags.writeable = False  # fixed by the spec (the env copies it into its step parameters)
+        self._sigma = sigma
+        self.noisy = bool(np.any(sigma > 0) or spec.gyro_bias_sigma > 0 or spec.accel_bias_sigma > 0)
         #: per row: the held pose sample (position 3, velocity 3, attitude 9) and the turn-on biases (gyro 3,
         #: accelerometer 3), one (N, 21) array (the kernel's one argument; the properties below are views of it)
         self.state = np.zeros((self.n, 21))
@@ -135,6 +141,27 @@ class BatchSensorModel:
         self.no_noise = np.zeros((self.n, 21))
         self._z = np.empty((self.n, 21))  # the noisy sensors' normals, drawn into in place (never handed out)
         self.rng = np.random.default_rng(0)
+
+    @property
+    def pose_every(self) -> int:
+        """Control steps per pose sample (from the spec's ``pose_rate``); read-only."""
+        return self._pose_every
+
+    @pose_every.setter
+    def pose_every(self, value: object) -> None:
+        raise AttributeError(_FIXED.format("pose_every"))
+
+    @property
+    def sigma(self) -> NDArray[np.float64]:
+        """The per-sample sigmas of :func:`measure_rows` (position, velocity, attitude, rate, accel, gyro, mag), (7,)
+        read-only (derived from the spec's densities and ``pose_every``)."""
+        view = self._sigma.view()
+        view.flags.writeable = False  # (a copy of the model, e.g. deepcopy, would hold a writeable one)
+        return view
+
+    @sigma.setter
+    def sigma(self, value: object) -> None:
+        raise AttributeError(_FIXED.format("sigma"))
 
     @property
     def pose_pos(self) -> NDArray[np.float64]:
