@@ -227,7 +227,11 @@ def test_malformed_bytes_in_lockstep_and_disconnect():
         peer.answer(peer.next_sensor())
     peer.close()
     err = finish(th, out, timeout=10).get("error")
-    assert isinstance(err, SitlError) and "PX4 closed the connection after 20 steps" in str(err), err
+    # the peer closes with the bridge's 21st HIL_SENSOR possibly unread: TCP then resets instead of a clean FIN
+    # (a race of the two processes' timing), so either report is right; both must name the step count
+    assert isinstance(err, SitlError), err
+    assert ("PX4 closed the connection after 20 steps" in str(err)
+            or "the PX4 connection broke (Connection reset by peer) after 20 steps" in str(err)), err
 
 
 def test_no_px4_times_out():
