@@ -40,3 +40,26 @@ def run_hover_with_observers(names: list[str], steps: int = 150, sensors: str = 
         rows.append((est, info["truth"]))
     env.close()
     return rows
+
+
+def px4_hover_sequence(seed: int, steps: int = 1000) -> tuple[dict, list[tuple[dict, object, object, dict]], object,
+                                                               float]:
+    """``steps`` control steps (100 Hz) of fawtgym/Hover-v0 in the fawt-50 wind with the mocap_imu sensors under PX4
+    control, from ``reset(seed=seed)``: (the first measurement, one (measurement, applied thrust, applied torque,
+    info["truth"]) per step, the vehicle preset, the control step dt).  Used by the observers' on-the-env tests."""
+    from fawtgym.agents.px4_agent import PX4Agent
+
+    env = gym.make("fawtgym/Hover-v0", sensors="mocap_imu", wind="fawt-50")
+    u = env.unwrapped
+    _, info = env.reset(seed=seed)
+    agent = PX4Agent.for_env(env)
+    agent.reset(info, seed=seed)
+    first = info["measurement"]
+    rows = []
+    for _ in range(steps):
+        _, _, term, _, info = env.step(agent.act(None, info))
+        assert not term, info["failure"]
+        ap = info["applied"]
+        rows.append((info["measurement"], ap["thrust"], ap["torque"], info["truth"]))
+    env.close()
+    return first, rows, u.preset, u.dt

@@ -92,25 +92,9 @@ def _rot(q):
 @pytest.fixture(scope="module")
 def env_sequence():
     """1000 steps (10 s at 100 Hz) of the hover env in the fawt-50 wind under PX4 control, with its noisy IMU."""
-    import gymnasium as gym
+    from _env_helpers import px4_hover_sequence
 
-    import fawtgym  # noqa: F401  (registers the env ids)
-    from fawtgym.agents.px4_agent import PX4Agent
-
-    env = gym.make("fawtgym/Hover-v0", sensors="mocap_imu", wind="fawt-50")
-    u = env.unwrapped
-    _, info = env.reset(seed=5)
-    agent = PX4Agent.for_env(env)
-    agent.reset(info, seed=5)
-    first = info["measurement"]
-    steps = []
-    for _ in range(1000):
-        _, _, term, _, info = env.step(agent.act(None, info))
-        assert not term, info["failure"]
-        ap = info["applied"]
-        steps.append((info["measurement"], ap["thrust"], ap["torque"], info["truth"]))
-    env.close()
-    return first, steps, u.preset, u.dt
+    return px4_hover_sequence(seed=5)
 
 
 def _imu(r, rng, noise, field=EARTH_FIELD_NED):
