@@ -1,6 +1,7 @@
-"""Shared test helper: run observers on the hover env's measurements at its control rate.
-
-Used by tests/test_geso_env.py and tests/test_hc_eso_env.py (not a test module itself).
+"""Shared test helpers (not a test module itself): observers run on the hover env's measurements at its control
+rate (tests/test_geso_env.py, test_hc_eso_env.py), a recorded PX4 hover sequence of the single env
+(test_hc_eso_tumbling_and_errors.py, test_pdt_sta_quest_cases_and_errors.py) and recorded PX4 flights of a batched
+env (test_px4_cascade.py, test_agent_row_reset.py).
 """
 
 from __future__ import annotations
@@ -63,3 +64,23 @@ def px4_hover_sequence(seed: int, steps: int = 1000) -> tuple[dict, list[tuple[d
         rows.append((info["measurement"], ap["thrust"], ap["torque"], info["truth"]))
     env.close()
     return first, rows, u.preset, u.dt
+
+
+def record_px4_batch(seeds: list[int], on_time: float, steps: int) -> list[dict]:
+    """The infos (reset + ``steps`` steps) of a batched env, one row per seed, flown by PX4 in the fawt-50 wind with
+    the fan switched on at ``on_time`` s, motion capture + IMU sensors, 200 Hz control, rows perturbed
+    (``init_noise=1``): recorded flights the agent tests replay open loop."""
+    from fawtgym.agents.spec import make_agent
+    from fawtgym.envs.hover_batch_env import HoverBatchEnv
+
+    env = HoverBatchEnv(num_envs=len(seeds), wind={"name": "fawt-50", "on_time": on_time}, sensors="mocap_imu",
+                        control_rate=200.0, episode_seconds=5.0, init_noise=1.0)
+    agent = make_agent("px4", env)
+    obs, info = env.reset(seed=seeds)
+    agent.reset(info)
+    infos = [info]
+    for _ in range(steps):
+        obs, _, _, _, info = env.step(agent.act(obs, info))
+        infos.append(info)
+    env.close()
+    return infos

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from _env_helpers import record_px4_batch
 
 from fawtgym.agents.spec import make_agent
 from fawtgym.envs.hover_batch_env import HoverBatchEnv
@@ -38,17 +39,7 @@ def take_rows(info: Mapping[str, Any], idx: np.ndarray) -> dict[str, Any]:
 @pytest.fixture(scope="module")
 def recorded() -> list[dict[str, Any]]:
     """Infos of a 3-row env flown by PX4 in FAWT-50 wind with motion-capture + IMU sensors (fan on at 0.05 s)."""
-    env = HoverBatchEnv(num_envs=3, wind={"name": "fawt-50", "on_time": 0.05}, sensors="mocap_imu",
-                        control_rate=200.0, episode_seconds=5.0, init_noise=1.0)
-    agent = make_agent("px4", env)
-    obs, info = env.reset(seed=[3, 4, 5])
-    agent.reset(info)
-    infos = [info]
-    for _ in range(STEPS):
-        obs, _, _, _, info = env.step(agent.act(obs, info))
-        infos.append(info)
-    env.close()
-    return infos
+    return record_px4_batch([3, 4, 5], on_time=0.05, steps=STEPS)
 
 
 @pytest.mark.parametrize("name", AGENTS)

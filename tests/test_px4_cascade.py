@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from _env_helpers import record_px4_batch
 from _tolerance import assert_same_law
 
 from fawtgym.agents.px4_agent import PX4Agent, PX4ObserverAgent
@@ -30,17 +31,7 @@ def _rows(info: Mapping[str, Any], idx: list[int]) -> dict[str, Any]:
 @pytest.fixture(scope="module")
 def recorded() -> list[dict[str, Any]]:
     """Infos of a 3-row env flown by PX4 in FAWT-50 wind (fan on at 0.02 s), motion capture + IMU, rows perturbed."""
-    env = HoverBatchEnv(num_envs=3, wind={"name": "fawt-50", "on_time": 0.02}, sensors="mocap_imu",
-                        control_rate=200.0, episode_seconds=5.0, init_noise=1.0)
-    agent = make_agent("px4", env)
-    obs, info = env.reset(seed=[7, 8, 9])
-    agent.reset(info)
-    infos = [info]
-    for _ in range(STEPS):
-        obs, _, _, _, info = env.step(agent.act(obs, info))
-        infos.append(info)
-    env.close()
-    return infos
+    return record_px4_batch([7, 8, 9], on_time=0.02, steps=STEPS)
 
 
 def test_each_row_flies_as_a_batch_of_one(recorded: list[dict[str, Any]]) -> None:
