@@ -99,6 +99,19 @@ def _newton_lambda(a1, b1, c1, rho, d1):
     return lam
 
 
+@njit(cache=True, inline="always")
+def _sym_adjugate(x00, x11, x22, x01, x02, x12):
+    """The adjugate of a symmetric 3x3 matrix X (its six distinct cofactors c00, c01, c02, c11, c12, c22) and det X
+    (expanded along the first row)."""
+    c00 = x11 * x22 - x12 * x12
+    c01 = x12 * x02 - x01 * x22
+    c02 = x01 * x12 - x11 * x02
+    c11 = x22 * x00 - x02 * x02
+    c12 = x02 * x01 - x00 * x12
+    c22 = x00 * x11 - x01 * x01
+    return c00, c01, c02, c11, c12, c22, x00 * c00 + x01 * c01 + x02 * c02
+
+
 @njit(cache=True)
 def _gibbs_solve(b, r, a, f0, f1, f2):
     """Eqs. 57-65 in the frame of the references flipped by (f0, f1, f2): (g0, g1, g2, lambda_max, ok); ok is
@@ -107,13 +120,7 @@ def _gibbs_solve(b, r, a, f0, f1, f2):
     # eq. 59 S = B + B^T, eq. 60 rho = tr B
     S00, S01, S02, S11, S12, S22 = 2.0 * B00, B01 + B10, B02 + B20, 2.0 * B11, B12 + B21, 2.0 * B22
     rho = B00 + B11 + B22
-    # cofactors of the symmetric S (the diagonal ones and the first row) and det S
-    C00 = S11 * S22 - S12 * S12
-    C01 = S12 * S02 - S01 * S22
-    C02 = S01 * S12 - S11 * S02
-    C11 = S22 * S00 - S02 * S02
-    C22 = S00 * S11 - S01 * S01
-    det_s = S00 * C00 + S01 * C01 + S02 * C02
+    C00, C01, C02, C11, _, C22, det_s = _sym_adjugate(S00, S11, S22, S01, S02, S12)  # cofactors of S, det S
     Sz0 = S00 * z0 + S01 * z1 + S02 * z2
     Sz1 = S01 * z0 + S11 * z1 + S12 * z2
     Sz2 = S02 * z0 + S12 * z1 + S22 * z2
@@ -126,14 +133,7 @@ def _gibbs_solve(b, r, a, f0, f1, f2):
     lam = _newton_lambda(a1, b1, c1, rho, d1)
     # eq. 65: g = [(lambda + rho) I - S]^-1 z = adj(M) z / det M, M symmetric
     lr = lam + rho
-    M00, M11, M22, M01, M02, M12 = lr - S00, lr - S11, lr - S22, -S01, -S02, -S12
-    D00 = M11 * M22 - M12 * M12
-    D01 = M12 * M02 - M01 * M22
-    D02 = M01 * M12 - M11 * M02
-    D11 = M22 * M00 - M02 * M02
-    D12 = M02 * M01 - M00 * M12
-    D22 = M00 * M11 - M01 * M01
-    det_m = M00 * D00 + M01 * D01 + M02 * D02
+    D00, D01, D02, D11, D12, D22, det_m = _sym_adjugate(lr - S00, lr - S11, lr - S22, -S01, -S02, -S12)
     if not abs(det_m) > 1e-9:
         return 0.0, 0.0, 0.0, lam, False
     g0 = (D00 * z0 + D01 * z1 + D02 * z2) / det_m
