@@ -99,6 +99,20 @@ def _run(name: str, n: int, reset_meas: Mapping[str, Any], update_meas: Mapping[
     return reset, update
 
 
+def _bad_row_outcomes(name: str, bad_row: Mapping[str, Any], when: str) -> dict[str, Outcome]:
+    """At every N of SIZES: the outcome of ``reset`` on ``bad_row`` in every row (``when="reset"``), or of the
+    ``update`` on it after a reset on valid rows (``when="update"``)."""
+    outcomes: dict[str, Outcome] = {}
+    for n in SIZES:
+        if when == "reset":
+            outcomes[f"N={n}"] = _run(name, n, _batch(bad_row, n))[0]
+        else:
+            update = _run(name, n, _batch(_row(), n), _batch(bad_row, n))[1]
+            assert update is not None
+            outcomes[f"N={n}"] = update
+    return outcomes
+
+
 @functools.cache
 def warm(name: str) -> None:
     """One valid reset + update at every N, outside the time limit, before an observer is fuzzed: a first call
@@ -183,14 +197,7 @@ def test_attitude_that_is_not_a_rotation_is_refused(name: str, label: str, when:
         pytest.skip(f"{name} does not read measurement['attitude']")
     matrix = dict(NON_ROTATIONS)[label]
     bad_row = {**_row(), "attitude": matrix}
-    outcomes: dict[str, Outcome] = {}
-    for n in SIZES:
-        if when == "reset":
-            outcomes[f"N={n}"] = _run(name, n, _batch(bad_row, n))[0]
-        else:
-            update = _run(name, n, _batch(_row(), n), _batch(bad_row, n))[1]
-            assert update is not None
-            outcomes[f"N={n}"] = update
+    outcomes = _bad_row_outcomes(name, bad_row, when)
     _check_call(name, f"{when} with attitude = {label}", outcomes, "bad", ALLOWED)
 
 
@@ -273,14 +280,7 @@ def test_bad_measurement_value_is_refused_alike_at_every_n(name: str, key: str, 
     if not _reads(name, key):
         expect = "either"  # a key the observer does not read may hold anything
     bad_row = {**_row(), key: mutate(_row()[key])}
-    outcomes: dict[str, Outcome] = {}
-    for n in SIZES:
-        if when == "reset":
-            outcomes[f"N={n}"] = _run(name, n, _batch(bad_row, n))[0]
-        else:
-            update = _run(name, n, _batch(_row(), n), _batch(bad_row, n))[1]
-            assert update is not None
-            outcomes[f"N={n}"] = update
+    outcomes = _bad_row_outcomes(name, bad_row, when)
     _check_call(name, f"{when} with measurement[{key!r}] {label}", outcomes, expect, ALLOWED_UPDATE)
 
 

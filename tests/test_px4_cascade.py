@@ -34,15 +34,21 @@ def recorded() -> list[dict[str, Any]]:
     return record_px4_batch([7, 8, 9], on_time=0.02, steps=STEPS)
 
 
+def _batch_and_singles(spec: str, first: dict[str, Any]) -> tuple[HoverBatchEnv, Any, list[Any]]:
+    """A 3-row env, an agent ``spec`` for all its rows and one per row, reset on the recorded ``first`` info (the
+    single agents on their row)."""
+    env = HoverBatchEnv(num_envs=3, sensors="mocap_imu", control_rate=200.0)
+    batch = make_agent(spec, env)
+    singles = [make_agent(spec, env) for _ in range(3)]
+    batch.reset(first)
+    for i, agent in enumerate(singles):
+        agent.reset(_rows(first, [i]))
+    return env, batch, singles
+
 def test_each_row_flies_as_a_batch_of_one(recorded: list[dict[str, Any]]) -> None:
     """A row of the 3-row batch gets, bitwise, the actions of an agent holding that row alone: one kernel loops
     over rows with nothing shared between them (the same code path, so equality is exact)."""
-    env = HoverBatchEnv(num_envs=3, sensors="mocap_imu", control_rate=200.0)
-    batch = make_agent("px4", env)
-    singles = [make_agent("px4", env) for _ in range(3)]
-    batch.reset(recorded[0])
-    for i, agent in enumerate(singles):
-        agent.reset(_rows(recorded[0], [i]))
+    env, batch, singles = _batch_and_singles("px4", recorded[0])
     for k, info in enumerate(recorded):
         actions = batch.act(None, info)
         for i, agent in enumerate(singles):
@@ -55,12 +61,7 @@ def test_each_row_flies_as_a_batch_of_one(recorded: list[dict[str, Any]]) -> Non
 def test_rows_with_an_observer_match_batches_of_one(recorded: list[dict[str, Any]]) -> None:
     """With the FFTS-ESO feedforward the observer is another law (its own batch code), so the comparison is of two
     runs of one law to rounding (tests/_tolerance.py), over the steps taken; actions are normalized commands."""
-    env = HoverBatchEnv(num_envs=3, sensors="mocap_imu", control_rate=200.0)
-    batch = make_agent("px4+ffts_eso", env)
-    singles = [make_agent("px4+ffts_eso", env) for _ in range(3)]
-    batch.reset(recorded[0])
-    for i, agent in enumerate(singles):
-        agent.reset(_rows(recorded[0], [i]))
+    env, batch, singles = _batch_and_singles("px4+ffts_eso", recorded[0])
     for info in recorded:
         actions = batch.act(None, info)
         got = np.concatenate([agent.act(None, _rows(info, [i])) for i, agent in enumerate(singles)])
