@@ -19,7 +19,7 @@ from fawtgym.eval.bench.observers import hover_measurement
 from fawtgym.observers import make_observer
 
 
-def _single(rng: np.random.Generator) -> dict[str, object]:
+def _unbatched_measurement(rng: np.random.Generator) -> dict[str, object]:
     """An unbatched measurement, as the single env reports it (time a numpy scalar)."""
     meas: dict[str, object] = {k: v[0] for k, v in hover_measurement(1, rng).items()}
     meas["time"] = np.float64(0.25)
@@ -27,7 +27,7 @@ def _single(rng: np.random.Generator) -> dict[str, object]:
 
 
 def test_unbatched_float64_arrays_become_one_row_views() -> None:
-    raw = _single(np.random.default_rng(0))
+    raw = _unbatched_measurement(np.random.default_rng(0))
     out = batch_measurement(raw)
     for key, value in raw.items():
         assert out[key].shape == (1, *np.shape(value)), key
@@ -50,7 +50,7 @@ def test_batched_and_converted_inputs() -> None:
 
 
 def test_keys_subset() -> None:
-    raw = _single(np.random.default_rng(2))
+    raw = _unbatched_measurement(np.random.default_rng(2))
     out = batch_measurement(raw, ("attitude", "position", "absent"))
     assert list(out) == ["attitude", "position"]
     meas, batched = measurement_from_info({"measurement": raw}, ("position",))
