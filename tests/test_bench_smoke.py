@@ -3,6 +3,7 @@
 import math
 import re
 
+import numpy as np
 import pytest
 
 from fawtgym.eval.bench import closed_loop, env, observers, wind
@@ -58,7 +59,13 @@ def test_bench_observers_and_closed_loop_run(capsys):
     assert closed_loop.main(["--steps", "10", "--rounds", "1", "--batch", "8", "--batch-sizes", "4",
                              "--vehicle-steps", "20"]) == 0
     out = capsys.readouterr().out
-    assert "ffts_eso" in out and "AGGREGATE" in out
+    assert "ffts_eso" in out and "AGGREGATE" in out and "back to back" in out
+
+
+def test_batched_bench_pairs_each_rounds_closed_loop_with_its_physics_round():
+    b = closed_loop.measure_batched([4], rounds=2, vehicle_steps=20)
+    paired = b[4]["paired"]
+    assert len(paired) == 2 and all(np.isfinite(p) and p > 0 for p in paired)
 
 
 def test_bench_eval_prints_throughput_and_ratio(capsys, monkeypatch):

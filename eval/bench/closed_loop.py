@@ -27,6 +27,10 @@ calling thread); the "per CPU s" column counts every thread of the process):
   layout, same threads) and nothing else: the ceiling for any env built on this physics;
 * ``calm env`` / ``fawt env``: vehicle-steps per second of the batch env alone (calm air, exact
   sensors, 100 Hz control; FAWT-50 + mocap_imu at the closed loop's control rate).
+
+The target line's ratio closed loop / physics only is the median over rounds of each round's two jobs run back to
+back (in the same seconds); the table's column divides the best round of each job, which on a machine whose speed
+drifts between rounds can pair a fast physics round with a slow closed-loop one.
 """
 
 from __future__ import annotations
@@ -180,22 +184,30 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int) -> dict[str, tu
             return time.perf_counter() - t0, time.process_time() - c0
 
     sim = n * steps / control_rate
-    return {"closed": (closed, sim), "env": (lambda: alone(env, recorded), sim), "physics": (physics, sim),
+    # closed loop and physics only back to back in every round (their paired ratio, :func:`measure_batched`)
+    return {"closed": (closed, sim), "physics": (physics, sim), "env": (lambda: alone(env, recorded), sim),
             "calm": (lambda: alone(calm), n * steps / 100.0)}
 
 
 def measure_batched(batch_sizes: Sequence[int] = (64, 256, 1024), rounds: int = 3, control_rate: float = 200.0,
-                    vehicle_steps: int = 51200) -> dict[int, dict[str, dict[str, float]]]:
-    """Aggregate real-time factors (vehicle-s per wall s / per CPU s) for each N, best of ``rounds``."""
-    out = {}
+                    vehicle_steps: int = 51200) -> dict[int, dict[str, Any]]:
+    """Aggregate real-time factors (vehicle-s per wall s / per CPU s) for each N, best of ``rounds``; and under
+    ``"paired"`` each round's closed-loop / physics-only ratio, the two jobs run back to back (the same seconds of a
+    machine whose speed drifts: a shared VM's second vCPU can lose a third of its speed for seconds at a time)."""
+    out: dict[int, dict[str, Any]] = {}
     for n in batch_sizes:
         jobs = _batch_jobs(n, control_rate, vehicle_steps)
         best = {k: [np.inf, np.inf] for k in jobs}
+        paired = []
         for _ in range(rounds):
+            walls = {}
             for k, (job, _) in jobs.items():
                 wall, cpu = job()
+                walls[k] = wall
                 best[k] = [min(best[k][0], wall), min(best[k][1], cpu)]
+            paired.append(walls["physics"] / walls["closed"])  # same simulated time: the ratio of real-time factors
         out[n] = {k: {"wall": jobs[k][1] / best[k][0], "cpu": jobs[k][1] / max(best[k][1], 1e-9)} for k in jobs}
+        out[n]["paired"] = paired
     return out
 
 
@@ -269,15 +281,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{'calm env':>14s}  {'fawt env':>14s}")
     print(head)
     for n, row in b.items():
-        cell = {k: f"{row[k]['wall']:7.1f}x|{row[k]['cpu']:7.1f}x" for k in row}
+        cell = {k: f"{row[k]['wall']:7.1f}x|{row[k]['cpu']:7.1f}x" for k in row if k != "paired"}
         calm_sps = row["calm"]["wall"] * 100.0  # vehicle-steps per second at 100 Hz control
         fawt_sps = row["env"]["wall"] * args.control_rate
         print(f"  {n:5d}  {cell['closed']:>17s}  {cell['env']:>17s}  {cell['physics']:>17s}  "
               f"{row['closed']['wall'] / row['physics']['wall']:14.2f}  {calm_sps:10.0f} st/s  {fawt_sps:10.0f} st/s")
     big = max(b)
-    share = b[big]["closed"]["wall"] / b[big]["physics"]["wall"]
-    print(f"  BATCHED target closed loop >= 0.8 of the physics-only ceiling at N = {big}: {share:.2f}, "
-          f"{'met' if share >= 0.8 else 'NOT met'}")
+    paired = b[big]["paired"]
+    share = float(np.median(paired))
+    print(f"  closed loop / physics only at N = {big}, each round's two jobs back to back: "
+          f"{' '.join(f'{p:.2f}' for p in paired)} (median {share:.2f}; the table's column: best round / best round)")
+    print(f"  BATCHED target closed loop >= 0.8 of the physics-only ceiling at N = {big} (median of the paired "
+          f"rounds): {share:.2f}, {'met' if share >= 0.8 else 'NOT met'}")
     best_n = max(b, key=lambda k: b[k]["closed"]["cpu"])
     met = b[best_n]["closed"]["cpu"] >= 100.0
     print(f"  AGGREGATE target >= 100x real time on one core (per CPU s, best N = {best_n}): "
