@@ -252,7 +252,7 @@ def test_ray_backend_gives_the_local_numbers(tmp_path: Path) -> None:
     _cells(tmp_path / "local", agents, [SHORT], [0, 1], workers=1)
     os.environ.setdefault("RAY_ENABLE_UV_RUN_RUNTIME_ENV", "0")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=False,
-             runtime_env={"env_vars": {"PYTHONPATH": str(TESTS)}})
+             runtime_env={"env_vars": {"PYTHONPATH": _env()["PYTHONPATH"]}})  # the caller's too (a worktree's)
     try:
         summary = _cells(tmp_path / "ray", agents, [SHORT], [0, 1], backend="ray")
     finally:
