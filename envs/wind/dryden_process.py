@@ -58,13 +58,18 @@ def gust_row_step(x: NDArray[np.float64], z: NDArray[np.float64], m: NDArray[np.
     is overwritten with ``x+``, the outputs ``y+`` are ``scratch[ns:]``."""
     ns = x.shape[1]
     n_col = m.shape[1]
+    # every output j is the sum 0 + x_0 m_0j + ... + x_(ns-1) m_(ns-1)j + z_0 m_(ns)j + ... in this order; the
+    # outputs are accumulated side by side (row-major over M: independent sums the CPU overlaps)
     for j in range(n_col):
-        acc = 0.0
-        for col in range(ns):
-            acc += x[i, col] * m[col, j]  # Ad x
-        for col in range(ns):
-            acc += z[col] * m[ns + col, j]  # S z
-        scratch[j] = acc
+        scratch[j] = 0.0
+    for col in range(ns):
+        xc = x[i, col]
+        for j in range(n_col):
+            scratch[j] += xc * m[col, j]  # Ad x
+    for col in range(ns):
+        zc = z[col]
+        for j in range(n_col):
+            scratch[j] += zc * m[ns + col, j]  # S z
     for j in range(ns):
         x[i, j] = scratch[j]
 
