@@ -242,11 +242,10 @@ def read_states(final: NDArray[np.float64], t_end: float, physics_dt: float, dt:
         failure[i] = 0
         if not stepping[i]:
             continue
-        finite = True
+        zero = 0.0  # sum of x * 0: +-0 if every x is finite, NaN if any is NaN/inf (no overflow, no branch per entry)
         for c in range(n_state):
-            if not math.isfinite(final[i, c]):
-                finite = False
-        if diverged_before[i] or not finite or abs(final[i, 0] - t_end) > limit:
+            zero += final[i, c] * 0.0
+        if diverged_before[i] or not math.isfinite(zero) or abs(final[i, 0] - t_end) > limit:
             failure[i] = DIVERGED
             continue
         for c in range(n_state):
