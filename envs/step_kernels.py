@@ -244,7 +244,7 @@ def read_states(final: NDArray[np.float64], t_end: float, physics_dt: float, dt:
             continue
         zero = 0.0  # sum of x * 0: +-0 if every x is finite, NaN if any is NaN/inf (no overflow, no branch per entry)
         for c in range(n_state):
-            zero += final[i, c] * 0.0
+            zero += float(final[i, c]) * 0.0  # float(): plain Python (no numba) multiplies silently
         if diverged_before[i] or not math.isfinite(zero) or abs(final[i, 0] - t_end) > limit:
             failure[i] = DIVERGED
             continue

@@ -153,7 +153,7 @@ def row_inputs_finite(points: NDArray[np.float64], velocity: NDArray[np.float64]
     zero = 0.0  # sum of x * 0: +-0 if every x is finite, NaN if any is NaN/inf (no overflow, no branch per entry)
     for p in range(points.shape[1]):
         for c in range(3):
-            zero += points[i, p, c] * 0.0
+            zero += float(points[i, p, c]) * 0.0  # float(): plain Python (no numba) multiplies silently
     for c in range(3):
-        zero += velocity[i, c] * 0.0
+        zero += float(velocity[i, c]) * 0.0
     return math.isfinite(zero)
