@@ -36,7 +36,6 @@ from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core.arrays import as_f64
-from fawtgym.core.so3_kernels import cross_row, mat_t_vec_row, mat_vec_row
 
 from .vehicles import GRAVITY, VehiclePreset
 
@@ -52,55 +51,59 @@ def calibrated_rotor_drag(preset: VehiclePreset, linear_drag_per_kg: float = LIN
 
 
 @njit(cache=True)
-def _air_velocity(r: NDArray[np.float64], wind: NDArray[np.float64], v: NDArray[np.float64],
-                  rate: NDArray[np.float64], point: NDArray[np.float64], scratch: NDArray[np.float64],
-                  out: NDArray[np.float64]) -> None:
-    """``a = R^T (w - v) - Omega x p``: the air velocity relative to body point ``p``, body FRD (into ``out``)."""
-    for c in range(3):
-        scratch[c] = wind[c] - v[c]
-    mat_t_vec_row(r, scratch, out)
-    cross_row(rate, point, scratch)
-    for c in range(3):
-        out[c] -= scratch[c]
+def _air_velocity(rotation: NDArray[np.float64], i: int, w0: float, w1: float, w2: float, v0: float, v1: float,
+                  v2: float, o0: float, o1: float, o2: float, p0: float, p1: float, p2: float
+                  ) -> tuple[float, float, float]:  # pragma: no cover - jitted
+    """``a = R^T (w - v) - Omega x p``: the air velocity relative to body point ``p`` (body FRD), with R
+    ``rotation[i]``, wind ``w`` and velocity ``v`` (NED), body rate ``Omega`` (FRD).  Scalars in and out (no row
+    views or scratch arrays: the compiled loop keeps them in registers)."""
+    d0, d1, d2 = w0 - v0, w1 - v1, w2 - v2  # w - v, NED
+    a0 = rotation[i, 0, 0] * d0 + rotation[i, 1, 0] * d1 + rotation[i, 2, 0] * d2  # R^T (w - v)
+    a1 = rotation[i, 0, 1] * d0 + rotation[i, 1, 1] * d1 + rotation[i, 2, 1] * d2
+    a2 = rotation[i, 0, 2] * d0 + rotation[i, 1, 2] * d1 + rotation[i, 2, 2] * d2
+    return (a0 - (o1 * p2 - o2 * p1), a1 - (o2 * p0 - o0 * p2), a2 - (o0 * p1 - o1 * p0))  # - Omega x p
 
 
 @njit(cache=True)
 def aero_wrench_rows(rotation: NDArray[np.float64], velocity: NDArray[np.float64], rate: NDArray[np.float64],
                      rotor_speeds: NDArray[np.float64], wind: NDArray[np.float64], hubs: NDArray[np.float64],
                      cop: NDArray[np.float64], body_drag: NDArray[np.float64], k_d: float, k_r: float,
-                     force: NDArray[np.float64], torque: NDArray[np.float64]) -> int:
+                     force: NDArray[np.float64], torque: NDArray[np.float64]) -> int:  # pragma: no cover - jitted
     """The wrench of the module docstring for every row into ``force`` (N, 3) NED and ``torque`` (N, 3) FRD.
 
     Returns -1, or the first row whose wrench is not finite (NaN/inf in its inputs).
     """
-    air, f_rotor, f_body, moment, scratch = np.empty(3), np.zeros(3), np.empty(3), np.empty(3), np.empty(3)
+    c0, c1, c2 = cop[0], cop[1], cop[2]
     for i in range(rotation.shape[0]):
-        r = rotation[i]
-        f_body[:] = 0.0  # sum_j F_j + F_b, body FRD
-        for c in range(3):
-            torque[i, c] = 0.0
+        v0, v1, v2 = velocity[i, 0], velocity[i, 1], velocity[i, 2]
+        o0, o1, o2 = rate[i, 0], rate[i, 1], rate[i, 2]
+        fb0, fb1, fb2 = 0.0, 0.0, 0.0  # sum_j F_j + F_b, body FRD
+        t0, t1, t2 = 0.0, 0.0, 0.0  # tau, body FRD
         for j in range(hubs.shape[0]):
-            _air_velocity(r, wind[i, j + 1], velocity[i], rate[i], hubs[j], scratch, air)  # a_j
+            h0, h1, h2 = hubs[j, 0], hubs[j, 1], hubs[j, 2]
+            a0, a1, _ = _air_velocity(rotation, i, wind[i, j + 1, 0], wind[i, j + 1, 1], wind[i, j + 1, 2], v0, v1, v2,
+                                      o0, o1, o2, h0, h1, h2)  # a_j
             drag = k_d * rotor_speeds[i, j]  # F_j = k_d omega_j P a_j,  P = diag(1, 1, 0)
             flap = k_r * rotor_speeds[i, j]  # M_j = k_r omega_j (a_j x e3) = k_r omega_j (a_y, -a_x, 0)
-            f_rotor[0], f_rotor[1] = drag * air[0], drag * air[1]
-            cross_row(hubs[j], f_rotor, moment)  # r_j x F_j
-            torque[i, 0] += moment[0] + flap * air[1]
-            torque[i, 1] += moment[1] - flap * air[0]
-            torque[i, 2] += moment[2]
-            f_body[0] += f_rotor[0]
-            f_body[1] += f_rotor[1]
-        _air_velocity(r, wind[i, 0], velocity[i], rate[i], cop, scratch, air)  # a_0, at the centre of pressure
-        speed = math.sqrt(air[0] * air[0] + air[1] * air[1] + air[2] * air[2])
-        for c in range(3):
-            scratch[c] = body_drag[c] * air[c] * speed  # F_b = D |a_0| a_0
-        cross_row(cop, scratch, moment)  # c x F_b
-        for c in range(3):
-            torque[i, c] += moment[c]
-            f_body[c] += scratch[c]
-        mat_vec_row(r, f_body, force[i])  # force = R (sum_j F_j + F_b), world NED
-        if not (math.isfinite(force[i, 0] + force[i, 1] + force[i, 2])
-                and math.isfinite(torque[i, 0] + torque[i, 1] + torque[i, 2])):
+            f0, f1 = drag * a0, drag * a1  # F_j (its z component is 0)
+            t0 += (h1 * 0.0 - h2 * f1) + flap * a1  # r_j x F_j + M_j
+            t1 += (h2 * f0 - h0 * 0.0) - flap * a0
+            t2 += h0 * f1 - h1 * f0
+            fb0 += f0
+            fb1 += f1
+        a0, a1, a2 = _air_velocity(rotation, i, wind[i, 0, 0], wind[i, 0, 1], wind[i, 0, 2], v0, v1, v2, o0, o1, o2,
+                                   c0, c1, c2)  # a_0, at the centre of pressure
+        speed = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+        # F_b = D |a_0| a_0
+        d0, d1, d2 = body_drag[0] * a0 * speed, body_drag[1] * a1 * speed, body_drag[2] * a2 * speed
+        t0 += c1 * d2 - c2 * d1  # c x F_b
+        t1 += c2 * d0 - c0 * d2
+        t2 += c0 * d1 - c1 * d0
+        fb0, fb1, fb2 = fb0 + d0, fb1 + d1, fb2 + d2
+        for c in range(3):  # force = R (sum_j F_j + F_b), world NED
+            force[i, c] = rotation[i, c, 0] * fb0 + rotation[i, c, 1] * fb1 + rotation[i, c, 2] * fb2
+        torque[i, 0], torque[i, 1], torque[i, 2] = t0, t1, t2
+        if not (math.isfinite(force[i, 0] + force[i, 1] + force[i, 2]) and math.isfinite(t0 + t1 + t2)):
             return i
     return -1
 

@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from fawtgym.core.so3_kernels import quat_to_rot_row
+from fawtgym.core.so3_kernels import quat_to_rot_entries
 
 from .aero import aero_wrench_rows
 from .ctbr import rate_loop_rows
@@ -44,14 +44,18 @@ REWARD_TERMS = ("pos", "vel", "att", "rate", "action", "failure")
 
 
 @njit(cache=True)
-def quat_mj_to_rot_ned(q: NDArray[np.float64], r: NDArray[np.float64]) -> None:  # pragma: no cover - jitted
-    """One MuJoCo unit quaternion (w, x, y, z) (4,) -> R (3, 3) body FRD -> world NED into ``r``.
+def rot_ned_row(states: NDArray[np.float64], i: int, rot: NDArray[np.float64]) -> None:  # pragma: no cover - jitted
+    """Row ``i`` of FULLPHYSICS states (k, 14): its MuJoCo unit quaternion (w, x, y, z) (columns 4-7) -> R (3, 3) body
+    FRD -> world NED into ``rot[i]``.
 
-    R_MuJoCo from :func:`fawtgym.core.so3_kernels.quat_to_rot_row`, then R_NED = S R_MuJoCo S
+    R_MuJoCo from :func:`fawtgym.core.so3_kernels.quat_to_rot_entries`, then R_NED = S R_MuJoCo S
     (S = diag(1, -1, -1)): the signs of entries (0, 1), (0, 2), (1, 0), (2, 0) flip.
     """
-    quat_to_rot_row(q, r)
-    r[0, 1], r[0, 2], r[1, 0], r[2, 0] = -r[0, 1], -r[0, 2], -r[1, 0], -r[2, 0]
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = quat_to_rot_entries(states[i, 4], states[i, 5], states[i, 6],
+                                                                      states[i, 7])
+    rot[i, 0, 0], rot[i, 0, 1], rot[i, 0, 2] = r00, -r01, -r02
+    rot[i, 1, 0], rot[i, 1, 1], rot[i, 1, 2] = -r10, r11, r12
+    rot[i, 2, 0], rot[i, 2, 1], rot[i, 2, 2] = -r20, r21, r22
 
 
 @njit(cache=True)
@@ -61,7 +65,7 @@ def states_to_ned(states: NDArray[np.float64], pos: NDArray[np.float64], vel: ND
     for i in range(states.shape[0]):
         s = states[i]
         pos[i, 0], pos[i, 1], pos[i, 2] = s[1], -s[2], -s[3]
-        quat_mj_to_rot_ned(s[4:8], rot[i])
+        rot_ned_row(states, i, rot)
         vel[i, 0], vel[i, 1], vel[i, 2] = s[8], -s[9], -s[10]
         omega[i, 0], omega[i, 1], omega[i, 2] = s[11], -s[12], -s[13]
 
@@ -232,35 +236,38 @@ def read_states(final: NDArray[np.float64], t_end: float, physics_dt: float, dt:
     (a hull point ``b + R p`` at or below the floor, z_NED >= 0) then the position box (``|b - b_sp|_inf >
     max_position_error``). Rows not stepping are left alone (``failure`` 0).
     """
+    n_state = final.shape[1]
+    limit = 0.5 * physics_dt
     for i in range(final.shape[0]):
         failure[i] = 0
         if not stepping[i]:
             continue
-        s = final[i]
-        finite = True
-        for c in range(s.shape[0]):
-            if not math.isfinite(s[c]):
-                finite = False
-        if diverged_before[i] or not finite or abs(s[0] - t_end) > 0.5 * physics_dt:
+        zero = 0.0  # sum of x * 0: +-0 if every x is finite, NaN if any is NaN/inf (no overflow, no branch per entry)
+        for c in range(n_state):
+            zero += float(final[i, c]) * 0.0  # float(): plain Python (no numba) multiplies silently
+        if diverged_before[i] or not math.isfinite(zero) or abs(final[i, 0] - t_end) > limit:
             failure[i] = DIVERGED
             continue
-        v0, v1, v2 = vel[i, 0], vel[i, 1], vel[i, 2]
-        for c in range(s.shape[0]):
-            mj_state[i, c] = s[c]
-        pos[i, 0], pos[i, 1], pos[i, 2] = s[1], -s[2], -s[3]
-        quat_mj_to_rot_ned(s[4:8], rot[i])
-        vel[i, 0], vel[i, 1], vel[i, 2] = s[8], -s[9], -s[10]
-        omega[i, 0], omega[i, 1], omega[i, 2] = s[11], -s[12], -s[13]
-        accel[i, 0], accel[i, 1], accel[i, 2] = (vel[i, 0] - v0) / dt, (vel[i, 1] - v1) / dt, (vel[i, 2] - v2) / dt
-        lowest = -math.inf  # the lowest hull point: the largest z_NED
+        for c in range(n_state):
+            mj_state[i, c] = final[i, c]
+        # [time, qpos 7, qvel 6] -> NED/FRD (S = diag(1, -1, -1))
+        b0, b1, b2 = final[i, 1], -final[i, 2], -final[i, 3]
+        u0, u1, u2 = final[i, 8], -final[i, 9], -final[i, 10]
+        accel[i, 0], accel[i, 1], accel[i, 2] = (u0 - vel[i, 0]) / dt, (u1 - vel[i, 1]) / dt, (u2 - vel[i, 2]) / dt
+        pos[i, 0], pos[i, 1], pos[i, 2] = b0, b1, b2
+        vel[i, 0], vel[i, 1], vel[i, 2] = u0, u1, u2
+        omega[i, 0], omega[i, 1], omega[i, 2] = final[i, 11], -final[i, 12], -final[i, 13]
+        rot_ned_row(final, i, rot)
+        r20, r21, r22 = rot[i, 2, 0], rot[i, 2, 1], rot[i, 2, 2]
+        lowest = -math.inf  # the lowest hull point: the largest z_NED of b + R p
         for h in range(hull.shape[0]):
-            z = pos[i, 2] + rot[i, 2, 0] * hull[h, 0] + rot[i, 2, 1] * hull[h, 1] + rot[i, 2, 2] * hull[h, 2]
+            z = b2 + r20 * hull[h, 0] + r21 * hull[h, 1] + r22 * hull[h, 2]
             if z > lowest:
                 lowest = z
         if lowest >= 0.0:
             failure[i] = GROUND_CONTACT
             continue
-        err = max(abs(pos[i, 0] - setpoint[i, 0]), abs(pos[i, 1] - setpoint[i, 1]), abs(pos[i, 2] - setpoint[i, 2]))
+        err = max(abs(b0 - setpoint[i, 0]), abs(b1 - setpoint[i, 1]), abs(b2 - setpoint[i, 2]))
         if err > max_position_error:
             failure[i] = OUT_OF_BOUNDS
 
@@ -588,12 +595,19 @@ def disturbance_rows(params: NDArray[np.float64], rot: NDArray[np.float64], vel:
     t_wind, t_force, t_torque = _block(buf, _I_WIND, 3, n), _block(buf, _I_WIND + 3, 3, n), _block(buf, _I_WIND + 6,
                                                                                                    3, n)
     for i in range(n):
-        for c in range(3):
-            if keep[i]:
-                wrench[i, c] = new_force[i, c] * drag_scale[i]
-                wrench[i, 3 + c] = new_torque[i, c] * drag_scale[i]
+        if keep[i]:
+            scale = drag_scale[i]
+            for c in range(3):
+                wrench[i, c] = new_force[i, c] * scale
+                wrench[i, 3 + c] = new_torque[i, c] * scale
                 wrench[i, 6 + c] = wind[i, 0, c]
+    for i in range(n):  # row-major over each info block
+        for c in range(3):
             t_wind[i, c] = wrench[i, 6 + c]
+    for i in range(n):
+        for c in range(3):
             t_force[i, c] = wrench[i, c] + wrench[i, 9 + c]
+    for i in range(n):
+        for c in range(3):
             t_torque[i, c] = wrench[i, 3 + c] + wrench[i, 12 + c]
     return -1

@@ -150,11 +150,10 @@ def make_wind(spec: str | WindModel | Mapping[str, Any] | None) -> WindModel:
 def row_inputs_finite(points: NDArray[np.float64], velocity: NDArray[np.float64], i: int) -> bool:
     """Inside a wind kernel: whether row ``i``'s sample points (N, K, 3) and velocity (N, 3) are all finite (the
     kernels then return -2 before changing anything, and Python raises :func:`raise_not_finite`'s message)."""
+    zero = 0.0  # sum of x * 0: +-0 if every x is finite, NaN if any is NaN/inf (no overflow, no branch per entry)
     for p in range(points.shape[1]):
         for c in range(3):
-            if not math.isfinite(points[i, p, c]):
-                return False
+            zero += float(points[i, p, c]) * 0.0  # float(): plain Python (no numba) multiplies silently
     for c in range(3):
-        if not math.isfinite(velocity[i, c]):
-            return False
-    return True
+        zero += float(velocity[i, c]) * 0.0
+    return math.isfinite(zero)

@@ -205,15 +205,18 @@ def fawt_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], s
     """
     n, n_pts = points.shape[0], points.shape[1]
     ns = x.shape[1]
-    com = np.empty((n, 2))  # (F / F_ref, shear weight) at each row's CoM: pass 1 needs it, pass 2 reuses it
+    # (F / F_ref, shear weight) at every point: pass 1 computes them (the CoM's sets the Dryden step), pass 2 uses
+    # them (a loop of profile evaluations alone, whose erf/exp calls run back to back)
+    prof = np.empty((n, n_pts, 2))
     bins = np.empty(n, dtype=np.int64)
-    for i in range(n):  # pass 1: inputs finite, each row's Dryden bin filled
+    for i in range(n):  # pass 1: inputs finite, the profile at each point, each row's Dryden bin filled
         if not row_inputs_finite(points, velocity, i):
             return -2
-        com[i, 0], com[i, 1] = profile_point(points[i, 0, 0] - _OX, _OY - points[i, 0, 1], _OZ - points[i, 0, 2],
-                                             _F_REF, _CORE_REF)
+        for p in range(n_pts):
+            prof[i, p, 0], prof[i, p, 1] = profile_point(points[i, p, 0] - _OX, _OY - points[i, p, 1],
+                                                         _OZ - points[i, p, 2], _F_REF, _CORE_REF)
         if turbulent:
-            rel_x = scale * com[i, 0] - velocity[i, 0]  # air velocity relative to the vehicle at the CoM
+            rel_x = scale * prof[i, 0, 0] - velocity[i, 0]  # air velocity relative to the vehicle at the CoM
             speed = math.sqrt(rel_x * rel_x + velocity[i, 1] * velocity[i, 1] + velocity[i, 2] * velocity[i, 2])
             b = step_bin((speed if speed > V_FLOOR else V_FLOOR) * dt, k0)
             if not bin_filled(table, b):
@@ -227,11 +230,8 @@ def fawt_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], s
             cursor[i] += 1
         x0, y0 = points[i, 0, 0] - _OX, _OY - points[i, 0, 1]  # CoM, FAWT frame
         for p in range(n_pts):
-            xf, yf, zf = points[i, p, 0] - _OX, _OY - points[i, p, 1], _OZ - points[i, p, 2]
-            if p == 0:
-                factor, shear = com[i, 0], com[i, 1]
-            else:
-                factor, shear = profile_point(xf, yf, zf, _F_REF, _CORE_REF)
+            xf, yf = points[i, p, 0] - _OX, _OY - points[i, p, 1]
+            factor, shear = prof[i, p, 0], prof[i, p, 1]
             u_mean = scale * factor  # stream-wise mean, FAWT x = NED north
             if not turbulent:
                 out[i, p, 0], out[i, p, 1], out[i, p, 2] = u_mean, 0.0, 0.0

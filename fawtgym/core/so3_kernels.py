@@ -97,19 +97,23 @@ def rot_to_euler_row(r: np.ndarray, out: np.ndarray) -> None:
 
 
 @njit(cache=True)
+def quat_to_rot_entries(qw: float, qx: float, qy: float, qz: float) -> tuple[float, float, float, float, float,
+                                                                             float, float, float, float]:
+    """The rotation matrix of the quaternion (w, x, y, z), normalized first (the caller refuses a zero one), as its
+    nine entries row by row (scalars: a kernel keeps them in registers instead of writing a row view)."""
+    norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    w, x, y, z = qw / norm, qx / norm, qy / norm, qz / norm
+    return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y),
+            2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x),
+            2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y))
+
+
+@njit(cache=True)
 def quat_to_rot_row(q: np.ndarray, out: np.ndarray) -> None:
-    """Rotation matrix of the quaternion (w, x, y, z), normalized first (the caller refuses a zero one)."""
-    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    w, x, y, z = q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm
-    out[0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    out[0, 1] = 2.0 * (x * y - w * z)
-    out[0, 2] = 2.0 * (x * z + w * y)
-    out[1, 0] = 2.0 * (x * y + w * z)
-    out[1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    out[1, 2] = 2.0 * (y * z - w * x)
-    out[2, 0] = 2.0 * (x * z - w * y)
-    out[2, 1] = 2.0 * (y * z + w * x)
-    out[2, 2] = 1.0 - 2.0 * (x * x + y * y)
+    """Rotation matrix of the quaternion (w, x, y, z), normalized first (the caller refuses a zero one):
+    :func:`quat_to_rot_entries` into ``out`` (3, 3)."""
+    (out[0, 0], out[0, 1], out[0, 2], out[1, 0], out[1, 1], out[1, 2], out[2, 0], out[2, 1],
+     out[2, 2]) = quat_to_rot_entries(q[0], q[1], q[2], q[3])
 
 
 @njit(cache=True)
