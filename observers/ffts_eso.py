@@ -98,7 +98,7 @@ N_STATE = 24
 E_FORCE, E_TORQUE, E_POS, E_VEL, E_W, E_ATT = 0, 3, 6, 9, 12, 15
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def s_k_row(e: NDArray[np.float64], k: NDArray[np.float64], out: NDArray[np.float64]) -> None:
     """out = s_K(E) = sum_i K_i (E^T e_i) x e_i (eq. 41) = vee(K E - E^T K), K = diag(k)."""
     out[0] = k[2] * e[2, 1] - k[1] * e[1, 2]
@@ -106,7 +106,7 @@ def s_k_row(e: NDArray[np.float64], k: NDArray[np.float64], out: NDArray[np.floa
     out[2] = k[1] * e[1, 0] - k[0] * e[0, 1]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def s_k_rate_row(e: NDArray[np.float64], w: NDArray[np.float64], k: NDArray[np.float64],
                  out: NDArray[np.float64]) -> None:
     """out = d/dt s_K(E) along E' = E w^: sum_i K_i e_i x (w x E^T e_i) (eq. 66) = tr(K E) w - E^T K w."""
@@ -304,24 +304,25 @@ def _estimate(est: NDArray[np.float64]) -> ObserverEstimate:
     return ObserverEstimate(est[_FORCE_COLUMNS], est[_TORQUE_COLUMNS], BufferStates(est, _STATES))
 
 
-@njit(cache=True)
-def _estimate_row(x: NDArray[np.float64], est: NDArray[np.float64]) -> None:
-    """The estimate of one state row: phi_hat, tau_hat, b_hat, v_hat, Omega_hat, R_hat."""
+@njit(cache=True, inline="always")
+def _estimate_row(x: NDArray[np.float64], est: NDArray[np.float64], i: int) -> None:
+    """The estimate of state row ``i``: phi_hat, tau_hat, b_hat, v_hat, Omega_hat, R_hat (indexed, not through row
+    views: a view made per row costs an atomic reference count in the row loop)."""
     for j in range(3):
-        est[E_FORCE + j] = x[PHI + j]
-        est[E_TORQUE + j] = x[TAU + j]
-        est[E_POS + j] = x[B + j]
-        est[E_VEL + j] = x[V + j]
-        est[E_W + j] = x[W + j]
+        est[i, E_FORCE + j] = x[i, PHI + j]
+        est[i, E_TORQUE + j] = x[i, TAU + j]
+        est[i, E_POS + j] = x[i, B + j]
+        est[i, E_VEL + j] = x[i, V + j]
+        est[i, E_W + j] = x[i, W + j]
     for j in range(9):
-        est[E_ATT + j] = x[R + j]
+        est[i, E_ATT + j] = x[i, R + j]
 
 
 @njit(cache=True)
 def ffts_eso_estimate(x: NDArray[np.float64], est: NDArray[np.float64]) -> None:
     """:func:`_estimate_row` of every row of the state ``x`` (N, 24) into ``est`` (N, 24)."""
     for i in range(x.shape[0]):
-        _estimate_row(x[i], est[i])
+        _estimate_row(x, est, i)
 
 
 @njit(cache=True)
@@ -334,6 +335,10 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
     Measurement b^m (N, 3), v^m (N, 3), R^m (N, 3, 3), Omega^m (N, 3), applied thrust (N,) and torque (N, 3)
     held over ``dt``; ``eps_t`` / ``eps_a`` the floors of the two fractional terms at this dt; ``gains`` as
     :data:`GAIN_NAMES`.  Equations as in the module docstring (Wang et al. (2024) eqs. 45-50, 66-69).
+
+    The row loop reads and writes the (N, k) arrays by index and keeps a row's intermediates in scratch vectors
+    made once per call: an array view made inside the loop (``x[i]``, a slice) costs an atomic reference-count
+    increment and decrement per row, which also stops the CPU from overlapping one row's work with the next.
     """
     mass, g, p = gains[0], gains[1], gains[2]
     kt1, kt2, kt3, kappa_t = gains[3], gains[4], gains[5], gains[6]
@@ -342,18 +347,23 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
     inertia = gains[14:23].reshape((3, 3))
     inertia_inv = gains[23:32].reshape((3, 3))
     half_dt2 = 0.5 * dt * dt
-    vec = np.empty((18, 3))                                                 # the row's 3-vector intermediates
+    vec = np.empty((20, 3))                                                 # the row's 3-vector intermediates
     e_b, e_v, psi_t, g_b, rate_b, inj1, inj2 = vec[0], vec[1], vec[2], vec[3], vec[4], vec[5], vec[6]
     e_r, e_om, e_w, psi_a, g_r, rate_r = vec[7], vec[8], vec[9], vec[10], vec[11], vec[12]
     jw, gyro, body, t1, t2 = vec[13], vec[14], vec[15], vec[16], vec[17]
+    w_hat, om = vec[18], vec[19]                                            # Omega_hat, Omega^m of the row
     mats = np.empty((4, 3, 3))
     e_mat, r_hat, step_rot, r_new = mats[0], mats[1], mats[2], mats[3]
     for i in range(x.shape[0]):
-        xi, xo = x[i], x_new[i]
+        for j in range(3):
+            w_hat[j] = x[i, W + j]
+            om[j] = omega[i, j]
+            for k in range(3):
+                r_hat[j, k] = x[i, R + 3 * j + k]
         # ---- translational ESO, eqs. (45), (48)-(50)
         for j in range(3):
-            e_b[j] = pos[i, j] - xi[B + j]                                  # e_b = b^m - b_hat
-            e_v[j] = vel[i, j] - xi[V + j]                                  # e_v = v^m - v_hat
+            e_b[j] = pos[i, j] - x[i, B + j]                                # e_b = b^m - b_hat
+            e_v[j] = vel[i, j] - x[i, V + j]                                # e_v = v^m - v_hat
         frac_power_row(e_b, e_v, p, eps_t, g_b, rate_b)  # |e_b|^(2(1-p)/p) e_b (regularised), its rate (H-term)
         for j in range(3):
             psi_t[j] = e_v[j] + kappa_t * (e_b[j] + g_b[j])                 # psi_t, eq. (50)
@@ -362,51 +372,48 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
         for j in range(3):
             # v_hat' = g e3 - (f/m) R^m e3 + k_t1 phi1(psi_t) + kappa_t (g'(e_b) + e_v) + phi_hat / m, eq. (49)
             v_dot = ((g if j == 2 else 0.0) - f_over_m * att[i, j, 2] + kt1 * inj1[j]
-                     + kappa_t * (rate_b[j] + e_v[j]) + xi[PHI + j] / mass)
-            xo[B + j] = xi[B + j] + dt * xi[V + j] + half_dt2 * v_dot   # b' = v_hat, exact for the held v_hat'
-            xo[V + j] = xi[V + j] + dt * v_dot
-            xo[PHI + j] = xi[PHI + j] + dt * (mass * kt2 * inj2[j])     # phi_hat' = m k_t2 phi2(psi_t)
+                     + kappa_t * (rate_b[j] + e_v[j]) + x[i, PHI + j] / mass)
+            x_new[i, B + j] = x[i, B + j] + dt * x[i, V + j] + half_dt2 * v_dot  # b' = v_hat, exact for held v_hat'
+            x_new[i, V + j] = x[i, V + j] + dt * v_dot
+            x_new[i, PHI + j] = x[i, PHI + j] + dt * (mass * kt2 * inj2[j])  # phi_hat' = m k_t2 phi2(psi_t)
         # ---- rotational ESO, eqs. (46)-(47), (66)-(69); E = R_hat^T R^m
         for j in range(3):
             for k in range(3):
-                r_hat[j, k] = xi[R + 3 * j + k]
-        for j in range(3):
-            for k in range(3):
                 e_mat[j, k] = r_hat[0, j] * att[i, 0, k] + r_hat[1, j] * att[i, 1, k] + r_hat[2, j] * att[i, 2, k]
-        mat_t_vec_row(e_mat, xi[W:W + 3], t1)                               # E^T Omega_hat
+        mat_t_vec_row(e_mat, w_hat, t1)                                     # E^T Omega_hat
         for j in range(3):
-            e_om[j] = omega[i, j] - t1[j]                                   # e_Omega, eq. (47)
+            e_om[j] = om[j] - t1[j]                                         # e_Omega, eq. (47)
         s_k_row(e_mat, morse_k, e_r)                                        # e_R = s_K(E), eq. (41)
         s_k_rate_row(e_mat, e_om, morse_k, e_w)                             # e_w = d/dt e_R, eq. (66)
         frac_power_row(e_r, e_w, p, eps_a, g_r, rate_r)
         for j in range(3):
             psi_a[j] = e_om[j] + kappa_a * (e_r[j] + g_r[j])                # psi_a, eq. (69)
         phi_row(psi_a, ka3, p, inj1, inj2)
-        mat_vec_row(inertia, omega[i], jw)
-        cross_row(jw, omega[i], gyro)                                       # J Om^m x Om^m
+        mat_vec_row(inertia, om, jw)
+        cross_row(jw, om, gyro)                                             # J Om^m x Om^m
         for j in range(3):
-            t1[j] = gyro[j] + xi[TAU + j] + torque[i, j]
+            t1[j] = gyro[j] + x[i, TAU + j] + torque[i, j]
         mat_vec_row(inertia_inv, t1, t2)                                    # J^-1 (J Om x Om + tau_hat + tau)
         for j in range(3):
             body[j] = t2[j] + ka1 * inj1[j] + kappa_a * (rate_r[j] + e_w[j])
         mat_vec_row(e_mat, body, t1)                                        # E [ ... ], eq. (68)
         mat_vec_row(e_mat, e_om, t2)                                        # E e_Omega
-        cross_row(t2, xi[W:W + 3], jw)                                      # E e_Om^ E^T Om_hat = (E e_Om) x Om_hat
+        cross_row(t2, w_hat, jw)                                            # E e_Om^ E^T Om_hat = (E e_Om) x Om_hat
         for j in range(3):
             t2[j] = ka2 * inj2[j]
         mat_vec_row(inertia, t2, gyro)                                      # tau_hat' = J k_a2 phi2(psi_a)
         for j in range(3):
             w_dot = t1[j] + jw[j]
             # R_hat' = R_hat Omega_hat^: exact for the held Omega_hat' (exponential map over the step)
-            t2[j] = dt * (xi[W + j] + 0.5 * dt * w_dot)
-            xo[W + j] = xi[W + j] + dt * w_dot
-            xo[TAU + j] = xi[TAU + j] + dt * gyro[j]
+            t2[j] = dt * (w_hat[j] + 0.5 * dt * w_dot)
+            x_new[i, W + j] = w_hat[j] + dt * w_dot
+            x_new[i, TAU + j] = x[i, TAU + j] + dt * gyro[j]
         exp_so3_row(t2, step_rot)
         mat_mul_row(r_hat, step_rot, r_new)
         for j in range(3):
             for k in range(3):
-                xo[R + 3 * j + k] = r_new[j, k]
-        _estimate_row(xo, est[i])
+                x_new[i, R + 3 * j + k] = r_new[j, k]
+        _estimate_row(x_new, est, i)
 
 
 #: :func:`ffts_eso_update` status codes

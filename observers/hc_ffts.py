@@ -48,7 +48,7 @@ def _sq(e: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 # ---- the laws of eqs. (9), (49)/(68) on one row (compiled; the ESO kernels call them per row) ----------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _dot_row(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
     acc = 0.0
     for j in range(a.shape[0]):
@@ -56,13 +56,13 @@ def _dot_row(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
     return acc
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _pow_or_zero(r2: float, a: float) -> float:
     """r2**a for r2 > 0, 0 at r2 = 0 (a < 0 here; the power only ever multiplies e, whose limit is 0)."""
     return r2**a if r2 > 0.0 else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def phi_row(e: NDArray[np.float64], k3: float, p: float, phi1_out: NDArray[np.float64],
             phi2_out: NDArray[np.float64]) -> None:
     """phi_1(e) and phi_2(e) of eq. (9), a = (1-p)/(3p-2), q = |e|^(2a) (0 at e = 0)::
@@ -78,7 +78,7 @@ def phi_row(e: NDArray[np.float64], k3: float, p: float, phi1_out: NDArray[np.fl
         phi2_out[j] = gain2 * e[j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def frac_power_row(e: NDArray[np.float64], edot: NDArray[np.float64], p: float, eps: float,
                    g_out: NDArray[np.float64], rate_out: NDArray[np.float64]) -> None:
     """g(e) = max(e^T e, eps)^c e (eqs. 50/69, regularised) and its time derivative along e' = edot (eqs. 49/68)::

@@ -26,7 +26,7 @@ from numba import njit
 SMALL_ANGLE_SQ = 1e-8
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def cross_row(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     """out = a x b (3-vectors); ``out`` must not alias ``a`` or ``b``."""
     out[0] = a[1] * b[2] - a[2] * b[1]
@@ -34,21 +34,21 @@ def cross_row(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     out[2] = a[0] * b[1] - a[1] * b[0]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def mat_vec_row(r: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
     """out = R v (3 x 3 times a 3-vector); ``out`` must not alias ``v``."""
     for j in range(3):
         out[j] = r[j, 0] * v[0] + r[j, 1] * v[1] + r[j, 2] * v[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def mat_t_vec_row(r: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
     """out = R^T v (world -> body for R body -> world); ``out`` must not alias ``v``."""
     for j in range(3):
         out[j] = r[0, j] * v[0] + r[1, j] * v[1] + r[2, j] * v[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def mat_mul_row(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     """out = A B (3 x 3); ``out`` must not alias ``a`` or ``b``."""
     for j in range(3):
@@ -56,7 +56,7 @@ def mat_mul_row(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
             out[j, k] = a[j, 0] * b[0, k] + a[j, 1] * b[1, k] + a[j, 2] * b[2, k]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def exp_so3_row(w: np.ndarray, out: np.ndarray) -> None:
     """Rodrigues' formula exp(w^) = I + a w^ + b w^ w^ with a = sin t / t, b = (1 - cos t) / t^2, t = |w|.
 
