@@ -104,7 +104,7 @@ def constrain_xy_row(v0x: float, v0y: float, v1x: float, v1y: float, max_norm: f
     return v0x + u1x * s, v0y + u1y * s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def bodyz_to_attitude_row(zx: float, zy: float, zz: float, yaw: float, r: np.ndarray) -> None:
     """PX4 ControlMath::bodyzToAttitude: R (3, 3) with third column ``z`` (normalized) and heading ``yaw``.
 
@@ -128,7 +128,7 @@ def bodyz_to_attitude_row(zx: float, zy: float, zz: float, yaw: float, r: np.nda
     r[0, 2], r[1, 2], r[2, 2] = zx, zy, zz
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def acceleration_control_row(ax: float, ay: float, az: float, hover: float, prm: np.ndarray,
                              thr: np.ndarray) -> None:
     """PositionControl::_accelerationControl: acceleration setpoint -> normalized thrust vector ``thr`` (3,).
@@ -146,7 +146,7 @@ def acceleration_control_row(ax: float, ay: float, az: float, hover: float, prm:
     thr[2] *= collective
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def position_control_row(p: np.ndarray, v: np.ndarray, v_dot: np.ndarray, p_sp: np.ndarray, v_ff: np.ndarray,
                          a_ff: np.ndarray, dt: float, prm: np.ndarray, s: np.ndarray, advance: bool,
                          thr: np.ndarray) -> None:
@@ -205,7 +205,7 @@ def position_control_row(p: np.ndarray, v: np.ndarray, v_dot: np.ndarray, p_sp: 
     s[THR_SP], s[THR_SP + 1], s[THR_SP + 2] = thr[0], thr[1], thr[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def update_hover_thrust_row(hover_new: float, prm: np.ndarray, s: np.ndarray) -> None:
     """PositionControl::updateHoverThrust for one vehicle: new hover thrust, z integrator shifted by ``a' - a``
     with ``a' = (a - g) Th / Th' + g``; v1.13 divides by the unconstrained ``Th'``, v1.14 by the constrained one."""
@@ -218,7 +218,7 @@ def update_hover_thrust_row(hover_new: float, prm: np.ndarray, s: np.ndarray) ->
     s[HOVER] = stored
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def force_feedforward_row(thr: np.ndarray, force_hat: np.ndarray, thrust_scale: float, max_tilt: float,
                           thr_min: float, thr_max: float, out: np.ndarray) -> None:
     """F = F0 - phi_hat (Wang et al. (2024) Sec. 7.2) on one normalized thrust vector, then PX4's limits again.
