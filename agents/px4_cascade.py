@@ -221,6 +221,7 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
     vel_deriv, rate_sp = s[VEL_DERIV:VEL_DERIV + 7], s[RATE_SP:RATE_SP + 3]
     torque_sp, rotor = s[TORQUE:TORQUE + 3], s[ROTOR:ROTOR + 4]
     last_sp = setpoint.shape[0] - 1
+    sin_yaw, cos_yaw = math.sin(yaw), math.cos(yaw)  # the heading setpoint, the same for every row
     for i in range(n):
         for j in range(N_STATE):
             s[j] = state[i, j]
@@ -276,7 +277,7 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
                                       pos_prm[THR_MAX], thr)
             for j in range(3):
                 s[THR_SP + j] = thr[j]
-            bodyz_to_attitude_row(-thr[0], -thr[1], -thr[2], yaw, att_sp_i)
+            bodyz_to_attitude_row(-thr[0], -thr[1], -thr[2], sin_yaw, cos_yaw, att_sp_i)
             for j in range(N_POS_STATE):
                 pos_state[i, j] = pos_s[j]
             for j in range(N_HTE_STATE):

@@ -105,8 +105,9 @@ def constrain_xy_row(v0x: float, v0y: float, v1x: float, v1y: float, max_norm: f
 
 
 @njit(cache=True, inline="always")
-def bodyz_to_attitude_row(zx: float, zy: float, zz: float, yaw: float, r: np.ndarray) -> None:
-    """PX4 ControlMath::bodyzToAttitude: R (3, 3) with third column ``z`` (normalized) and heading ``yaw``.
+def bodyz_to_attitude_row(zx: float, zy: float, zz: float, sin_yaw: float, cos_yaw: float, r: np.ndarray) -> None:
+    """PX4 ControlMath::bodyzToAttitude: R (3, 3) with third column ``z`` (normalized) and heading yaw, given as
+    ``sin_yaw``, ``cos_yaw`` (the caller takes them once for every row that shares the heading).
 
     ``x = y_C x z`` with ``y_C = (-sin yaw, cos yaw, 0)`` (negated when z points up, (0, 0, 1) when z is
     horizontal), ``y = z x x``.
@@ -115,7 +116,7 @@ def bodyz_to_attitude_row(zx: float, zy: float, zz: float, yaw: float, r: np.nda
         zx, zy, zz = 0.0, 0.0, 1.0
     zn = math.sqrt(zx * zx + zy * zy + zz * zz)
     zx, zy, zz = zx / zn, zy / zn, zz / zn
-    ycx, ycy = -math.sin(yaw), math.cos(yaw)  # y_C, z component 0
+    ycx, ycy = -sin_yaw, cos_yaw  # y_C, z component 0
     xx, xy, xz = ycy * zz, -ycx * zz, ycx * zy - ycy * zx
     if zz < 0.0:
         xx, xy, xz = -xx, -xy, -xz
@@ -272,7 +273,7 @@ def _constrain_xy_kernel(v0: np.ndarray, v1: np.ndarray, max_norm: float, out: n
 @njit(cache=True)
 def _bodyz_kernel(z: np.ndarray, yaw: np.ndarray, r: np.ndarray) -> None:
     for i in range(z.shape[0]):
-        bodyz_to_attitude_row(z[i, 0], z[i, 1], z[i, 2], yaw[i], r[i])
+        bodyz_to_attitude_row(z[i, 0], z[i, 1], z[i, 2], math.sin(yaw[i]), math.cos(yaw[i]), r[i])
 
 
 @njit(cache=True)
