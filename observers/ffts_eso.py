@@ -62,12 +62,16 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.core.kernel_types import ROTATIONS, ROWS, TYPED_DISPATCH, VALUES, compile_only
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3 import project_so3
-from fawtgym.core.so3_kernels import cross_row, exp_so3_row, first_non_rotation, mat_mul_row, mat_t_vec_row, mat_vec_row
+from fawtgym.core.so3_kernels import (
+    cross_row,
+    exp_so3_row,
+    mat_mul_row,
+    mat_t_vec_row,
+    mat_vec_row,
+    rotation_defect_row,
+)
 from fawtgym.observers._checks import (
     ROTATION_TOL,
-    first_bad_estimate,
-    first_nonfinite_input,
-    first_nonfinite_row,
 )
 from fawtgym.observers._obs_common import batch_vec
 from fawtgym.observers.base import (
@@ -237,8 +241,10 @@ class FFTSESO(Observer):
         x = self._state
         eps_t, eps_a = self.eps_at(dt)
         out = np.empty((2, *x.shape))     # (new state, estimate): see _update_checked
+        force_bound, torque_bound = self.estimate_bounds()
+        # inputs checked by Observer.update; its _check_estimate words any bad estimate, so the status is not needed
         ffts_eso_step(x, m["position"], m["velocity"], m["attitude"], m["angular_velocity"], f, tau, dt, eps_t,
-                      eps_a, self._gains, out[0], out[1])
+                      eps_a, self._gains, force_bound, torque_bound, out[0], out[1])
         return _estimate(out[1]), out[0]
 
     def _update_checked(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike, dt: float,
@@ -328,6 +334,8 @@ def ffts_eso_estimate(x: NDArray[np.float64], est: NDArray[np.float64]) -> None:
         _estimate_row(x, est, i)
 
 
+#: :func:`ffts_eso_step` / :func:`ffts_eso_update` status codes
+CHECKS_PASSED, BAD_INPUT, BAD_ESTIMATE = 0, 1, 2
 #: columns of the per-call work buffer of :func:`ffts_eso_step` (N, N_WORK): e_b, e_v, e_Omega, e_R, e_w, E (9),
 #: psi_t, psi_a, g'(e_b), g'(e_R), then the four fractional powers (each first holding its base, e^T e)
 WK_EB, WK_EV, WK_EOM, WK_ER, WK_EW, WK_E, WK_PSI_T, WK_PSI_A, WK_RATE_B, WK_RATE_R = 0, 3, 6, 9, 12, 15, 24, 27, 30, 33
@@ -351,12 +359,18 @@ def _get(work: NDArray[np.float64], i: int, col: int, v: NDArray[np.float64]) ->
 def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray[np.float64],
                   att: NDArray[np.float64], omega: NDArray[np.float64], thrust: NDArray[np.float64],
                   torque: NDArray[np.float64], dt: float, eps_t: float, eps_a: float, gains: NDArray[np.float64],
-                  x_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+                  force_bound: float, torque_bound: float, x_new: NDArray[np.float64], est: NDArray[np.float64]) -> int:
     """One FFTS-ESO step of every row: state ``x`` (N, 24) -> ``x_new``, estimate into ``est`` (N, 24).
 
     Measurement b^m (N, 3), v^m (N, 3), R^m (N, 3, 3), Omega^m (N, 3), applied thrust (N,) and torque (N, 3)
     held over ``dt``; ``eps_t`` / ``eps_a`` the floors of the two fractional terms at this dt; ``gains`` as
     :data:`GAIN_NAMES`.  Equations as in the module docstring (Wang et al. (2024) eqs. 45-50, 66-69).
+
+    Row checks on the way (the compiled checks of :meth:`Observer.update`, in the rows' loops rather than passes of
+    their own): returns ``BAD_INPUT`` as soon as a row's measurement or inputs are not finite or its attitude is not
+    a rotation (:data:`~fawtgym.observers._checks.ROTATION_TOL`; nothing written to ``x_new`` / ``est`` then),
+    ``BAD_ESTIMATE`` if an estimate row is not finite or its force / torque exceeds ``force_bound`` /
+    ``torque_bound`` (NaN fails), else ``CHECKS_PASSED``.  The caller words the error.
 
     The row law runs in stages, each a loop over the rows: the errors, the fractional powers of g, psi, the powers
     of phi1/phi2, the update.  A power (``**``) costs ~26 ns of latency but ~11 ns of throughput: in a loop of
@@ -378,19 +392,26 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
     e_r, e_om, e_w, psi_a, g_r, rate_r = vec[7], vec[8], vec[9], vec[10], vec[11], vec[12]
     jw, gyro, body, t1, t2 = vec[13], vec[14], vec[15], vec[16], vec[17]
     w_hat, om = vec[18], vec[19]                                            # Omega_hat, Omega^m of the row
-    mats = np.empty((4, 3, 3))
-    e_mat, r_hat, step_rot, r_new = mats[0], mats[1], mats[2], mats[3]
+    mats = np.empty((5, 3, 3))
+    e_mat, r_hat, step_rot, r_new, r_m = mats[0], mats[1], mats[2], mats[3], mats[4]
     e_flat = mats[0].reshape(9)
-    # ---- 1. errors: translational eq. (45), rotational eqs. (46)-(47), (41), (66); E = R_hat^T R^m
+    # ---- 1. the row's inputs checked; errors: translational eq. (45), rotational eqs. (46)-(47), (41), (66)
     for i in range(n):
+        finite = math.isfinite(thrust[i])
+        for j in range(3):
+            finite = (finite and math.isfinite(pos[i, j]) and math.isfinite(vel[i, j]) and math.isfinite(omega[i, j])
+                      and math.isfinite(torque[i, j]))
+            for k in range(3):
+                r_m[j, k] = att[i, j, k]
+        if not finite or rotation_defect_row(r_m) > ROTATION_TOL:
+            return BAD_INPUT
         for j in range(3):
             w_hat[j] = x[i, W + j]
             e_b[j] = pos[i, j] - x[i, B + j]                                # e_b = b^m - b_hat
             e_v[j] = vel[i, j] - x[i, V + j]                                # e_v = v^m - v_hat
         for j in range(3):
-            for k in range(3):
-                e_mat[j, k] = (x[i, R + j] * att[i, 0, k] + x[i, R + 3 + j] * att[i, 1, k]
-                               + x[i, R + 6 + j] * att[i, 2, k])
+            for k in range(3):                                              # E = R_hat^T R^m
+                e_mat[j, k] = x[i, R + j] * r_m[0, k] + x[i, R + 3 + j] * r_m[1, k] + x[i, R + 6 + j] * r_m[2, k]
         mat_t_vec_row(e_mat, w_hat, t1)                                     # E^T Omega_hat
         for j in range(3):
             e_om[j] = omega[i, j] - t1[j]                                   # e_Omega, eq. (47)
@@ -430,7 +451,8 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
     for i in range(n):
         work[i, WK_Q_T] = phi_power(work[i, WK_Q_T], p)
         work[i, WK_Q_A] = phi_power(work[i, WK_Q_A], p)
-    # ---- 5. the update
+    # ---- 5. the update, the estimate checked
+    status = CHECKS_PASSED
     for i in range(n):
         for j in range(3):
             w_hat[j] = x[i, W + j]
@@ -482,10 +504,14 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
             for k in range(3):
                 x_new[i, R + 3 * j + k] = r_new[j, k]
         _estimate_row(x_new, est, i)
+        for j in range(3):  # NaN fails the comparisons
+            if not (abs(est[i, E_FORCE + j]) <= force_bound and abs(est[i, E_TORQUE + j]) <= torque_bound):
+                status = BAD_ESTIMATE
+        for j in range(N_STATE):
+            if not math.isfinite(est[i, j]):
+                status = BAD_ESTIMATE
+    return status
 
-
-#: :func:`ffts_eso_update` status codes
-CHECKS_PASSED, BAD_INPUT, BAD_ESTIMATE = 0, 1, 2
 
 
 #: the only argument types :func:`ffts_eso_update` takes (:func:`~fawtgym.core.kernel_types.compile_only`)
@@ -498,11 +524,12 @@ def ffts_eso_update(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArr
                     att: NDArray[np.float64], omega: NDArray[np.float64], thrust: NDArray[np.float64],
                     torque: NDArray[np.float64], dt: float, eps_t: float, eps_a: float, gains: NDArray[np.float64],
                     force_bound: float, torque_bound: float, out: NDArray[np.float64]) -> int:
-    """:meth:`Observer.update`'s checks around :func:`ffts_eso_step`, in one call: the measurement rows finite
-    and the attitude a rotation (:func:`~fawtgym.observers.base.check_measurement`), thrust and torque finite
-    (:func:`~fawtgym.observers.base.check_inputs`), then the step into ``out[0]`` (new state) and ``out[1]``
-    (estimate), then the estimate bounded and finite (:meth:`~fawtgym.observers.base.Observer._check_estimate`).
-    Returns ``CHECKS_PASSED``, ``BAD_INPUT`` (nothing computed) or ``BAD_ESTIMATE``; the caller words the error.
+    """:meth:`Observer.update`'s checks and the law in one call: the shapes, then :func:`ffts_eso_step` into
+    ``out[0]`` (new state) and ``out[1]`` (estimate), which checks in its row loops what
+    :func:`~fawtgym.observers.base.check_measurement` (rows finite, the attitude a rotation),
+    :func:`~fawtgym.observers.base.check_inputs` (thrust and torque finite) and
+    :meth:`~fawtgym.observers.base.Observer._check_estimate` (bounded and finite) check.
+    Returns ``CHECKS_PASSED``, ``BAD_INPUT`` or ``BAD_ESTIMATE``; the caller words the error.
 
     Compiled for C-contiguous float64 arrays only (a call with anything else raises TypeError, and the caller takes
     the Python checks); the shapes are checked here: N = the state's rows."""
@@ -512,12 +539,5 @@ def ffts_eso_update(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArr
             or thrust.shape[0] != n or torque.shape[0] != n or torque.shape[1] != 3 or x.shape[1] != N_STATE
             or out.shape[0] != 2 or out.shape[1] != n or out.shape[2] != N_STATE):
         return BAD_INPUT
-    if (first_nonfinite_row(pos) >= 0 or first_nonfinite_row(vel) >= 0 or first_non_rotation(att, ROTATION_TOL) >= 0
-            or first_nonfinite_row(omega) >= 0 or first_nonfinite_input(thrust, torque) >= 0):
-        return BAD_INPUT
-    est = out[1]
-    ffts_eso_step(x, pos, vel, att, omega, thrust, torque, dt, eps_t, eps_a, gains, out[0], est)
-    if first_bad_estimate(est[:, E_FORCE:E_FORCE + 3], est[:, E_TORQUE:E_TORQUE + 3], force_bound, torque_bound,
-                          est) != -1:
-        return BAD_ESTIMATE
-    return CHECKS_PASSED
+    return ffts_eso_step(x, pos, vel, att, omega, thrust, torque, dt, eps_t, eps_a, gains, force_bound, torque_bound,
+                         out[0], out[1])

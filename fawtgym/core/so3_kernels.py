@@ -137,7 +137,7 @@ def rot_to_quat_row(r: np.ndarray, out: np.ndarray) -> None:
     out[3] = z / norm
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rotation_defect_row(r: np.ndarray) -> float:
     """How far R is from a rotation: max |(R^T R - I)_jk| over the entries, or +inf if det R <= 0 or R is
     not finite.  A rotation gives rounding-level values (~1e-16); :func:`first_non_rotation` compares
