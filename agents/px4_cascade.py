@@ -173,9 +173,9 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
     """One ``act`` of the cascade for every row (module docstring); writes ``action`` (N, 4) motor commands.
 
     Inputs (N, 3) / (N, 3, 3) are the measurement (pose possibly delayed), the position setpoint ((1, 3): the
-    same for every row) and the
-    disturbance estimates (zeros without an observer; both checked finite, fed forward if ``use_force`` /
-    ``use_torque``); the state arrays are updated in place.
+    same for every row) and the disturbance estimates (zeros without an observer; C-contiguous or strided, e.g. the
+    columns of an observer's estimate buffer; both checked finite, fed forward if ``use_force`` / ``use_torque``);
+    the state arrays are updated in place.
     """
     cfg = constants[K_CONFIG:K_POS]
     pos_prm = constants[K_POS:K_HTE]
