@@ -64,7 +64,8 @@ from fawtgym.core.rows import write_rows
 from fawtgym.core.so3 import project_so3
 from fawtgym.core.so3_kernels import (
     cross_row,
-    exp_so3_row,
+    exp_so3_apply,
+    exp_so3_coefficients,
     mat_mul_row,
     mat_t_vec_row,
     mat_vec_row,
@@ -337,10 +338,12 @@ def ffts_eso_estimate(x: NDArray[np.float64], est: NDArray[np.float64]) -> None:
 #: :func:`ffts_eso_step` / :func:`ffts_eso_update` status codes
 CHECKS_PASSED, BAD_INPUT, BAD_ESTIMATE = 0, 1, 2
 #: columns of the per-call work buffer of :func:`ffts_eso_step` (N, N_WORK): e_b, e_v, e_Omega, e_R, e_w, E (9),
-#: psi_t, psi_a, g'(e_b), g'(e_R), then the four fractional powers (each first holding its base, e^T e)
+#: psi_t, psi_a, g'(e_b), g'(e_R), then the four fractional powers (each first holding its base, e^T e), ...
 WK_EB, WK_EV, WK_EOM, WK_ER, WK_EW, WK_E, WK_PSI_T, WK_PSI_A, WK_RATE_B, WK_RATE_R = 0, 3, 6, 9, 12, 15, 24, 27, 30, 33
 WK_POW_T, WK_POW_A, WK_Q_T, WK_Q_A = 36, 37, 38, 39
-N_WORK = 40
+#: ... and the step rotation's vector dt (Omega_hat + dt/2 Omega_hat'), its |.|^2 and Rodrigues' coefficients
+WK_STEP, WK_EXP_T2, WK_EXP_A, WK_EXP_B = 40, 43, 44, 45
+N_WORK = 46
 
 
 @njit(cache=True, inline="always")
@@ -373,8 +376,9 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
     ``torque_bound`` (NaN fails), else ``CHECKS_PASSED``.  The caller words the error.
 
     The row law runs in stages, each a loop over the rows: the errors, the fractional powers of g, psi, the powers
-    of phi1/phi2, the update.  A power (``**``) costs ~26 ns of latency but ~11 ns of throughput: in a loop of
-    their own the rows' powers overlap, inside one long row they wait for each other.  The loops read and write
+    of phi1/phi2, the update, Rodrigues' coefficients of R_hat's step, R_hat's step.  A power (``**``) costs ~26 ns
+    of latency but ~11 ns of throughput (sin / cos alike): in a loop of their own the rows' powers overlap, inside
+    one long row they wait for each other.  The loops read and write
     the (N, k) arrays by index and keep a row's intermediates in scratch vectors made once per call: an array view
     made inside a loop (``x[i]``, a slice) costs an atomic reference-count increment and decrement per row.
     """
@@ -451,14 +455,11 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
     for i in range(n):
         work[i, WK_Q_T] = phi_power(work[i, WK_Q_T], p)
         work[i, WK_Q_A] = phi_power(work[i, WK_Q_A], p)
-    # ---- 5. the update, the estimate checked
-    status = CHECKS_PASSED
+    # ---- 5. the update (R_hat's step rotation in stages 6-7)
     for i in range(n):
         for j in range(3):
             w_hat[j] = x[i, W + j]
             om[j] = omega[i, j]
-            for k in range(3):
-                r_hat[j, k] = x[i, R + 3 * j + k]
         _get(work, i, WK_EV, e_v)
         _get(work, i, WK_PSI_T, psi_t)
         _get(work, i, WK_RATE_B, rate_b)
@@ -498,7 +499,19 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
             t2[j] = dt * (w_hat[j] + 0.5 * dt * w_dot)
             x_new[i, W + j] = w_hat[j] + dt * w_dot
             x_new[i, TAU + j] = x[i, TAU + j] + dt * gyro[j]
-        exp_so3_row(t2, step_rot)
+        _put(work, i, WK_STEP, t2)
+        work[i, WK_EXP_T2] = dot_row(t2, t2)
+    # ---- 6. Rodrigues' coefficients of the step's rotation
+    for i in range(n):
+        work[i, WK_EXP_A], work[i, WK_EXP_B] = exp_so3_coefficients(work[i, WK_EXP_T2])
+    # ---- 7. R_hat <- R_hat exp(step^), the estimate checked
+    status = CHECKS_PASSED
+    for i in range(n):
+        _get(work, i, WK_STEP, t2)
+        exp_so3_apply(t2, work[i, WK_EXP_T2], work[i, WK_EXP_A], work[i, WK_EXP_B], step_rot)
+        for j in range(3):
+            for k in range(3):
+                r_hat[j, k] = x[i, R + 3 * j + k]
         mat_mul_row(r_hat, step_rot, r_new)
         for j in range(3):
             for k in range(3):
