@@ -182,8 +182,15 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
     hte_prm = constants[K_HTE:K_ATT]
     att_prm = constants[K_ATT:K_RATE]
     rate_prm = constants[K_RATE:K_MIX_T]
-    mix_t = constants[K_MIX_T:K_EFFECTIVENESS].reshape((4, 4))
-    effectiveness = constants[K_EFFECTIVENESS:K_ALLOC_SCALE].reshape((4, 4))
+    # the (4, 4) matrices copied out of the constants vector into a (2, 4, 4) array and the (3, 3) scratch matrices
+    # taken from a (5, 3, 3) one: a view made by reshape gets a reference count of its own that numba cannot pair
+    # up, so every call of an inlined law with it as an argument would cost an atomic increment and decrement
+    alloc_mats = np.empty((2, 4, 4))
+    for j in range(4):
+        for m in range(4):
+            alloc_mats[0, j, m] = constants[K_MIX_T + 4 * j + m]
+            alloc_mats[1, j, m] = constants[K_EFFECTIVENESS + 4 * j + m]
+    mix_t, effectiveness = alloc_mats[0], alloc_mats[1]
     alloc_scale = constants[K_ALLOC_SCALE:K_ROTOR_MAP]
     rotor_map = constants[K_ROTOR_MAP:N_CONSTANTS]
     n = pos.shape[0]
@@ -196,14 +203,15 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
     # One row of every array, in scratch made once per call: the row loop copies a row in, runs the laws on the
     # scratch views made here and copies the row out.  A view made inside the loop (``state[i]``, a slice) costs
     # numba an atomic reference-count increment and decrement per row (as does every array argument of a call).
-    scratch = np.empty(7 * 3 + 2 * 4 + 27 + N_STATE + N_POS_STATE + N_HTE_STATE + N_RATE_STATE + 4 * 3 + 2 * 9 + 4)
+    scratch = np.empty(7 * 3 + 2 * 4 + N_STATE + N_POS_STATE + N_HTE_STATE + N_RATE_STATE + 4 * 3 + 4)
     zeros = scratch[0:3]
     zeros[:] = 0.0
     rate, ang_acc, raw, vel_dot = scratch[3:6], scratch[6:9], scratch[9:12], scratch[12:15]
     thr, torque = scratch[15:18], scratch[18:21]
-    unallocated, q, work = scratch[21:25], scratch[25:29], scratch[29:56].reshape((3, 3, 3))
-    qd, r_e, red = work[0], work[1], work[2]
-    k = 56
+    unallocated, q = scratch[21:25], scratch[25:29]
+    mats = np.empty((5, 3, 3))
+    qd, r_e, red, att_i, att_sp_i = mats[0], mats[1], mats[2], mats[3], mats[4]
+    k = 29
     s = scratch[k:k + N_STATE]  # the row of the agent state
     k += N_STATE
     pos_s = scratch[k:k + N_POS_STATE]  # ... of the position law's state
@@ -214,8 +222,6 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
     k += N_RATE_STATE
     gyro_i, pos_i, vel_i, sp_i = scratch[k:k + 3], scratch[k + 3:k + 6], scratch[k + 6:k + 9], scratch[k + 9:k + 12]
     k += 12
-    att_i, att_sp_i = scratch[k:k + 9].reshape((3, 3)), scratch[k + 9:k + 18].reshape((3, 3))
-    k += 18
     action_i = scratch[k:k + 4]
     gyro_z, dgyro_z = s[GYRO_Z:GYRO_Z + 6], s[DGYRO_Z:DGYRO_Z + 6]
     vel_deriv, rate_sp = s[VEL_DERIV:VEL_DERIV + 7], s[RATE_SP:RATE_SP + 3]
