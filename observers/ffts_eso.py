@@ -386,8 +386,14 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
     kt1, kt2, kt3, kappa_t = gains[3], gains[4], gains[5], gains[6]
     ka1, ka2, ka3, kappa_a = gains[7], gains[8], gains[9], gains[10]
     morse_k = gains[11:14]
-    inertia = gains[14:23].reshape((3, 3))
-    inertia_inv = gains[23:32].reshape((3, 3))
+    # J and J^-1 copied into a (2, 3, 3) array (a view made by reshape carries a reference count numba cannot pair
+    # up with its parent's: every inlined helper called with one would cost an atomic increment/decrement per row)
+    inertias = np.empty((2, 3, 3))
+    for j in range(3):
+        for k in range(3):
+            inertias[0, j, k] = gains[14 + 3 * j + k]
+            inertias[1, j, k] = gains[23 + 3 * j + k]
+    inertia, inertia_inv = inertias[0], inertias[1]
     half_dt2 = 0.5 * dt * dt
     n = x.shape[0]
     work = np.empty((n, N_WORK))                                            # the rows' results between stages
@@ -398,7 +404,6 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
     w_hat, om = vec[18], vec[19]                                            # Omega_hat, Omega^m of the row
     mats = np.empty((5, 3, 3))
     e_mat, r_hat, step_rot, r_new, r_m = mats[0], mats[1], mats[2], mats[3], mats[4]
-    e_flat = mats[0].reshape(9)
     # ---- 1. the row's inputs checked; errors: translational eq. (45), rotational eqs. (46)-(47), (41), (66)
     for i in range(n):
         finite = math.isfinite(thrust[i])
@@ -426,7 +431,9 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
         _put(work, i, WK_EOM, e_om)
         _put(work, i, WK_ER, e_r)
         _put(work, i, WK_EW, e_w)
-        _put(work, i, WK_E, e_flat)
+        for j in range(3):
+            for k in range(3):
+                work[i, WK_E + 3 * j + k] = e_mat[j, k]
         work[i, WK_POW_T] = dot_row(e_b, e_b)
         work[i, WK_POW_A] = dot_row(e_r, e_r)
     # ---- 2. the fractional powers of g (eqs. 50/69)
@@ -478,7 +485,9 @@ def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray
         _get(work, i, WK_EW, e_w)
         _get(work, i, WK_PSI_A, psi_a)
         _get(work, i, WK_RATE_R, rate_r)
-        _get(work, i, WK_E, e_flat)
+        for j in range(3):
+            for k in range(3):
+                e_mat[j, k] = work[i, WK_E + 3 * j + k]
         phi_row(psi_a, ka3, p, work[i, WK_Q_A], inj1, inj2)
         mat_vec_row(inertia, om, jw)
         cross_row(jw, om, gyro)                                             # J Om^m x Om^m
