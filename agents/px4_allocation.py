@@ -52,43 +52,45 @@ _YAW_HEADROOM = 1.15  # mixYaw: yaw may use 15 % above full thrust before thrust
 
 
 @njit(cache=True, inline="always")
-def _desaturation_gain(vec: np.ndarray, act: np.ndarray, upper: float) -> float:
-    """computeDesaturationGain: k_min + k_max over the actuators outside [0, upper] along ``vec`` (4,)."""
+def _desaturation_gain(mix_t: np.ndarray, axis: int, act: np.ndarray, upper: float) -> float:
+    """computeDesaturationGain: k_min + k_max over the actuators outside [0, upper] along the mix column of ``axis``
+    (row ``axis`` of ``mix_t``; indexed, not a row view: a view per call costs an atomic reference count)."""
     k_min, k_max = 0.0, 0.0
     for j in range(4):
-        if abs(vec[j]) < _FLT_EPS:
+        if abs(mix_t[axis, j]) < _FLT_EPS:
             continue
         if act[j] < 0.0:
-            k = (0.0 - act[j]) / vec[j]
+            k = (0.0 - act[j]) / mix_t[axis, j]
             k_min, k_max = min(k_min, k), max(k_max, k)
         if act[j] > upper:
-            k = (upper - act[j]) / vec[j]
+            k = (upper - act[j]) / mix_t[axis, j]
             k_min, k_max = min(k_min, k), max(k_max, k)
     return k_min + k_max
 
 
 @njit(cache=True, inline="always")
-def _desaturate(act: np.ndarray, vec: np.ndarray, increase_only: bool, upper: float) -> None:
-    """desaturateActuators in place: ``act += k vec`` then ``+= 0.5 k' vec``; ``increase_only`` skips k < 0."""
+def _desaturate(act: np.ndarray, mix_t: np.ndarray, axis: int, increase_only: bool, upper: float) -> None:
+    """desaturateActuators in place along the mix column of ``axis``: ``act += k vec`` then ``+= 0.5 k' vec``;
+    ``increase_only`` skips k < 0."""
     saturated = False
     for j in range(4):
         if act[j] < 0.0 or act[j] > upper:
             saturated = True
     if not saturated:
         return  # every desaturation gain is exactly 0
-    gain = _desaturation_gain(vec, act, upper)
+    gain = _desaturation_gain(mix_t, axis, act, upper)
     # increase_only: along the negative F_z column a positive gain only lowers thrust ("thrust is never raised
     # to unsaturate a motor"), so a negative gain leaves the actuators as they are
     if increase_only and gain < 0.0:
         return
     for j in range(4):
-        act[j] += gain * vec[j]
-    gain = 0.5 * _desaturation_gain(vec, act, upper)
+        act[j] += gain * mix_t[axis, j]
+    gain = 0.5 * _desaturation_gain(mix_t, axis, act, upper)
     for j in range(4):
-        act[j] += gain * vec[j]
+        act[j] += gain * mix_t[axis, j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def allocate_row(torque: np.ndarray, thrust: float, mix_t: np.ndarray, effectiveness: np.ndarray,
                  scale: np.ndarray, act: np.ndarray, unallocated: np.ndarray) -> None:
     """PX4 sequential desaturation (airmode off) for one vehicle: normalized torque (3,) and collective thrust
@@ -97,13 +99,13 @@ def allocate_row(torque: np.ndarray, thrust: float, mix_t: np.ndarray, effective
     c_z = -thrust
     for j in range(4):  # mix roll, pitch and thrust
         act[j] = torque[ROLL] * mix_t[ROLL, j] + torque[PITCH] * mix_t[PITCH, j] + c_z * mix_t[THRUST_Z, j]
-    _desaturate(act, mix_t[THRUST_Z], True, 1.0)
-    _desaturate(act, mix_t[ROLL], False, 1.0)
-    _desaturate(act, mix_t[PITCH], False, 1.0)
+    _desaturate(act, mix_t, THRUST_Z, True, 1.0)
+    _desaturate(act, mix_t, ROLL, False, 1.0)
+    _desaturate(act, mix_t, PITCH, False, 1.0)
     for j in range(4):  # mixYaw: add yaw with head-room above full thrust, then reduce thrust only
         act[j] += torque[YAW] * mix_t[YAW, j]
-    _desaturate(act, mix_t[YAW], False, _YAW_HEADROOM)
-    _desaturate(act, mix_t[THRUST_Z], True, 1.0)
+    _desaturate(act, mix_t, YAW, False, _YAW_HEADROOM)
+    _desaturate(act, mix_t, THRUST_Z, True, 1.0)
     for j in range(4):
         act[j] = min(max(act[j], 0.0), 1.0)
     for a in range(4):  # c_sp - c_achieved, c_achieved = scale * (B act)

@@ -51,15 +51,15 @@ def attitude_error_vector_row(r_e: np.ndarray, q: np.ndarray, out: np.ndarray) -
     out[2] = (r_e[1, 0] - r_e[0, 1]) / (2.0 * qw)
 
 
-@njit(cache=True)
-def attitude_control_row(r: np.ndarray, r_sp: np.ndarray, yawspeed_sp: float, prm: np.ndarray,
-                         work: np.ndarray, q: np.ndarray, rate_sp: np.ndarray) -> None:
+@njit(cache=True, inline="always")
+def attitude_control_row(r: np.ndarray, r_sp: np.ndarray, yawspeed_sp: float, prm: np.ndarray, qd: np.ndarray,
+                         r_e: np.ndarray, red: np.ndarray, q: np.ndarray, rate_sp: np.ndarray) -> None:
     """One vehicle's rate setpoint ``rate_sp`` (3,) [rad/s] from R, R_sp (3, 3) (steps 1-5 of the module docstring).
 
-    ``work`` (3, 3, 3) and ``q`` (4,) are scratch.  Matrix form of PX4's quaternion law: the reduced rotation
+    ``qd``, ``r_e``, ``red`` (3, 3) and ``q`` (4,) are scratch (given by the caller: views made here, per row,
+    would cost an atomic reference count each).  Matrix form of PX4's quaternion law: the reduced rotation
     q(e_z -> e_z,d) is Rodrigues' ``I + [c]^x + [c]^x^2 / (1 + d)`` with ``c = e_z x e_z,d``, ``d = e_z . e_z,d``.
     """
-    qd, r_e, red = work[0], work[1], work[2]
     # 1. reduced attitude qd_red = q(e_z -> e_z,d) q
     cx = r[1, 2] * r_sp[2, 2] - r[2, 2] * r_sp[1, 2]
     cy = r[2, 2] * r_sp[0, 2] - r[0, 2] * r_sp[2, 2]
@@ -100,8 +100,9 @@ def attitude_control_row(r: np.ndarray, r_sp: np.ndarray, yawspeed_sp: float, pr
 def _attitude_kernel(r: np.ndarray, r_sp: np.ndarray, yawspeed_sp: np.ndarray, prm: np.ndarray,
                      rate_sp: np.ndarray) -> None:
     work, q = np.empty((3, 3, 3)), np.empty(4)
+    qd, r_e, red = work[0], work[1], work[2]
     for i in range(r.shape[0]):
-        attitude_control_row(r[i], r_sp[i], yawspeed_sp[i], prm, work, q, rate_sp[i])
+        attitude_control_row(r[i], r_sp[i], yawspeed_sp[i], prm, qd, r_e, red, q, rate_sp[i])
 
 
 @njit(cache=True)

@@ -41,8 +41,10 @@ from .px4_attitude_control import attitude_control_row
 from .px4_filters import N_BIQUAD, butterworth_reset_row, butterworth_row, filtered_derivative_row
 from .px4_hover_thrust import HOVER as HTE_HOVER
 from .px4_hover_thrust import N_PARAMS as N_HTE_PARAMS
+from .px4_hover_thrust import N_STATE as N_HTE_STATE
 from .px4_hover_thrust import VALID, hover_thrust_row
 from .px4_position_control import N_PARAMS as N_POS_PARAMS
+from .px4_position_control import N_STATE as N_POS_STATE
 from .px4_position_control import (
     THR_MAX,
     THR_MIN,
@@ -53,6 +55,7 @@ from .px4_position_control import (
     update_hover_thrust_row,
 )
 from .px4_rate_control import N_PARAMS as N_RATE_PARAMS
+from .px4_rate_control import N_STATE as N_RATE_STATE
 from .px4_rate_control import SAT_NEG, SAT_POS, rate_control_row
 
 #: kernel status codes
@@ -170,17 +173,24 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
     """One ``act`` of the cascade for every row (module docstring); writes ``action`` (N, 4) motor commands.
 
     Inputs (N, 3) / (N, 3, 3) are the measurement (pose possibly delayed), the position setpoint ((1, 3): the
-    same for every row) and the
-    disturbance estimates (zeros without an observer; both checked finite, fed forward if ``use_force`` /
-    ``use_torque``); the state arrays are updated in place.
+    same for every row) and the disturbance estimates (zeros without an observer; C-contiguous or strided, e.g. the
+    columns of an observer's estimate buffer; both checked finite, fed forward if ``use_force`` / ``use_torque``);
+    the state arrays are updated in place.
     """
     cfg = constants[K_CONFIG:K_POS]
     pos_prm = constants[K_POS:K_HTE]
     hte_prm = constants[K_HTE:K_ATT]
     att_prm = constants[K_ATT:K_RATE]
     rate_prm = constants[K_RATE:K_MIX_T]
-    mix_t = constants[K_MIX_T:K_EFFECTIVENESS].reshape((4, 4))
-    effectiveness = constants[K_EFFECTIVENESS:K_ALLOC_SCALE].reshape((4, 4))
+    # the (4, 4) matrices copied out of the constants vector into a (2, 4, 4) array and the (3, 3) scratch matrices
+    # taken from a (5, 3, 3) one: a view made by reshape gets a reference count of its own that numba cannot pair
+    # up, so every call of an inlined law with it as an argument would cost an atomic increment and decrement
+    alloc_mats = np.empty((2, 4, 4))
+    for j in range(4):
+        for m in range(4):
+            alloc_mats[0, j, m] = constants[K_MIX_T + 4 * j + m]
+            alloc_mats[1, j, m] = constants[K_EFFECTIVENESS + 4 * j + m]
+    mix_t, effectiveness = alloc_mats[0], alloc_mats[1]
     alloc_scale = constants[K_ALLOC_SCALE:K_ROTOR_MAP]
     rotor_map = constants[K_ROTOR_MAP:N_CONSTANTS]
     n = pos.shape[0]
@@ -190,65 +200,120 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
                 return BAD_ESTIMATE, i
     gyro_coef = cfg[GYRO_COEF:GYRO_COEF + N_BIQUAD]
     dgyro_coef = cfg[DGYRO_COEF:DGYRO_COEF + N_BIQUAD]
-    scratch = np.empty(7 * 3 + 2 * 4 + 27)  # the row's intermediates, in one allocation (each costs ~10 ns)
+    # One row of every array, in scratch made once per call: the row loop copies a row in, runs the laws on the
+    # scratch views made here and copies the row out.  A view made inside the loop (``state[i]``, a slice) costs
+    # numba an atomic reference-count increment and decrement per row (as does every array argument of a call).
+    scratch = np.empty(7 * 3 + 2 * 4 + N_STATE + N_POS_STATE + N_HTE_STATE + N_RATE_STATE + 4 * 3 + 4)
     zeros = scratch[0:3]
     zeros[:] = 0.0
     rate, ang_acc, raw, vel_dot = scratch[3:6], scratch[6:9], scratch[9:12], scratch[12:15]
     thr, torque = scratch[15:18], scratch[18:21]
-    unallocated, q, work = scratch[21:25], scratch[25:29], scratch[29:56].reshape((3, 3, 3))
+    unallocated, q = scratch[21:25], scratch[25:29]
+    mats = np.empty((5, 3, 3))
+    qd, r_e, red, att_i, att_sp_i = mats[0], mats[1], mats[2], mats[3], mats[4]
+    k = 29
+    s = scratch[k:k + N_STATE]  # the row of the agent state
+    k += N_STATE
+    pos_s = scratch[k:k + N_POS_STATE]  # ... of the position law's state
+    k += N_POS_STATE
+    hte_s = scratch[k:k + N_HTE_STATE]  # ... of the hover-thrust EKF's state
+    k += N_HTE_STATE
+    rate_s = scratch[k:k + N_RATE_STATE]  # ... of the rate law's state
+    k += N_RATE_STATE
+    gyro_i, pos_i, vel_i, sp_i = scratch[k:k + 3], scratch[k + 3:k + 6], scratch[k + 6:k + 9], scratch[k + 9:k + 12]
+    k += 12
+    action_i = scratch[k:k + 4]
+    gyro_z, dgyro_z = s[GYRO_Z:GYRO_Z + 6], s[DGYRO_Z:DGYRO_Z + 6]
+    vel_deriv, rate_sp = s[VEL_DERIV:VEL_DERIV + 7], s[RATE_SP:RATE_SP + 3]
+    torque_sp, rotor = s[TORQUE:TORQUE + 3], s[ROTOR:ROTOR + 4]
+    last_sp = setpoint.shape[0] - 1
+    sin_yaw, cos_yaw = math.sin(yaw), math.cos(yaw)  # the heading setpoint, the same for every row
     for i in range(n):
-        s = state[i]
+        for j in range(N_STATE):
+            s[j] = state[i, j]
+        for j in range(N_RATE_STATE):
+            rate_s[j] = rate_state[i, j]
+        for j in range(3):
+            gyro_i[j] = gyro[i, j]
+            for m in range(3):
+                att_i[j, m] = att[i, j, m]
+                att_sp_i[j, m] = att_sp[i, j, m]
         # 1. gyro filters
         if s[FRESH] != 0.0:
-            butterworth_reset_row(gyro[i], s[GYRO_Z:GYRO_Z + 6], gyro_coef)
-            s[DGYRO_Z:DGYRO_Z + 6] = 0.0
-            rate[:] = gyro[i]
+            butterworth_reset_row(gyro_i, gyro_z, gyro_coef)
+            dgyro_z[:] = 0.0
+            rate[:] = gyro_i
             ang_acc[:] = 0.0
             s[FRESH] = 0.0
         else:
-            butterworth_row(gyro[i], s[GYRO_Z:GYRO_Z + 6], gyro_coef, rate)
+            butterworth_row(gyro_i, gyro_z, gyro_coef, rate)
             for j in range(3):
-                raw[j] = (gyro[i, j] - s[GYRO_PREV + j]) / dt
-            butterworth_row(raw, s[DGYRO_Z:DGYRO_Z + 6], dgyro_coef, ang_acc)
-        s[GYRO_PREV:GYRO_PREV + 3] = gyro[i]
+                raw[j] = (gyro_i[j] - s[GYRO_PREV + j]) / dt
+            butterworth_row(raw, dgyro_z, dgyro_coef, ang_acc)
+        for j in range(3):
+            s[GYRO_PREV + j] = gyro_i[j]
         # 2.-3. position loop
         pos_dt = _tick(s, POS_LOOP, cfg[PERIOD + POS_LOOP], dt)
         if pos_dt > 0.0:
+            for j in range(N_POS_STATE):
+                pos_s[j] = pos_state[i, j]
+            for j in range(N_HTE_STATE):
+                hte_s[j] = hte_state[i, j]
+            row_sp = min(i, last_sp)
+            for j in range(3):
+                pos_i[j] = pos[i, j]
+                vel_i[j] = vel[i, j]
+                sp_i[j] = setpoint[row_sp, j]
             if cfg[USE_HTE] != 0.0 and has_specific_force and s[HAS_THR0] != 0.0:
-                r = att[i]  # vertical acceleration (up positive) from the accelerometer: a = R f + g e3
-                acc_up = -(r[2, 0] * specific_force[i, 0] + r[2, 1] * specific_force[i, 1]
-                           + r[2, 2] * specific_force[i, 2] + GRAVITY)
-                hover_thrust_row(acc_up, -s[THR0 + 2], vel[i], pos_dt, hte_prm, hte_state[i])
-                if hte_state[i, VALID] != 0.0:  # PX4 applies only valid estimates
-                    update_hover_thrust_row(hte_state[i, HTE_HOVER], pos_prm, pos_state[i])
-            filtered_derivative_row(vel[i], s[VEL_DERIV:VEL_DERIV + 7], cfg[VELD_CUTOFF], pos_dt, vel_dot)
-            position_control_row(pos[i], vel[i], vel_dot, setpoint[min(i, setpoint.shape[0] - 1)], zeros, zeros,
-                                 pos_dt, pos_prm, pos_state[i], True, thr)
-            s[THR0:THR0 + 3] = thr
+                # vertical acceleration (up positive) from the accelerometer: a = R f + g e3
+                acc_up = -(att_i[2, 0] * specific_force[i, 0] + att_i[2, 1] * specific_force[i, 1]
+                           + att_i[2, 2] * specific_force[i, 2] + GRAVITY)
+                hover_thrust_row(acc_up, -s[THR0 + 2], vel_i, pos_dt, hte_prm, hte_s)
+                if hte_s[VALID] != 0.0:  # PX4 applies only valid estimates
+                    update_hover_thrust_row(hte_s[HTE_HOVER], pos_prm, pos_s)
+            filtered_derivative_row(vel_i, vel_deriv, cfg[VELD_CUTOFF], pos_dt, vel_dot)
+            position_control_row(pos_i, vel_i, vel_dot, sp_i, zeros, zeros, pos_dt, pos_prm, pos_s, True, thr)
+            for j in range(3):
+                s[THR0 + j] = thr[j]
             s[HAS_THR0] = 1.0
             if use_force:  # F = F0 - phi_hat, limited as PX4's own
-                force_feedforward_row(thr, force_hat[i], cfg[THRUST_SCALE], pos_prm[TILT_MAX], pos_prm[THR_MIN],
+                for j in range(3):
+                    raw[j] = force_hat[i, j]
+                force_feedforward_row(thr, raw, cfg[THRUST_SCALE], pos_prm[TILT_MAX], pos_prm[THR_MIN],
                                       pos_prm[THR_MAX], thr)
-            s[THR_SP:THR_SP + 3] = thr
-            bodyz_to_attitude_row(-thr[0], -thr[1], -thr[2], yaw, att_sp[i])
+            for j in range(3):
+                s[THR_SP + j] = thr[j]
+            bodyz_to_attitude_row(-thr[0], -thr[1], -thr[2], sin_yaw, cos_yaw, att_sp_i)
+            for j in range(N_POS_STATE):
+                pos_state[i, j] = pos_s[j]
+            for j in range(N_HTE_STATE):
+                hte_state[i, j] = hte_s[j]
+            for j in range(3):
+                for m in range(3):
+                    att_sp[i, j, m] = att_sp_i[j, m]
         # 4. attitude loop
         if _tick(s, ATT_LOOP, cfg[PERIOD + ATT_LOOP], dt) > 0.0:
-            attitude_control_row(att[i], att_sp[i], 0.0, att_prm, work, q, s[RATE_SP:RATE_SP + 3])
+            attitude_control_row(att_i, att_sp_i, 0.0, att_prm, qd, r_e, red, q, rate_sp)
         # 5. rate loop, tau = tau0 - tau_hat in normalized units
         rate_dt = _tick(s, RATE_LOOP, cfg[PERIOD + RATE_LOOP], dt)
         if rate_dt > 0.0:
-            rate_control_row(rate, s[RATE_SP:RATE_SP + 3], ang_acc, rate_dt, rate_prm, rate_state[i], True, torque)
+            rate_control_row(rate, rate_sp, ang_acc, rate_dt, rate_prm, rate_s, True, torque)
             for j in range(3):
                 s[TORQUE + j] = torque[j] - torque_hat[i, j] / cfg[TORQUE_SCALE + j] if use_torque else torque[j]
         # 6. allocation, saturation flags for the rate integrator, motor commands
         collective = math.sqrt(s[THR_SP] * s[THR_SP] + s[THR_SP + 1] * s[THR_SP + 1] + s[THR_SP + 2] * s[THR_SP + 2])
-        allocate_row(s[TORQUE:TORQUE + 3], collective, mix_t, effectiveness, alloc_scale, s[ROTOR:ROTOR + 4],
-                     unallocated)
+        allocate_row(torque_sp, collective, mix_t, effectiveness, alloc_scale, rotor, unallocated)
         missed = unallocated[0] ** 2 + unallocated[1] ** 2 + unallocated[2] ** 2 >= SAT_EPS
         for j in range(3):
-            rate_state[i, SAT_POS + j] = 1.0 if missed and unallocated[j] > SAT_EPS else 0.0
-            rate_state[i, SAT_NEG + j] = 1.0 if missed and unallocated[j] < -SAT_EPS else 0.0
-        rotor_command_row(s[ROTOR:ROTOR + 4], rotor_map, action[i])
+            rate_s[SAT_POS + j] = 1.0 if missed and unallocated[j] > SAT_EPS else 0.0
+            rate_s[SAT_NEG + j] = 1.0 if missed and unallocated[j] < -SAT_EPS else 0.0
+        rotor_command_row(rotor, rotor_map, action_i)
+        for j in range(4):
+            action[i, j] = action_i[j]
+        for j in range(N_STATE):
+            state[i, j] = s[j]
+        for j in range(N_RATE_STATE):
+            rate_state[i, j] = rate_s[j]
     for i in range(n):
         for j in range(4):
             if not math.isfinite(action[i, j]):

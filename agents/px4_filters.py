@@ -99,7 +99,7 @@ def lowpass_row(u: np.ndarray, state: np.ndarray, alpha: float) -> None:
         state[j] = alpha * u[j] + (1.0 - alpha) * state[j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def filtered_derivative_row(u: np.ndarray, s: np.ndarray, cutoff: float, dt: float, out: np.ndarray) -> None:
     """PX4 ``BlockDerivative``: ``out`` (k,) = low-pass of ``(u - u_prev) / dt``; 0 on a first sample.
 

@@ -71,7 +71,7 @@ HOVER, VAR, ACC_VAR, RESIDUAL_LPF, RATIO_LPF, TEST_RATIO, VALID, VALID_TIME = 0,
 N_STATE = 8
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def hover_thrust_row(acc_z_up: float, thrust_z_up: float, vel: np.ndarray, dt: float, prm: np.ndarray,
                      s: np.ndarray) -> None:
     """One predict + fuse step of one vehicle's estimator (steps 1-6 of the module docstring), state row ``s``.

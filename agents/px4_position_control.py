@@ -104,9 +104,10 @@ def constrain_xy_row(v0x: float, v0y: float, v1x: float, v1y: float, max_norm: f
     return v0x + u1x * s, v0y + u1y * s
 
 
-@njit(cache=True)
-def bodyz_to_attitude_row(zx: float, zy: float, zz: float, yaw: float, r: np.ndarray) -> None:
-    """PX4 ControlMath::bodyzToAttitude: R (3, 3) with third column ``z`` (normalized) and heading ``yaw``.
+@njit(cache=True, inline="always")
+def bodyz_to_attitude_row(zx: float, zy: float, zz: float, sin_yaw: float, cos_yaw: float, r: np.ndarray) -> None:
+    """PX4 ControlMath::bodyzToAttitude: R (3, 3) with third column ``z`` (normalized) and heading yaw, given as
+    ``sin_yaw``, ``cos_yaw`` (the caller takes them once for every row that shares the heading).
 
     ``x = y_C x z`` with ``y_C = (-sin yaw, cos yaw, 0)`` (negated when z points up, (0, 0, 1) when z is
     horizontal), ``y = z x x``.
@@ -115,7 +116,7 @@ def bodyz_to_attitude_row(zx: float, zy: float, zz: float, yaw: float, r: np.nda
         zx, zy, zz = 0.0, 0.0, 1.0
     zn = math.sqrt(zx * zx + zy * zy + zz * zz)
     zx, zy, zz = zx / zn, zy / zn, zz / zn
-    ycx, ycy = -math.sin(yaw), math.cos(yaw)  # y_C, z component 0
+    ycx, ycy = -sin_yaw, cos_yaw  # y_C, z component 0
     xx, xy, xz = ycy * zz, -ycx * zz, ycx * zy - ycy * zx
     if zz < 0.0:
         xx, xy, xz = -xx, -xy, -xz
@@ -128,7 +129,7 @@ def bodyz_to_attitude_row(zx: float, zy: float, zz: float, yaw: float, r: np.nda
     r[0, 2], r[1, 2], r[2, 2] = zx, zy, zz
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def acceleration_control_row(ax: float, ay: float, az: float, hover: float, prm: np.ndarray,
                              thr: np.ndarray) -> None:
     """PositionControl::_accelerationControl: acceleration setpoint -> normalized thrust vector ``thr`` (3,).
@@ -146,7 +147,7 @@ def acceleration_control_row(ax: float, ay: float, az: float, hover: float, prm:
     thr[2] *= collective
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def position_control_row(p: np.ndarray, v: np.ndarray, v_dot: np.ndarray, p_sp: np.ndarray, v_ff: np.ndarray,
                          a_ff: np.ndarray, dt: float, prm: np.ndarray, s: np.ndarray, advance: bool,
                          thr: np.ndarray) -> None:
@@ -205,7 +206,7 @@ def position_control_row(p: np.ndarray, v: np.ndarray, v_dot: np.ndarray, p_sp: 
     s[THR_SP], s[THR_SP + 1], s[THR_SP + 2] = thr[0], thr[1], thr[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def update_hover_thrust_row(hover_new: float, prm: np.ndarray, s: np.ndarray) -> None:
     """PositionControl::updateHoverThrust for one vehicle: new hover thrust, z integrator shifted by ``a' - a``
     with ``a' = (a - g) Th / Th' + g``; v1.13 divides by the unconstrained ``Th'``, v1.14 by the constrained one."""
@@ -218,7 +219,7 @@ def update_hover_thrust_row(hover_new: float, prm: np.ndarray, s: np.ndarray) ->
     s[HOVER] = stored
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def force_feedforward_row(thr: np.ndarray, force_hat: np.ndarray, thrust_scale: float, max_tilt: float,
                           thr_min: float, thr_max: float, out: np.ndarray) -> None:
     """F = F0 - phi_hat (Wang et al. (2024) Sec. 7.2) on one normalized thrust vector, then PX4's limits again.
@@ -272,7 +273,7 @@ def _constrain_xy_kernel(v0: np.ndarray, v1: np.ndarray, max_norm: float, out: n
 @njit(cache=True)
 def _bodyz_kernel(z: np.ndarray, yaw: np.ndarray, r: np.ndarray) -> None:
     for i in range(z.shape[0]):
-        bodyz_to_attitude_row(z[i, 0], z[i, 1], z[i, 2], yaw[i], r[i])
+        bodyz_to_attitude_row(z[i, 0], z[i, 1], z[i, 2], math.sin(yaw[i]), math.cos(yaw[i]), r[i])
 
 
 @njit(cache=True)

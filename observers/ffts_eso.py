@@ -62,12 +62,17 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.core.kernel_types import ROTATIONS, ROWS, TYPED_DISPATCH, VALUES, compile_only
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3 import project_so3
-from fawtgym.core.so3_kernels import cross_row, exp_so3_row, first_non_rotation, mat_mul_row, mat_t_vec_row, mat_vec_row
+from fawtgym.core.so3_kernels import (
+    cross_row,
+    exp_so3_apply,
+    exp_so3_coefficients,
+    mat_mul_row,
+    mat_t_vec_row,
+    mat_vec_row,
+    rotation_defect_row,
+)
 from fawtgym.observers._checks import (
     ROTATION_TOL,
-    first_bad_estimate,
-    first_nonfinite_input,
-    first_nonfinite_row,
 )
 from fawtgym.observers._obs_common import batch_vec
 from fawtgym.observers.base import (
@@ -81,9 +86,12 @@ from fawtgym.observers.base import (
 from fawtgym.observers.hc_ffts import (
     DEFAULT_EPS,
     check_p,
+    dot_row,
     euler_stable_eps,
+    frac_power_power,
     frac_power_row,
     hurwitz_matrix,
+    phi_power,
     phi_row,
 )
 
@@ -98,7 +106,7 @@ N_STATE = 24
 E_FORCE, E_TORQUE, E_POS, E_VEL, E_W, E_ATT = 0, 3, 6, 9, 12, 15
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def s_k_row(e: NDArray[np.float64], k: NDArray[np.float64], out: NDArray[np.float64]) -> None:
     """out = s_K(E) = sum_i K_i (E^T e_i) x e_i (eq. 41) = vee(K E - E^T K), K = diag(k)."""
     out[0] = k[2] * e[2, 1] - k[1] * e[1, 2]
@@ -106,7 +114,7 @@ def s_k_row(e: NDArray[np.float64], k: NDArray[np.float64], out: NDArray[np.floa
     out[2] = k[1] * e[1, 0] - k[0] * e[0, 1]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def s_k_rate_row(e: NDArray[np.float64], w: NDArray[np.float64], k: NDArray[np.float64],
                  out: NDArray[np.float64]) -> None:
     """out = d/dt s_K(E) along E' = E w^: sum_i K_i e_i x (w x E^T e_i) (eq. 66) = tr(K E) w - E^T K w."""
@@ -234,8 +242,10 @@ class FFTSESO(Observer):
         x = self._state
         eps_t, eps_a = self.eps_at(dt)
         out = np.empty((2, *x.shape))     # (new state, estimate): see _update_checked
+        force_bound, torque_bound = self.estimate_bounds()
+        # inputs checked by Observer.update; its _check_estimate words any bad estimate, so the status is not needed
         ffts_eso_step(x, m["position"], m["velocity"], m["attitude"], m["angular_velocity"], f, tau, dt, eps_t,
-                      eps_a, self._gains, out[0], out[1])
+                      eps_a, self._gains, force_bound, torque_bound, out[0], out[1])
         return _estimate(out[1]), out[0]
 
     def _update_checked(self, measurement: Mapping[str, ArrayLike], thrust: ArrayLike, torque: ArrayLike, dt: float,
@@ -304,113 +314,226 @@ def _estimate(est: NDArray[np.float64]) -> ObserverEstimate:
     return ObserverEstimate(est[_FORCE_COLUMNS], est[_TORQUE_COLUMNS], BufferStates(est, _STATES))
 
 
-@njit(cache=True)
-def _estimate_row(x: NDArray[np.float64], est: NDArray[np.float64]) -> None:
-    """The estimate of one state row: phi_hat, tau_hat, b_hat, v_hat, Omega_hat, R_hat."""
+@njit(cache=True, inline="always")
+def _estimate_row(x: NDArray[np.float64], est: NDArray[np.float64], i: int) -> None:
+    """The estimate of state row ``i``: phi_hat, tau_hat, b_hat, v_hat, Omega_hat, R_hat (indexed, not through row
+    views: a view made per row costs an atomic reference count in the row loop)."""
     for j in range(3):
-        est[E_FORCE + j] = x[PHI + j]
-        est[E_TORQUE + j] = x[TAU + j]
-        est[E_POS + j] = x[B + j]
-        est[E_VEL + j] = x[V + j]
-        est[E_W + j] = x[W + j]
+        est[i, E_FORCE + j] = x[i, PHI + j]
+        est[i, E_TORQUE + j] = x[i, TAU + j]
+        est[i, E_POS + j] = x[i, B + j]
+        est[i, E_VEL + j] = x[i, V + j]
+        est[i, E_W + j] = x[i, W + j]
     for j in range(9):
-        est[E_ATT + j] = x[R + j]
+        est[i, E_ATT + j] = x[i, R + j]
 
 
 @njit(cache=True)
 def ffts_eso_estimate(x: NDArray[np.float64], est: NDArray[np.float64]) -> None:
     """:func:`_estimate_row` of every row of the state ``x`` (N, 24) into ``est`` (N, 24)."""
     for i in range(x.shape[0]):
-        _estimate_row(x[i], est[i])
+        _estimate_row(x, est, i)
+
+
+#: :func:`ffts_eso_step` / :func:`ffts_eso_update` status codes
+CHECKS_PASSED, BAD_INPUT, BAD_ESTIMATE = 0, 1, 2
+#: columns of the per-call work buffer of :func:`ffts_eso_step` (N, N_WORK): e_b, e_v, e_Omega, e_R, e_w, E (9),
+#: psi_t, psi_a, g'(e_b), g'(e_R), then the four fractional powers (each first holding its base, e^T e), ...
+WK_EB, WK_EV, WK_EOM, WK_ER, WK_EW, WK_E, WK_PSI_T, WK_PSI_A, WK_RATE_B, WK_RATE_R = 0, 3, 6, 9, 12, 15, 24, 27, 30, 33
+WK_POW_T, WK_POW_A, WK_Q_T, WK_Q_A = 36, 37, 38, 39
+#: ... and the step rotation's vector dt (Omega_hat + dt/2 Omega_hat'), its |.|^2 and Rodrigues' coefficients
+WK_STEP, WK_EXP_T2, WK_EXP_A, WK_EXP_B = 40, 43, 44, 45
+N_WORK = 46
+
+
+@njit(cache=True, inline="always")
+def _put(work: NDArray[np.float64], i: int, col: int, v: NDArray[np.float64]) -> None:
+    for j in range(v.shape[0]):
+        work[i, col + j] = v[j]
+
+
+@njit(cache=True, inline="always")
+def _get(work: NDArray[np.float64], i: int, col: int, v: NDArray[np.float64]) -> None:
+    for j in range(v.shape[0]):
+        v[j] = work[i, col + j]
 
 
 @njit(cache=True)
 def ffts_eso_step(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray[np.float64],
                   att: NDArray[np.float64], omega: NDArray[np.float64], thrust: NDArray[np.float64],
                   torque: NDArray[np.float64], dt: float, eps_t: float, eps_a: float, gains: NDArray[np.float64],
-                  x_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+                  force_bound: float, torque_bound: float, x_new: NDArray[np.float64], est: NDArray[np.float64]) -> int:
     """One FFTS-ESO step of every row: state ``x`` (N, 24) -> ``x_new``, estimate into ``est`` (N, 24).
 
     Measurement b^m (N, 3), v^m (N, 3), R^m (N, 3, 3), Omega^m (N, 3), applied thrust (N,) and torque (N, 3)
     held over ``dt``; ``eps_t`` / ``eps_a`` the floors of the two fractional terms at this dt; ``gains`` as
     :data:`GAIN_NAMES`.  Equations as in the module docstring (Wang et al. (2024) eqs. 45-50, 66-69).
+
+    Row checks on the way (the compiled checks of :meth:`Observer.update`, in the rows' loops rather than passes of
+    their own): returns ``BAD_INPUT`` as soon as a row's measurement or inputs are not finite or its attitude is not
+    a rotation (:data:`~fawtgym.observers._checks.ROTATION_TOL`; nothing written to ``x_new`` / ``est`` then),
+    ``BAD_ESTIMATE`` if an estimate row is not finite or its force / torque exceeds ``force_bound`` /
+    ``torque_bound`` (NaN fails), else ``CHECKS_PASSED``.  The caller words the error.
+
+    The row law runs in stages, each a loop over the rows: the errors, the fractional powers of g, psi, the powers
+    of phi1/phi2, the update, Rodrigues' coefficients of R_hat's step, R_hat's step.  A power (``**``) costs ~26 ns
+    of latency but ~11 ns of throughput (sin / cos alike): in a loop of their own the rows' powers overlap, inside
+    one long row they wait for each other.  The loops read and write
+    the (N, k) arrays by index and keep a row's intermediates in scratch vectors made once per call: an array view
+    made inside a loop (``x[i]``, a slice) costs an atomic reference-count increment and decrement per row.
     """
     mass, g, p = gains[0], gains[1], gains[2]
     kt1, kt2, kt3, kappa_t = gains[3], gains[4], gains[5], gains[6]
     ka1, ka2, ka3, kappa_a = gains[7], gains[8], gains[9], gains[10]
     morse_k = gains[11:14]
-    inertia = gains[14:23].reshape((3, 3))
-    inertia_inv = gains[23:32].reshape((3, 3))
+    # J and J^-1 copied into a (2, 3, 3) array (a view made by reshape carries a reference count numba cannot pair
+    # up with its parent's: every inlined helper called with one would cost an atomic increment/decrement per row)
+    inertias = np.empty((2, 3, 3))
+    for j in range(3):
+        for k in range(3):
+            inertias[0, j, k] = gains[14 + 3 * j + k]
+            inertias[1, j, k] = gains[23 + 3 * j + k]
+    inertia, inertia_inv = inertias[0], inertias[1]
     half_dt2 = 0.5 * dt * dt
-    vec = np.empty((18, 3))                                                 # the row's 3-vector intermediates
+    n = x.shape[0]
+    work = np.empty((n, N_WORK))                                            # the rows' results between stages
+    vec = np.empty((20, 3))                                                 # the row's 3-vector intermediates
     e_b, e_v, psi_t, g_b, rate_b, inj1, inj2 = vec[0], vec[1], vec[2], vec[3], vec[4], vec[5], vec[6]
     e_r, e_om, e_w, psi_a, g_r, rate_r = vec[7], vec[8], vec[9], vec[10], vec[11], vec[12]
     jw, gyro, body, t1, t2 = vec[13], vec[14], vec[15], vec[16], vec[17]
-    mats = np.empty((4, 3, 3))
-    e_mat, r_hat, step_rot, r_new = mats[0], mats[1], mats[2], mats[3]
-    for i in range(x.shape[0]):
-        xi, xo = x[i], x_new[i]
-        # ---- translational ESO, eqs. (45), (48)-(50)
+    w_hat, om = vec[18], vec[19]                                            # Omega_hat, Omega^m of the row
+    mats = np.empty((5, 3, 3))
+    e_mat, r_hat, step_rot, r_new, r_m = mats[0], mats[1], mats[2], mats[3], mats[4]
+    # ---- 1. the row's inputs checked; errors: translational eq. (45), rotational eqs. (46)-(47), (41), (66)
+    for i in range(n):
+        finite = math.isfinite(thrust[i])
         for j in range(3):
-            e_b[j] = pos[i, j] - xi[B + j]                                  # e_b = b^m - b_hat
-            e_v[j] = vel[i, j] - xi[V + j]                                  # e_v = v^m - v_hat
-        frac_power_row(e_b, e_v, p, eps_t, g_b, rate_b)  # |e_b|^(2(1-p)/p) e_b (regularised), its rate (H-term)
-        for j in range(3):
-            psi_t[j] = e_v[j] + kappa_t * (e_b[j] + g_b[j])                 # psi_t, eq. (50)
-        phi_row(psi_t, kt3, p, inj1, inj2)                                  # phi1, phi2 of eq. (9)
-        f_over_m = thrust[i] / mass
-        for j in range(3):
-            # v_hat' = g e3 - (f/m) R^m e3 + k_t1 phi1(psi_t) + kappa_t (g'(e_b) + e_v) + phi_hat / m, eq. (49)
-            v_dot = ((g if j == 2 else 0.0) - f_over_m * att[i, j, 2] + kt1 * inj1[j]
-                     + kappa_t * (rate_b[j] + e_v[j]) + xi[PHI + j] / mass)
-            xo[B + j] = xi[B + j] + dt * xi[V + j] + half_dt2 * v_dot   # b' = v_hat, exact for the held v_hat'
-            xo[V + j] = xi[V + j] + dt * v_dot
-            xo[PHI + j] = xi[PHI + j] + dt * (mass * kt2 * inj2[j])     # phi_hat' = m k_t2 phi2(psi_t)
-        # ---- rotational ESO, eqs. (46)-(47), (66)-(69); E = R_hat^T R^m
-        for j in range(3):
+            finite = (finite and math.isfinite(pos[i, j]) and math.isfinite(vel[i, j]) and math.isfinite(omega[i, j])
+                      and math.isfinite(torque[i, j]))
             for k in range(3):
-                r_hat[j, k] = xi[R + 3 * j + k]
+                r_m[j, k] = att[i, j, k]
+        if not finite or rotation_defect_row(r_m) > ROTATION_TOL:
+            return BAD_INPUT
         for j in range(3):
-            for k in range(3):
-                e_mat[j, k] = r_hat[0, j] * att[i, 0, k] + r_hat[1, j] * att[i, 1, k] + r_hat[2, j] * att[i, 2, k]
-        mat_t_vec_row(e_mat, xi[W:W + 3], t1)                               # E^T Omega_hat
+            w_hat[j] = x[i, W + j]
+            e_b[j] = pos[i, j] - x[i, B + j]                                # e_b = b^m - b_hat
+            e_v[j] = vel[i, j] - x[i, V + j]                                # e_v = v^m - v_hat
+        for j in range(3):
+            for k in range(3):                                              # E = R_hat^T R^m
+                e_mat[j, k] = x[i, R + j] * r_m[0, k] + x[i, R + 3 + j] * r_m[1, k] + x[i, R + 6 + j] * r_m[2, k]
+        mat_t_vec_row(e_mat, w_hat, t1)                                     # E^T Omega_hat
         for j in range(3):
             e_om[j] = omega[i, j] - t1[j]                                   # e_Omega, eq. (47)
         s_k_row(e_mat, morse_k, e_r)                                        # e_R = s_K(E), eq. (41)
         s_k_rate_row(e_mat, e_om, morse_k, e_w)                             # e_w = d/dt e_R, eq. (66)
-        frac_power_row(e_r, e_w, p, eps_a, g_r, rate_r)
+        _put(work, i, WK_EB, e_b)
+        _put(work, i, WK_EV, e_v)
+        _put(work, i, WK_EOM, e_om)
+        _put(work, i, WK_ER, e_r)
+        _put(work, i, WK_EW, e_w)
         for j in range(3):
+            for k in range(3):
+                work[i, WK_E + 3 * j + k] = e_mat[j, k]
+        work[i, WK_POW_T] = dot_row(e_b, e_b)
+        work[i, WK_POW_A] = dot_row(e_r, e_r)
+    # ---- 2. the fractional powers of g (eqs. 50/69)
+    for i in range(n):
+        work[i, WK_POW_T] = frac_power_power(work[i, WK_POW_T], p, eps_t)
+        work[i, WK_POW_A] = frac_power_power(work[i, WK_POW_A], p, eps_a)
+    # ---- 3. psi_t, psi_a (eqs. 50, 69) with g and its rate (the H-terms of eqs. 49, 68)
+    for i in range(n):
+        _get(work, i, WK_EB, e_b)
+        _get(work, i, WK_EV, e_v)
+        _get(work, i, WK_EOM, e_om)
+        _get(work, i, WK_ER, e_r)
+        _get(work, i, WK_EW, e_w)
+        frac_power_row(e_b, e_v, p, eps_t, work[i, WK_POW_T], g_b, rate_b)  # |e_b|^(2(1-p)/p) e_b (regularised)
+        frac_power_row(e_r, e_w, p, eps_a, work[i, WK_POW_A], g_r, rate_r)
+        for j in range(3):
+            psi_t[j] = e_v[j] + kappa_t * (e_b[j] + g_b[j])                 # psi_t, eq. (50)
             psi_a[j] = e_om[j] + kappa_a * (e_r[j] + g_r[j])                # psi_a, eq. (69)
-        phi_row(psi_a, ka3, p, inj1, inj2)
-        mat_vec_row(inertia, omega[i], jw)
-        cross_row(jw, omega[i], gyro)                                       # J Om^m x Om^m
+        _put(work, i, WK_PSI_T, psi_t)
+        _put(work, i, WK_PSI_A, psi_a)
+        _put(work, i, WK_RATE_B, rate_b)
+        _put(work, i, WK_RATE_R, rate_r)
+        work[i, WK_Q_T] = dot_row(psi_t, psi_t)
+        work[i, WK_Q_A] = dot_row(psi_a, psi_a)
+    # ---- 4. the fractional powers of phi1, phi2 (eq. 9)
+    for i in range(n):
+        work[i, WK_Q_T] = phi_power(work[i, WK_Q_T], p)
+        work[i, WK_Q_A] = phi_power(work[i, WK_Q_A], p)
+    # ---- 5. the update (R_hat's step rotation in stages 6-7)
+    for i in range(n):
         for j in range(3):
-            t1[j] = gyro[j] + xi[TAU + j] + torque[i, j]
+            w_hat[j] = x[i, W + j]
+            om[j] = omega[i, j]
+        _get(work, i, WK_EV, e_v)
+        _get(work, i, WK_PSI_T, psi_t)
+        _get(work, i, WK_RATE_B, rate_b)
+        # translational ESO, eqs. (48)-(49)
+        phi_row(psi_t, kt3, p, work[i, WK_Q_T], inj1, inj2)                 # phi1, phi2 of eq. (9)
+        f_over_m = thrust[i] / mass
+        for j in range(3):
+            # v_hat' = g e3 - (f/m) R^m e3 + k_t1 phi1(psi_t) + kappa_t (g'(e_b) + e_v) + phi_hat / m, eq. (49)
+            v_dot = ((g if j == 2 else 0.0) - f_over_m * att[i, j, 2] + kt1 * inj1[j]
+                     + kappa_t * (rate_b[j] + e_v[j]) + x[i, PHI + j] / mass)
+            x_new[i, B + j] = x[i, B + j] + dt * x[i, V + j] + half_dt2 * v_dot  # b' = v_hat, exact for held v_hat'
+            x_new[i, V + j] = x[i, V + j] + dt * v_dot
+            x_new[i, PHI + j] = x[i, PHI + j] + dt * (mass * kt2 * inj2[j])  # phi_hat' = m k_t2 phi2(psi_t)
+        # rotational ESO, eqs. (66)-(68)
+        _get(work, i, WK_EOM, e_om)
+        _get(work, i, WK_EW, e_w)
+        _get(work, i, WK_PSI_A, psi_a)
+        _get(work, i, WK_RATE_R, rate_r)
+        for j in range(3):
+            for k in range(3):
+                e_mat[j, k] = work[i, WK_E + 3 * j + k]
+        phi_row(psi_a, ka3, p, work[i, WK_Q_A], inj1, inj2)
+        mat_vec_row(inertia, om, jw)
+        cross_row(jw, om, gyro)                                             # J Om^m x Om^m
+        for j in range(3):
+            t1[j] = gyro[j] + x[i, TAU + j] + torque[i, j]
         mat_vec_row(inertia_inv, t1, t2)                                    # J^-1 (J Om x Om + tau_hat + tau)
         for j in range(3):
             body[j] = t2[j] + ka1 * inj1[j] + kappa_a * (rate_r[j] + e_w[j])
         mat_vec_row(e_mat, body, t1)                                        # E [ ... ], eq. (68)
         mat_vec_row(e_mat, e_om, t2)                                        # E e_Omega
-        cross_row(t2, xi[W:W + 3], jw)                                      # E e_Om^ E^T Om_hat = (E e_Om) x Om_hat
+        cross_row(t2, w_hat, jw)                                            # E e_Om^ E^T Om_hat = (E e_Om) x Om_hat
         for j in range(3):
             t2[j] = ka2 * inj2[j]
         mat_vec_row(inertia, t2, gyro)                                      # tau_hat' = J k_a2 phi2(psi_a)
         for j in range(3):
             w_dot = t1[j] + jw[j]
             # R_hat' = R_hat Omega_hat^: exact for the held Omega_hat' (exponential map over the step)
-            t2[j] = dt * (xi[W + j] + 0.5 * dt * w_dot)
-            xo[W + j] = xi[W + j] + dt * w_dot
-            xo[TAU + j] = xi[TAU + j] + dt * gyro[j]
-        exp_so3_row(t2, step_rot)
+            t2[j] = dt * (w_hat[j] + 0.5 * dt * w_dot)
+            x_new[i, W + j] = w_hat[j] + dt * w_dot
+            x_new[i, TAU + j] = x[i, TAU + j] + dt * gyro[j]
+        _put(work, i, WK_STEP, t2)
+        work[i, WK_EXP_T2] = dot_row(t2, t2)
+    # ---- 6. Rodrigues' coefficients of the step's rotation
+    for i in range(n):
+        work[i, WK_EXP_A], work[i, WK_EXP_B] = exp_so3_coefficients(work[i, WK_EXP_T2])
+    # ---- 7. R_hat <- R_hat exp(step^), the estimate checked
+    status = CHECKS_PASSED
+    for i in range(n):
+        _get(work, i, WK_STEP, t2)
+        exp_so3_apply(t2, work[i, WK_EXP_T2], work[i, WK_EXP_A], work[i, WK_EXP_B], step_rot)
+        for j in range(3):
+            for k in range(3):
+                r_hat[j, k] = x[i, R + 3 * j + k]
         mat_mul_row(r_hat, step_rot, r_new)
         for j in range(3):
             for k in range(3):
-                xo[R + 3 * j + k] = r_new[j, k]
-        _estimate_row(xo, est[i])
+                x_new[i, R + 3 * j + k] = r_new[j, k]
+        _estimate_row(x_new, est, i)
+        for j in range(3):  # NaN fails the comparisons
+            if not (abs(est[i, E_FORCE + j]) <= force_bound and abs(est[i, E_TORQUE + j]) <= torque_bound):
+                status = BAD_ESTIMATE
+        for j in range(N_STATE):
+            if not math.isfinite(est[i, j]):
+                status = BAD_ESTIMATE
+    return status
 
-
-#: :func:`ffts_eso_update` status codes
-CHECKS_PASSED, BAD_INPUT, BAD_ESTIMATE = 0, 1, 2
 
 
 #: the only argument types :func:`ffts_eso_update` takes (:func:`~fawtgym.core.kernel_types.compile_only`)
@@ -423,11 +546,12 @@ def ffts_eso_update(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArr
                     att: NDArray[np.float64], omega: NDArray[np.float64], thrust: NDArray[np.float64],
                     torque: NDArray[np.float64], dt: float, eps_t: float, eps_a: float, gains: NDArray[np.float64],
                     force_bound: float, torque_bound: float, out: NDArray[np.float64]) -> int:
-    """:meth:`Observer.update`'s checks around :func:`ffts_eso_step`, in one call: the measurement rows finite
-    and the attitude a rotation (:func:`~fawtgym.observers.base.check_measurement`), thrust and torque finite
-    (:func:`~fawtgym.observers.base.check_inputs`), then the step into ``out[0]`` (new state) and ``out[1]``
-    (estimate), then the estimate bounded and finite (:meth:`~fawtgym.observers.base.Observer._check_estimate`).
-    Returns ``CHECKS_PASSED``, ``BAD_INPUT`` (nothing computed) or ``BAD_ESTIMATE``; the caller words the error.
+    """:meth:`Observer.update`'s checks and the law in one call: the shapes, then :func:`ffts_eso_step` into
+    ``out[0]`` (new state) and ``out[1]`` (estimate), which checks in its row loops what
+    :func:`~fawtgym.observers.base.check_measurement` (rows finite, the attitude a rotation),
+    :func:`~fawtgym.observers.base.check_inputs` (thrust and torque finite) and
+    :meth:`~fawtgym.observers.base.Observer._check_estimate` (bounded and finite) check.
+    Returns ``CHECKS_PASSED``, ``BAD_INPUT`` or ``BAD_ESTIMATE``; the caller words the error.
 
     Compiled for C-contiguous float64 arrays only (a call with anything else raises TypeError, and the caller takes
     the Python checks); the shapes are checked here: N = the state's rows."""
@@ -437,12 +561,5 @@ def ffts_eso_update(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArr
             or thrust.shape[0] != n or torque.shape[0] != n or torque.shape[1] != 3 or x.shape[1] != N_STATE
             or out.shape[0] != 2 or out.shape[1] != n or out.shape[2] != N_STATE):
         return BAD_INPUT
-    if (first_nonfinite_row(pos) >= 0 or first_nonfinite_row(vel) >= 0 or first_non_rotation(att, ROTATION_TOL) >= 0
-            or first_nonfinite_row(omega) >= 0 or first_nonfinite_input(thrust, torque) >= 0):
-        return BAD_INPUT
-    est = out[1]
-    ffts_eso_step(x, pos, vel, att, omega, thrust, torque, dt, eps_t, eps_a, gains, out[0], est)
-    if first_bad_estimate(est[:, E_FORCE:E_FORCE + 3], est[:, E_TORQUE:E_TORQUE + 3], force_bound, torque_bound,
-                          est) != -1:
-        return BAD_ESTIMATE
-    return CHECKS_PASSED
+    return ffts_eso_step(x, pos, vel, att, omega, thrust, torque, dt, eps_t, eps_a, gains, force_bound, torque_bound,
+                         out[0], out[1])

@@ -26,7 +26,7 @@ from numba import njit
 SMALL_ANGLE_SQ = 1e-8
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def cross_row(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     """out = a x b (3-vectors); ``out`` must not alias ``a`` or ``b``."""
     out[0] = a[1] * b[2] - a[2] * b[1]
@@ -34,21 +34,21 @@ def cross_row(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     out[2] = a[0] * b[1] - a[1] * b[0]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def mat_vec_row(r: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
     """out = R v (3 x 3 times a 3-vector); ``out`` must not alias ``v``."""
     for j in range(3):
         out[j] = r[j, 0] * v[0] + r[j, 1] * v[1] + r[j, 2] * v[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def mat_t_vec_row(r: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
     """out = R^T v (world -> body for R body -> world); ``out`` must not alias ``v``."""
     for j in range(3):
         out[j] = r[0, j] * v[0] + r[1, j] * v[1] + r[2, j] * v[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def mat_mul_row(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     """out = A B (3 x 3); ``out`` must not alias ``a`` or ``b``."""
     for j in range(3):
@@ -56,26 +56,23 @@ def mat_mul_row(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
             out[j, k] = a[j, 0] * b[0, k] + a[j, 1] * b[1, k] + a[j, 2] * b[2, k]
 
 
-@njit(cache=True)
-def exp_so3_row(w: np.ndarray, out: np.ndarray) -> None:
-    """Rodrigues' formula exp(w^) = I + a w^ + b w^ w^ with a = sin t / t, b = (1 - cos t) / t^2, t = |w|.
-
-    Below ``SMALL_ANGLE_SQ`` a and b are their Taylor series to t^4 (as :func:`fawtgym.core.so3.exp_so3`);
-    w^ w^ = w w^T - t^2 I is written out, so no hat matrix is formed.
-    """
-    t2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
-    if not math.isfinite(t2):                 # NaN out, in compiled and in plain-Python runs alike
-        for j in range(3):
-            for k in range(3):
-                out[j, k] = math.nan
-        return
+@njit(cache=True, inline="always")
+def exp_so3_coefficients(t2: float) -> tuple[float, float]:
+    """Rodrigues' coefficients (a, b) = (sin t / t, (1 - cos t) / t^2) of exp(w^) from t2 = |w|^2 (Taylor series to
+    t^4 below ``SMALL_ANGLE_SQ``; NaN for a non-finite t2).  A function of its own so that a kernel can take those of
+    many rows in one loop, where the rows' sin / cos overlap (see :func:`exp_so3_row`)."""
+    if not math.isfinite(t2):
+        return math.nan, math.nan
     if t2 < SMALL_ANGLE_SQ:
-        a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
-        b = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
-    else:
-        t = math.sqrt(t2)
-        a = math.sin(t) / t
-        b = (1.0 - math.cos(t)) / t2
+        return 1.0 - t2 / 6.0 + t2 * t2 / 120.0, 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+    t = math.sqrt(t2)
+    return math.sin(t) / t, (1.0 - math.cos(t)) / t2
+
+
+@njit(cache=True, inline="always")
+def exp_so3_apply(w: np.ndarray, t2: float, a: float, b: float, out: np.ndarray) -> None:
+    """out = I + a w^ + b w^ w^ (w^ w^ = w w^T - t2 I written out, no hat matrix formed) with the coefficients of
+    :func:`exp_so3_coefficients`; NaN coefficients give an all-NaN ``out``."""
     for j in range(3):
         for k in range(3):
             out[j, k] = b * w[j] * w[k]
@@ -86,6 +83,20 @@ def exp_so3_row(w: np.ndarray, out: np.ndarray) -> None:
     out[1, 2] -= a * w[0]
     out[2, 0] -= a * w[1]
     out[2, 1] += a * w[0]
+
+
+@njit(cache=True, inline="always")
+def exp_so3_row(w: np.ndarray, out: np.ndarray) -> None:
+    """Rodrigues' formula exp(w^) = I + a w^ + b w^ w^ with a = sin t / t, b = (1 - cos t) / t^2, t = |w|.
+
+    Below ``SMALL_ANGLE_SQ`` a and b are their Taylor series to t^4 (as :func:`fawtgym.core.so3.exp_so3`);
+    w^ w^ = w w^T - t^2 I is written out, so no hat matrix is formed.  A non-finite w gives an all-NaN ``out``
+    (in compiled and in plain-Python runs alike).  The two parts, :func:`exp_so3_coefficients` and
+    :func:`exp_so3_apply`, are the law for kernels that take the coefficients of many rows in a loop of their own.
+    """
+    t2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+    a, b = exp_so3_coefficients(t2)
+    exp_so3_apply(w, t2, a, b, out)
 
 
 @njit(cache=True)
@@ -141,7 +152,7 @@ def rot_to_quat_row(r: np.ndarray, out: np.ndarray) -> None:
     out[3] = z / norm
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rotation_defect_row(r: np.ndarray) -> float:
     """How far R is from a rotation: max |(R^T R - I)_jk| over the entries, or +inf if det R <= 0 or R is
     not finite.  A rotation gives rounding-level values (~1e-16); :func:`first_non_rotation` compares
