@@ -129,6 +129,17 @@ def pose_rate_error(spec: SensorSpec, control_rate: float, physics_rate: float |
     return head + f"multiples of {pose:g} Hz that divide the physics rate {physics_rate:g} Hz: {listed}"
 
 
+def _batch_sigma(name: str) -> property:
+    """The batch model's per-sample sigma ``name`` (read-only: assigning raises, as there)."""
+    def get(self: Any) -> float:
+        return float(getattr(self._batch, name))
+
+    def put(self: Any, value: object) -> None:
+        setattr(self._batch, name, value)  # raises (fixed at construction)
+
+    return property(get, put, doc=f"per-sample sigma ({name}) of the batch model; read-only")
+
+
 class SensorModel:
     """One vehicle's sensors: :class:`~fawtgym.envs.sensors_batch.BatchSensorModel` (the one law) as a batch of one,
     with 1-D arrays in and out.
@@ -143,8 +154,10 @@ class SensorModel:
         self._batch = BatchSensorModel(spec, control_dt, 1, physics_dt)
         b = self._batch
         self.spec, self.dt, self.noisy = b.spec, b.dt, b.noisy
-        self.sig_pos, self.sig_vel, self.sig_att = b.sig_pos, b.sig_vel, b.sig_att
-        self.sig_rate, self.sig_gyro, self.sig_acc = b.sig_rate, b.sig_gyro, b.sig_acc
+
+    sig_pos, sig_vel, sig_att = _batch_sigma("sig_pos"), _batch_sigma("sig_vel"), _batch_sigma("sig_att")
+    sig_rate, sig_acc, sig_gyro = _batch_sigma("sig_rate"), _batch_sigma("sig_acc"), _batch_sigma("sig_gyro")
+    sig_mag = _batch_sigma("sig_mag")
 
     @property
     def pose_every(self) -> int:

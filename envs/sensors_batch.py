@@ -38,6 +38,23 @@ _FIELD = np.ascontiguousarray(M.EARTH_FIELD_NED, dtype=float)
 SENSOR_NOT_FINITE = ("sensor measurement is not finite: check position, velocity, rotation, angular_velocity and "
                      "acceleration for NaN/inf")
 
+#: the entries of :attr:`BatchSensorModel.sigma`, each also a read-only attribute (e.g. ``sig_pos``)
+SIGMA_FIELDS = ("sig_pos", "sig_vel", "sig_att", "sig_rate", "sig_acc", "sig_gyro", "sig_mag")
+
+
+class _SigmaEntry:
+    """A read-only attribute reading one entry of the owner's ``sigma`` (fixed at construction: assigning raises)."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name, self.index = name, SIGMA_FIELDS.index(name)
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        return self if obj is None else float(obj.sigma[self.index])
+
+    def __set__(self, obj: Any, value: object) -> None:
+        raise AttributeError(_FIXED.format(self.name))
+
+
 #: the error of assigning a sensor setting fixed at construction
 _FIXED = ("BatchSensorModel.{} is fixed at construction (derived from the sensor spec, copied into the env's step "
           "parameters): build the sensors (or the env, sensors=...) with a SensorSpec or a mapping of its fields "
@@ -104,6 +121,10 @@ class BatchSensorModel:
     the control rate.
     """
 
+    #: the per-sample sigmas, one float each (the entries of :attr:`sigma`; read-only)
+    sig_pos, sig_vel, sig_att = _SigmaEntry(), _SigmaEntry(), _SigmaEntry()
+    sig_rate, sig_acc, sig_gyro, sig_mag = _SigmaEntry(), _SigmaEntry(), _SigmaEntry(), _SigmaEntry()
+
     def __init__(self, spec: SensorSpec | str, control_dt: float, n: int, physics_dt: float | None = None) -> None:
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ValueError(f"number of vehicles n must be a positive int, got {n!r}")
@@ -120,14 +141,11 @@ class BatchSensorModel:
             self._pose_every = int(round(ratio))
         # white noise of density d sampled every dt has sigma d / sqrt(dt) (sensors module docstring)
         root_dt, root_pose = math.sqrt(control_dt), math.sqrt(self._pose_every * control_dt)
-        self.sig_pos = math.hypot(spec.position_density / root_pose, spec.position_sigma)
-        self.sig_vel = math.hypot(spec.velocity_density / root_pose, spec.velocity_sigma)
-        self.sig_att = math.hypot(spec.attitude_density / root_pose, spec.attitude_sigma)
-        self.sig_rate = spec.angular_velocity_density / root_dt
-        self.sig_gyro = spec.gyro_density / root_dt
-        self.sig_acc = spec.accel_density / root_dt
-        sigma = np.array([self.sig_pos, self.sig_vel, self.sig_att, self.sig_rate, self.sig_acc, self.sig_gyro,
-                          spec.mag_sigma])
+        sigma = np.array([math.hypot(spec.position_density / root_pose, spec.position_sigma),
+                          math.hypot(spec.velocity_density / root_pose, spec.velocity_sigma),
+                          math.hypot(spec.attitude_density / root_pose, spec.attitude_sigma),
+                          spec.angular_velocity_density / root_dt, spec.accel_density / root_dt,
+                          spec.gyro_density / root_dt, spec.mag_sigma])  # SIGMA_FIELDS' order
         sigma.flags.writeable = False  # fixed by the spec (the env copies it into its step parameters)
         self._sigma = sigma
         self.noisy = bool(np.any(sigma > 0) or spec.gyro_bias_sigma > 0 or spec.accel_bias_sigma > 0)

@@ -18,6 +18,7 @@ import fawtgym  # noqa: F401  (registers the env ids)
 from fawtgym.envs.hover_batch_env import HoverBatchEnv
 from fawtgym.envs.hover_env import HoverEnv
 from fawtgym.envs.sensors import SensorModel, make_sensor_spec
+from fawtgym.envs.sensors_batch import BatchSensorModel
 from fawtgym.envs.vehicles import make_vehicle
 
 NOMINAL = make_vehicle("s500")
@@ -121,6 +122,13 @@ def test_sensor_settings_are_read_only(n):
     single = SensorModel(make_sensor_spec("mocap_imu"), 0.01)
     with pytest.raises(AttributeError, match=message.format("pose_every")):
         single.pose_every = 4
+    # the per-sample sigmas read the one sigma array the kernel reads, and cannot be assigned either
+    names = ("sig_pos", "sig_vel", "sig_att", "sig_rate", "sig_acc", "sig_gyro", "sig_mag")
+    assert [getattr(env.sensor, k) for k in names] == env.sensor.sigma.tolist()
+    assert [getattr(single, k) for k in names] == BatchSensorModel("mocap_imu", 0.01, 1).sigma.tolist()
+    for model in (env.sensor, single):
+        with pytest.raises(AttributeError, match=message.format("sig_pos")):
+            model.sig_pos = 1.0
 
 
 def test_max_steps_and_box_of_hover_env_take_effect():
