@@ -120,6 +120,7 @@ from __future__ import annotations
 import copy
 import os
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
 import mujoco
@@ -293,6 +294,8 @@ class HoverBatchEnv(VectorEnv):
         self._datas = [mujoco.MjData(self.model) for _ in range(max(self._nthread, 1))]
         self._data = self._datas[0]
         self._rollout = rollout.Rollout(nthread=self._nthread)
+        self._worker: ThreadPoolExecutor | None = None  # step_async's thread (made on its first call)
+        self._pending: Future[Any] | None = None  # the step started by step_async, until step_wait
         self._chunk = min(PHYSICS_CHUNK_ROWS, -(-n // self._nthread)) if self._nthread else None
         self._models = [self.model] * n  # one per row: a row with a randomized vehicle gets its own copy
         self._body = self.model.body("vehicle").id
@@ -431,8 +434,9 @@ class HoverBatchEnv(VectorEnv):
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickle/deepcopy: MuJoCo's model and data are copied; the rollout (threads, not picklable) is rebuilt."""
+        self._check_idle("pickling or copying the env")
         state = self.__dict__.copy()
-        state["_rollout"] = None
+        state["_rollout"] = state["_worker"] = None
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -557,6 +561,7 @@ class HoverBatchEnv(VectorEnv):
     # ---- gym API -------------------------------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None,
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        self._check_idle("reset() called")
         return self._reset(seed, options)
 
     def _reset(self, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None,
@@ -594,10 +599,40 @@ class HoverBatchEnv(VectorEnv):
 
     def step(self, actions: ArrayLike) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_],
                                                  NDArray[np.bool_], dict[str, Any]]:
+        return self._step(self._checked_actions(actions, "step"))
+
+    def step_async(self, actions: ArrayLike) -> None:
+        """:meth:`step` started on a worker thread; returns at once, :meth:`step_wait` returns the step's result.
+
+        MuJoCo's rollout, most of a step at large N, runs without Python's GIL: meanwhile the calling thread can run
+        an agent or step another env.  Two envs of N / 2 rows stepped in turn -- one started here while the other
+        steps and its agent acts -- keep both cores busy while each half's agent and step kernels run (the
+        pipelined loop of ``fawtgym bench closed-loop``).  The actions' type and shape are checked here, and a
+        non-finite entry by the step itself, raised by :meth:`step_wait` (the errors of :meth:`step`, before anything
+        changes); until :meth:`step_wait`, ``step``, ``step_async``, ``reset``, copying and pickling raise
+        RuntimeError (nothing else may touch the env meanwhile).  The results are :meth:`step`'s, bit for bit."""
+        a = self._checked_actions(actions, "step_async")
+        if self._worker is None:
+            self._worker = ThreadPoolExecutor(1, thread_name_prefix="HoverBatchEnv.step_async")
+        self._pending = self._worker.submit(self._step, a)
+
+    def step_wait(self) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_],
+                                 dict[str, Any]]:
+        """The result of the step :meth:`step_async` started (waits for it; its error, if it raised one)."""
+        if self._pending is None:
+            raise RuntimeError("HoverBatchEnv.step_wait() called with no step started: call step_async(actions) first")
+        pending, self._pending = self._pending, None
+        return pending.result()
+
+    def _check_idle(self, what: str) -> None:
+        if self._pending is not None:
+            raise RuntimeError(f"HoverBatchEnv: {what} while a step_async() step is running: call step_wait() first")
+
+    def _checked_actions(self, actions: ArrayLike, caller: str) -> NDArray[np.float64]:
+        self._check_idle(f"{caller}() called")
         if self._row_rngs is None:
-            raise RuntimeError("HoverBatchEnv.step() called before reset(): call reset() first")
-        a = check_actions(actions, (self.num_envs, 4), self._act_low, self._act_high, "actions", finite=False)
-        return self._step(a)
+            raise RuntimeError(f"HoverBatchEnv.{caller}() called before reset(): call reset() first")
+        return check_actions(actions, (self.num_envs, 4), self._act_low, self._act_high, "actions", finite=False)
 
     def _step(self, a: NDArray[np.float64], name: str = "actions", single: bool = False) -> tuple[
             NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_], NDArray[np.bool_], dict[str, Any]]:
@@ -803,6 +838,12 @@ class HoverBatchEnv(VectorEnv):
         return info
 
     def close_extras(self, **kwargs: Any) -> None:
+        pending, worker = getattr(self, "_pending", None), getattr(self, "_worker", None)
+        self._pending = self._worker = None
+        if pending is not None:  # a started step finishes first (its result, or error, is dropped)
+            pending.exception()
+        if worker is not None:
+            worker.shutdown()
         if getattr(self, "_rollout", None) is not None:
             self._rollout.close()
             self._rollout = None

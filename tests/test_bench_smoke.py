@@ -64,8 +64,9 @@ def test_bench_observers_and_closed_loop_run(capsys):
 
 def test_batched_bench_pairs_each_rounds_closed_loop_with_its_physics_round():
     b = closed_loop.measure_batched([4], rounds=2, vehicle_steps=20)
-    paired = b[4]["paired"]
-    assert len(paired) == 2 and all(np.isfinite(p) and p > 0 for p in paired)
+    paired = np.array(b[4]["paired"])  # (rounds, [plain loop, pipelined loop])
+    assert paired.shape == (2, 2) and np.all(np.isfinite(paired)) and np.all(paired > 0)
+    assert set(b[4]) == {"closed", "pipelined", "physics", "env", "calm", "paired"}
 
 
 def test_bench_eval_prints_throughput_and_ratio(capsys, monkeypatch):
