@@ -22,9 +22,9 @@ calling thread); the "per CPU s" column counts every thread of the process):
 
 * ``closed loop``: :class:`~fawtgym.envs.hover_batch_env.HoverBatchEnv` (N vehicles, same options as
   above) + one batch-first ``PX4ObserverAgent("ffts_eso")`` for all N;
-* ``pipelined``: the same N vehicles as two envs of N / 2 rows with an agent each, one half's step on a worker
-  thread (``HoverBatchEnv.step_async``: MuJoCo's rollout runs without the GIL) while the other half steps and acts
-  on the calling thread, so the agents' and the step kernels' serial work overlaps the other half's physics;
+* ``pipelined``: the same N vehicles as two envs of N / 2 rows with an agent each, each stepping on its own worker
+  thread (``HoverBatchEnv.step_async``: MuJoCo's rollout runs without the GIL), so one half's agent and step
+  kernels (serial work) run while the other half's physics does;
 * ``env alone``: the same batch env stepped with the hover action;
 * ``physics only``: the ``mujoco.rollout`` call the env makes (same model, N x substeps, same control
   layout, same threads) and nothing else: the ceiling for any env built on this physics;
@@ -170,8 +170,9 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int) -> dict[str, tu
 
     def pipelined() -> tuple[float, float]:
         """The closed loop of the same N vehicles as two envs of N / 2 rows (rows 0.. and N / 2.. of the N-row env's
-        seeds), each with its own agent: one half's step runs on a worker thread (``step_async``; MuJoCo's rollout
-        without the GIL) while the other half steps and acts on the calling thread."""
+        seeds), each with its own agent, each stepping on its own worker thread (``step_async``: MuJoCo's rollout
+        runs without the GIL): each half's agent acts, and its step kernels run, while the other half's physics
+        does.  The high half takes one step more than the low one (started first, waited for last)."""
         (low, high), (agent_low, agent_high) = halves, half_agents
         obs_low, info_low = low.reset(seed=0)
         obs_high, info_high = high.reset(seed=low.num_envs)
@@ -179,11 +180,14 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int) -> dict[str, tu
         agent_high.reset(info_high)
         action_low = agent_low.act(obs_low, info_low)
         t0, c0 = time.perf_counter(), time.process_time()
+        high.step_async(agent_high.act(obs_high, info_high))
         for _ in range(steps):
             low.step_async(action_low)
-            obs_high, _, _, _, info_high = high.step(agent_high.act(obs_high, info_high))
+            obs_high, _, _, _, info_high = high.step_wait()
+            high.step_async(agent_high.act(obs_high, info_high))  # while the low half's physics runs
             obs_low, _, _, _, info_low = low.step_wait()
-            action_low = agent_low.act(obs_low, info_low)
+            action_low = agent_low.act(obs_low, info_low)  # while the high half's physics runs
+        high.step_wait()
         return time.perf_counter() - t0, time.process_time() - c0
 
     def alone(e: Any, actions: Sequence[NDArray[np.float64]] | None = None) -> tuple[float, float]:
@@ -212,7 +216,7 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int) -> dict[str, tu
     # closed loop and physics only back to back in every round (their paired ratio, :func:`measure_batched`)
     jobs = {"closed": (closed, sim), "physics": (physics, sim)}
     if halves:  # right after the physics-only round too (paired with it)
-        jobs["pipelined"] = (pipelined, sim)
+        jobs["pipelined"] = (pipelined, (halves[0].num_envs * steps + halves[1].num_envs * (steps + 1)) / control_rate)
     jobs.update({"env": (lambda: alone(env, recorded), sim), "calm": (lambda: alone(calm), n * steps / 100.0)})
     return jobs
 
@@ -233,8 +237,8 @@ def measure_batched(batch_sizes: Sequence[int] = (64, 256, 1024), rounds: int = 
                 wall, cpu = job()
                 walls[k] = wall
                 best[k] = [min(best[k][0], wall), min(best[k][1], cpu)]
-            # same simulated time: the ratio of real-time factors
-            paired.append([walls["physics"] / walls[k] for k in ("closed", "pipelined") if k in walls])
+            rate = {k: jobs[k][1] / walls[k] for k in walls}  # real-time factors of this round
+            paired.append([rate[k] / rate["physics"] for k in ("closed", "pipelined") if k in rate])
         out[n] = {k: {"wall": jobs[k][1] / best[k][0], "cpu": jobs[k][1] / max(best[k][1], 1e-9)} for k in jobs}
         out[n]["paired"] = paired
     return out
