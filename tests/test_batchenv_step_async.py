@@ -57,7 +57,11 @@ def test_two_half_envs_pipelined_give_the_whole_batch() -> None:
         act = _actions(4, k)
         obs, *_ = whole.step(act)
         low.step_async(act[:2])
-        obs_high, *_ = high.step(act[2:])
+        if k % 2:  # both halves on their worker threads at once (the README's loop)
+            high.step_async(act[2:])
+            obs_high, *_ = high.step_wait()
+        else:  # the high half on the calling thread meanwhile
+            obs_high, *_ = high.step(act[2:])
         obs_low, *_ = low.step_wait()
         assert np.array_equal(obs, np.concatenate([obs_low, obs_high])), k
 
