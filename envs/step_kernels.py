@@ -58,16 +58,23 @@ def rot_ned_row(states: NDArray[np.float64], i: int, rot: NDArray[np.float64]) -
     rot[i, 2, 0], rot[i, 2, 1], rot[i, 2, 2] = -r20, r21, r22
 
 
+@njit(cache=True, inline="always")
+def state_row_to_ned(states: NDArray[np.float64], i: int, pos: NDArray[np.float64], vel: NDArray[np.float64],
+                     rot: NDArray[np.float64], omega: NDArray[np.float64]) -> None:  # pragma: no cover - jitted
+    """Row ``i`` of FULLPHYSICS states (k, 14) = [time, qpos 7, qvel 6] -> ``pos[i]``, ``vel[i]`` NED, ``rot[i]``,
+    ``omega[i]`` FRD (S = diag(1, -1, -1) on MuJoCo's world and body axes)."""
+    pos[i, 0], pos[i, 1], pos[i, 2] = states[i, 1], -states[i, 2], -states[i, 3]
+    rot_ned_row(states, i, rot)
+    vel[i, 0], vel[i, 1], vel[i, 2] = states[i, 8], -states[i, 9], -states[i, 10]
+    omega[i, 0], omega[i, 1], omega[i, 2] = states[i, 11], -states[i, 12], -states[i, 13]
+
+
 @njit(cache=True)
 def states_to_ned(states: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray[np.float64],
                   rot: NDArray[np.float64], omega: NDArray[np.float64]) -> None:  # pragma: no cover - jitted
     """FULLPHYSICS states (k, 14) = [time, qpos 7, qvel 6] -> position, velocity (k, 3) NED, R (k, 3, 3), Omega FRD."""
     for i in range(states.shape[0]):
-        s = states[i]
-        pos[i, 0], pos[i, 1], pos[i, 2] = s[1], -s[2], -s[3]
-        rot_ned_row(states, i, rot)
-        vel[i, 0], vel[i, 1], vel[i, 2] = s[8], -s[9], -s[10]
-        omega[i, 0], omega[i, 1], omega[i, 2] = s[11], -s[12], -s[13]
+        state_row_to_ned(states, i, pos, vel, rot, omega)
 
 
 @njit(cache=True)
@@ -250,14 +257,10 @@ def read_states(final: NDArray[np.float64], t_end: float, physics_dt: float, dt:
             continue
         for c in range(n_state):
             mj_state[i, c] = final[i, c]
-        # [time, qpos 7, qvel 6] -> NED/FRD (S = diag(1, -1, -1))
-        b0, b1, b2 = final[i, 1], -final[i, 2], -final[i, 3]
-        u0, u1, u2 = final[i, 8], -final[i, 9], -final[i, 10]
-        accel[i, 0], accel[i, 1], accel[i, 2] = (u0 - vel[i, 0]) / dt, (u1 - vel[i, 1]) / dt, (u2 - vel[i, 2]) / dt
-        pos[i, 0], pos[i, 1], pos[i, 2] = b0, b1, b2
-        vel[i, 0], vel[i, 1], vel[i, 2] = u0, u1, u2
-        omega[i, 0], omega[i, 1], omega[i, 2] = final[i, 11], -final[i, 12], -final[i, 13]
-        rot_ned_row(final, i, rot)
+        v0, v1, v2 = vel[i, 0], vel[i, 1], vel[i, 2]  # the step's start velocity
+        state_row_to_ned(final, i, pos, vel, rot, omega)
+        accel[i, 0], accel[i, 1], accel[i, 2] = (vel[i, 0] - v0) / dt, (vel[i, 1] - v1) / dt, (vel[i, 2] - v2) / dt
+        b0, b1, b2 = pos[i, 0], pos[i, 1], pos[i, 2]
         r20, r21, r22 = rot[i, 2, 0], rot[i, 2, 1], rot[i, 2, 2]
         lowest = -math.inf  # the lowest hull point: the largest z_NED of b + R p
         for h in range(hull.shape[0]):

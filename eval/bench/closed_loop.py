@@ -224,8 +224,9 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int) -> dict[str, tu
 def measure_batched(batch_sizes: Sequence[int] = (64, 256, 1024), rounds: int = 3, control_rate: float = 200.0,
                     vehicle_steps: int = 51200) -> dict[int, dict[str, Any]]:
     """Aggregate real-time factors (vehicle-s per wall s / per CPU s) for each N, best of ``rounds``; and under
-    ``"paired"`` each round's closed-loop / physics-only ratio, the two jobs run back to back (the same seconds of a
-    machine whose speed drifts: a shared VM's second vCPU can lose a third of its speed for seconds at a time)."""
+    ``"paired"`` each round's [closed loop, pipelined loop (N >= 2)] / physics-only ratios, the jobs run back to back
+    (the same seconds of a machine whose speed drifts: a shared VM's second vCPU can lose a third of its speed for
+    seconds at a time)."""
     out: dict[int, dict[str, Any]] = {}
     for n in batch_sizes:
         jobs = _batch_jobs(n, control_rate, vehicle_steps)
