@@ -66,7 +66,33 @@ def test_batched_bench_pairs_each_rounds_closed_loop_with_its_physics_round():
     b = closed_loop.measure_batched([4], rounds=2, vehicle_steps=20)
     paired = np.array(b[4]["paired"])  # (rounds, [plain loop, pipelined loop])
     assert paired.shape == (2, 2) and np.all(np.isfinite(paired)) and np.all(paired > 0)
-    assert set(b[4]) == {"closed", "pipelined", "physics", "env", "calm", "paired"}
+    assert set(b[4]) == {"closed", "pipelined", "physics", "env", "calm", "paired", "interleaved"}
+    stepwise = np.array(b[4]["interleaved"])  # one closed loop / physics-only ratio per round, paired step by step
+    assert stepwise.shape == (2,) and np.all(np.isfinite(stepwise)) and np.all(stepwise > 0)
+
+
+def test_interleaved_physics_call_leaves_the_closed_loop_trajectory_unchanged(monkeypatch):
+    """The step-by-step pairing runs the env's rollout again between steps, on the env's own arrays: the closed
+    loop must fly exactly the trajectory it flies without it (else the target would time another loop)."""
+    from fawtgym.envs.hover_batch_env import HoverBatchEnv
+
+    seen: list[np.ndarray] = []
+    step = HoverBatchEnv.step
+
+    def recording(self, actions):
+        result = step(self, actions)
+        seen.append(np.concatenate([result[0].ravel(), result[1], np.asarray(self._mj_state).ravel()]))
+        return result
+
+    monkeypatch.setattr(HoverBatchEnv, "step", recording)
+    jobs = closed_loop._batch_jobs(4, 200.0, 40)  # 10 steps of 4 vehicles
+    jobs["closed"][0]()
+    plain, seen[:] = list(seen), []
+    closed, physics = jobs["interleaved"][0]()
+    assert closed > 0 and physics > 0
+    assert len(seen) == len(plain) == 10
+    for a, b in zip(plain, seen):
+        np.testing.assert_array_equal(a, b)
 
 
 def test_bench_eval_prints_throughput_and_ratio(capsys, monkeypatch):
