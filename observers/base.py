@@ -22,15 +22,18 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Iterator, Mapping
+from operator import itemgetter
 from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.kernel_types import TYPED_DISPATCH, compile_only
 from fawtgym.core.measurement import ATTITUDE, TRAILING_SHAPES, batch_measurement
 from fawtgym.core.rows import check_row_mask
 from fawtgym.core.so3_kernels import first_non_rotation
 from fawtgym.observers._checks import (
+    INPUT_CHECKS,
     ROTATION_TOL,
     first_bad_estimate,
     first_bad_wrench,
@@ -128,6 +131,8 @@ class Observer:
     MAX_ANGULAR_ACCELERATION: ClassVar[float] = 1e5
     #: whether :meth:`update` may take :meth:`_update_checked` (set per class by :meth:`__init_subclass__`)
     _checked_path: ClassVar[bool] = False
+    #: :func:`_input_checks` of :attr:`required_keys`: the compiled input checks of :meth:`_passed_measurement`
+    _input_checks: tuple[tuple[str, ...] | None, Any, Any] = (None, None, None)
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         """A class's :meth:`_update_checked` (the law and the checks in one compiled call) stands for :meth:`_update`,
@@ -250,20 +255,59 @@ class Observer:
         words the error); a subclass that overrides ``_update``, ``_check_estimate`` or ``_commit`` never takes it.
         """
         n = self._n_rows
-        if self._checked_path and n is not None and type(dt) is float and 0.0 < dt <= self.max_dt:
-            est = self._update_checked(measurement, thrust, torque, dt, n)
-            if est is not None:  # the law's kernel checked its inputs and its estimate (one compiled call)
-                return est
+        meas = None
+        if n is not None and type(dt) is float and 0.0 < dt <= self.max_dt:
+            if self._checked_path:
+                est = self._update_checked(measurement, thrust, torque, dt, n)
+                if est is not None:  # the law's kernel checked its inputs and its estimate (one compiled call)
+                    return est
+            else:
+                meas = self._passed_measurement(measurement, thrust, torque, n)
         who = self.name or type(self).__name__
-        if n is None:
-            raise RuntimeError(f"{who}: update() before reset(); call reset(measurement) first")
-        step = check_dt(dt, self.max_dt, who)
-        meas = check_measurement(measurement, self.required_keys, n, who)
-        f, tau = check_inputs(thrust, torque, n, who)
-        est, state = self._update(meas, f, tau, step)
+        if meas is None:        # the Python checks: they convert the inputs or word the error
+            if n is None:
+                raise RuntimeError(f"{who}: update() before reset(); call reset(measurement) first")
+            dt = check_dt(dt, self.max_dt, who)
+            meas = check_measurement(measurement, self.required_keys, n, who)
+            thrust, torque = check_inputs(thrust, torque, n, who)
+        est, state = self._update(meas, thrust, torque, dt)  # type: ignore[arg-type]
         self._check_estimate(est, who)
         self._commit(state)
         return est
+
+    def _passed_measurement(self, measurement: object, thrust: object, torque: object,
+                            n: int) -> dict[str, NDArray[np.float64]] | None:
+        """:meth:`update`'s input checks in one compiled call, for inputs the Python checks would pass on as they are.
+
+        When ``measurement`` is a ``dict`` whose :attr:`required_keys` are ndarrays, ``thrust`` and ``torque`` are
+        ndarrays, and one kernel of :data:`~fawtgym.observers._checks.INPUT_CHECKS` (compiled for C-contiguous float64
+        arrays only: anything else is a TypeError at the call, :mod:`fawtgym.core.kernel_types`; :func:`fast_inputs`
+        checks the same under ``NUMBA_DISABLE_JIT=1``) finds every shape (N rows) and value as
+        :func:`check_measurement` and :func:`check_inputs` require (finite, the attitude a rotation): the measurement
+        the law reads (its required keys, the caller's arrays, as :func:`check_measurement` returns them).  None on
+        anything else (a key set outside the kernel family, e.g. ``"time"``, too): the Python checks then run."""
+        keys, kernel, order = self._input_checks
+        if keys is not self.required_keys:      # the first update, or an instance that changed its keys
+            keys, kernel, order = self._input_checks = _input_checks(self.required_keys)
+        # an ndarray subclass (np.matrix, a masked array) passes numba's dispatch: check_measurement converts it
+        if kernel is None or type(measurement) is not dict or type(thrust) is not _ND or type(torque) is not _ND:
+            return None
+        if TYPED_DISPATCH:
+            try:
+                meas = {key: value for key in keys if type(value := measurement[key]) is _ND}
+            except KeyError:
+                return None
+            if len(meas) != len(keys):
+                return None
+        else:                   # plain Python kernels (NUMBA_DISABLE_JIT=1): the same types checked here
+            if fast_inputs(measurement, input_shapes(keys, n), thrust, torque, n) is None:
+                return None
+            meas = {key: measurement[key] for key in keys}
+        try:
+            passed = kernel(n, thrust, torque, *(meas.values() if order is None else order(meas)))
+        except TypeError:       # an array of another dtype, ndim or layout (or read-only)
+            return None
+        return meas if passed else None
 
     def _update(self, meas: dict[str, NDArray[np.float64]], thrust: NDArray[np.float64],
                 torque: NDArray[np.float64], dt: float) -> tuple[ObserverEstimate, Any]:
@@ -506,6 +550,37 @@ def _guess_rows(guess: ArrayLike | None, n: int, rows: NDArray[np.bool_], label:
                          f"per row of the batch), got shape {g.shape}")
     return g if g.ndim == 1 else g[rows]
 
+
+_INPUT_CHECKS: dict[tuple[str, ...], tuple[tuple[str, ...], Any, Any]] = {}
+_ND = np.ndarray
+
+
+def _input_checks(keys: tuple[str, ...]) -> tuple[tuple[str, ...], Any, Any]:
+    """(``keys``, check kernel, order) for :meth:`Observer._passed_measurement`: the kernel of
+    :data:`~fawtgym.observers._checks.INPUT_CHECKS` for the kinds of ``keys`` (compiled for its one signature on first
+    use), None for a key set outside the family (no fast path), and ``order``: None if the kernel takes the keys'
+    arrays in the order of ``keys``, else an itemgetter putting the attitude first.  Memoized per key set."""
+    plan = _INPUT_CHECKS.get(keys)
+    if plan is not None:
+        return plan
+    rotations = tuple(k for k in keys if TRAILING_SHAPES.get(k) == (3, 3))
+    vectors = tuple(k for k in keys if TRAILING_SHAPES.get(k) == (3,))
+    entry = INPUT_CHECKS.get((bool(rotations), len(vectors)))
+    kernel = order = None
+    if (entry is not None and len(rotations) <= 1 and len(rotations) + len(vectors) == len(keys)
+            and len(set(keys)) == len(keys)):
+        kernel, signature = entry
+        if TYPED_DISPATCH and kernel not in _COMPILED:
+            compile_only(kernel, signature)
+            _COMPILED.add(kernel)
+        ordered = rotations + vectors
+        order = None if ordered == keys else itemgetter(*ordered)
+    plan = _INPUT_CHECKS[keys] = (keys, kernel, order)
+    return plan
+
+
+#: the check kernels already compiled for their one signature (:func:`~fawtgym.core.kernel_types.compile_only`)
+_COMPILED: set[Any] = set()
 
 _REGISTRY: dict[str, type[Observer]] = {}
 
