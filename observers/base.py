@@ -131,7 +131,7 @@ class Observer:
     MAX_ANGULAR_ACCELERATION: ClassVar[float] = 1e5
     #: whether :meth:`update` may take :meth:`_update_checked` (set per class by :meth:`__init_subclass__`)
     _checked_path: ClassVar[bool] = False
-    #: :func:`_input_checks` of :attr:`required_keys`: the compiled input checks of :meth:`_passed_measurement`
+    #: :func:`_input_checks` of :attr:`required_keys`: (the keys, their check kernel, the kernel's argument order)
     _input_checks: tuple[tuple[str, ...] | None, Any, Any] = (None, None, None)
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
@@ -261,8 +261,19 @@ class Observer:
                 est = self._update_checked(measurement, thrust, torque, dt, n)
                 if est is not None:  # the law's kernel checked its inputs and its estimate (one compiled call)
                     return est
-            else:
-                meas = self._passed_measurement(measurement, thrust, torque, n)
+            elif type(measurement) is dict and type(thrust) is _ND and type(torque) is _ND:
+                # the compiled input checks (Observer._input_checks): the measurement the law reads, or None
+                keys, kernel, order = self._input_checks
+                if keys is not self.required_keys:      # the first update, or an instance that changed its keys
+                    keys, kernel, order = self._input_checks = _input_checks(self.required_keys)
+                if kernel is not None:
+                    try:    # a key missing (KeyError), an array of another dtype, ndim or layout (TypeError)
+                        meas = {key: value for key in keys if type(value := measurement[key]) is _ND}
+                        if (len(meas) != len(keys) or not TYPED_DISPATCH and not _fast_types(meas, thrust, torque, n)
+                                or not kernel(n, thrust, torque, *(meas.values() if order is None else order(meas)))):
+                            meas = None
+                    except (KeyError, TypeError):
+                        meas = None
         who = self.name or type(self).__name__
         if meas is None:        # the Python checks: they convert the inputs or word the error
             if n is None:
@@ -274,40 +285,6 @@ class Observer:
         self._check_estimate(est, who)
         self._commit(state)
         return est
-
-    def _passed_measurement(self, measurement: object, thrust: object, torque: object,
-                            n: int) -> dict[str, NDArray[np.float64]] | None:
-        """:meth:`update`'s input checks in one compiled call, for inputs the Python checks would pass on as they are.
-
-        When ``measurement`` is a ``dict`` whose :attr:`required_keys` are ndarrays, ``thrust`` and ``torque`` are
-        ndarrays, and one kernel of :data:`~fawtgym.observers._checks.INPUT_CHECKS` (compiled for C-contiguous float64
-        arrays only: anything else is a TypeError at the call, :mod:`fawtgym.core.kernel_types`; :func:`fast_inputs`
-        checks the same under ``NUMBA_DISABLE_JIT=1``) finds every shape (N rows) and value as
-        :func:`check_measurement` and :func:`check_inputs` require (finite, the attitude a rotation): the measurement
-        the law reads (its required keys, the caller's arrays, as :func:`check_measurement` returns them).  None on
-        anything else (a key set outside the kernel family, e.g. ``"time"``, too): the Python checks then run."""
-        keys, kernel, order = self._input_checks
-        if keys is not self.required_keys:      # the first update, or an instance that changed its keys
-            keys, kernel, order = self._input_checks = _input_checks(self.required_keys)
-        # an ndarray subclass (np.matrix, a masked array) passes numba's dispatch: check_measurement converts it
-        if kernel is None or type(measurement) is not dict or type(thrust) is not _ND or type(torque) is not _ND:
-            return None
-        if TYPED_DISPATCH:
-            try:
-                meas = {key: value for key in keys if type(value := measurement[key]) is _ND}
-            except KeyError:
-                return None
-            if len(meas) != len(keys):
-                return None
-        else:                   # plain Python kernels (NUMBA_DISABLE_JIT=1): the same types checked here
-            if fast_inputs(measurement, input_shapes(keys, n), thrust, torque, n) is None:
-                return None
-            meas = {key: measurement[key] for key in keys}
-        try:
-            passed = kernel(n, thrust, torque, *(meas.values() if order is None else order(meas)))
-        except TypeError:       # an array of another dtype, ndim or layout (or read-only)
-            return None
-        return meas if passed else None
 
     def _update(self, meas: dict[str, NDArray[np.float64]], thrust: NDArray[np.float64],
                 torque: NDArray[np.float64], dt: float) -> tuple[ObserverEstimate, Any]:
@@ -556,7 +533,7 @@ _ND = np.ndarray
 
 
 def _input_checks(keys: tuple[str, ...]) -> tuple[tuple[str, ...], Any, Any]:
-    """(``keys``, check kernel, order) for :meth:`Observer._passed_measurement`: the kernel of
+    """(``keys``, check kernel, order) for the compiled input checks of :meth:`Observer.update`: the kernel of
     :data:`~fawtgym.observers._checks.INPUT_CHECKS` for the kinds of ``keys`` (compiled for its one signature on first
     use), None for a key set outside the family (no fast path), and ``order``: None if the kernel takes the keys'
     arrays in the order of ``keys``, else an itemgetter putting the attitude first.  Memoized per key set."""
@@ -577,6 +554,14 @@ def _input_checks(keys: tuple[str, ...]) -> tuple[tuple[str, ...], Any, Any]:
         order = None if ordered == keys else itemgetter(*ordered)
     plan = _INPUT_CHECKS[keys] = (keys, kernel, order)
     return plan
+
+
+def _fast_types(meas: dict[str, NDArray[np.float64]], thrust: NDArray[np.float64], torque: NDArray[np.float64],
+                n: int) -> bool:
+    """Under ``NUMBA_DISABLE_JIT=1`` (plain Python kernels accept anything): whether the arrays are float64 of the
+    shapes the check kernels' signatures and shape checks take (:func:`fast_inputs`), as numba's typed dispatch finds
+    when compiled."""
+    return fast_inputs(meas, input_shapes(tuple(meas), n), thrust, torque, n) is not None
 
 
 #: the check kernels already compiled for their one signature (:func:`~fawtgym.core.kernel_types.compile_only`)
