@@ -249,10 +249,18 @@ class Observer:
         or absurdly large (a force component above :attr:`MAX_FORCE_WEIGHTS` vehicle weights, a torque
         component above :attr:`MAX_ANGULAR_ACCELERATION` times the largest principal inertia) ->
         FloatingPointError naming the observer and the channel, and the state is left as it was before the
-        update (the law's new state is stored, by :meth:`_commit`, only after the estimate passed).  A law with a
-        checked kernel (:meth:`_update_checked`) does the same checks, the law and the store in one compiled call
-        when its inputs are already C-contiguous float64 arrays (else, or on any failed check, this path runs and
-        words the error); a subclass that overrides ``_update``, ``_check_estimate`` or ``_commit`` never takes it.
+        update (the law's new state is stored, by :meth:`_commit`, only after the estimate passed).
+
+        Two compiled fast paths run the same checks when the inputs are already what the Python checks pass on
+        unchanged (a ``dict`` measurement whose required keys are C-contiguous float64 ndarrays (N, *trailing),
+        thrust (N,), torque (N, 3), ``dt`` a float): a law with a checked kernel (:meth:`_update_checked`) does the
+        checks, the law and the store in one compiled call (a subclass that overrides ``_update``,
+        ``_check_estimate`` or ``_commit`` never takes it); every other observer checks the inputs' shapes and values
+        in one compiled call (:data:`~fawtgym.observers._checks.INPUT_CHECKS`, the kernel for the kinds of its keys,
+        with the same row checks), then runs :meth:`_update`, :meth:`_check_estimate` and :meth:`_commit` as here.
+        On anything else (another type, layout or shape, a key set outside the kernel family) and on any failed check
+        the Python checks run: they convert the inputs or word the error, so the error is the same either way, and
+        the law receives the same arrays (bitwise the same estimates).
         """
         n = self._n_rows
         meas = None
