@@ -131,7 +131,8 @@ class Observer:
     MAX_ANGULAR_ACCELERATION: ClassVar[float] = 1e5
     #: whether :meth:`update` may take :meth:`_update_checked` (set per class by :meth:`__init_subclass__`)
     _checked_path: ClassVar[bool] = False
-    #: :func:`_input_checks` of :attr:`required_keys`: (the keys, their check kernel, the kernel's argument order)
+    #: (:attr:`required_keys`, their check kernel, the kernel's argument order): :func:`_input_checks` of the keys,
+    #: with the instance's own keys object (``update`` compares it by identity)
     _input_checks: tuple[tuple[str, ...] | None, Any, Any] = (None, None, None)
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
@@ -273,7 +274,9 @@ class Observer:
                 # the compiled input checks (Observer._input_checks): the measurement the law reads, or None
                 keys, kernel, order = self._input_checks
                 if keys is not self.required_keys:      # the first update, or an instance that changed its keys
-                    keys, kernel, order = self._input_checks = _input_checks(self.required_keys)
+                    keys = self.required_keys
+                    kernel, order = _input_checks(keys)
+                    self._input_checks = (keys, kernel, order)
                 if kernel is not None:
                     try:    # a key missing (KeyError), an array of another dtype, ndim or layout (TypeError)
                         meas = {key: value for key in keys if type(value := measurement[key]) is _ND}
@@ -536,12 +539,12 @@ def _guess_rows(guess: ArrayLike | None, n: int, rows: NDArray[np.bool_], label:
     return g if g.ndim == 1 else g[rows]
 
 
-_INPUT_CHECKS: dict[tuple[str, ...], tuple[tuple[str, ...], Any, Any]] = {}
+_INPUT_CHECKS: dict[tuple[str, ...], tuple[Any, Any]] = {}
 _ND = np.ndarray
 
 
-def _input_checks(keys: tuple[str, ...]) -> tuple[tuple[str, ...], Any, Any]:
-    """(``keys``, check kernel, order) for the compiled input checks of :meth:`Observer.update`: the kernel of
+def _input_checks(keys: tuple[str, ...]) -> tuple[Any, Any]:
+    """(check kernel, order) for the compiled input checks of :meth:`Observer.update`: the kernel of
     :data:`~fawtgym.observers._checks.INPUT_CHECKS` for the kinds of ``keys`` (compiled for its one signature on first
     use), None for a key set outside the family (no fast path), and ``order``: None if the kernel takes the keys'
     arrays in the order of ``keys``, else an itemgetter putting the attitude first.  Memoized per key set."""
@@ -560,7 +563,7 @@ def _input_checks(keys: tuple[str, ...]) -> tuple[tuple[str, ...], Any, Any]:
             _COMPILED.add(kernel)
         ordered = rotations + vectors
         order = None if ordered == keys else itemgetter(*ordered)
-    plan = _INPUT_CHECKS[keys] = (keys, kernel, order)
+    plan = _INPUT_CHECKS[keys] = (kernel, order)
     return plan
 
 
