@@ -22,15 +22,18 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Iterator, Mapping
+from operator import itemgetter
 from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.kernel_types import TYPED_DISPATCH, compile_only
 from fawtgym.core.measurement import ATTITUDE, TRAILING_SHAPES, batch_measurement
 from fawtgym.core.rows import check_row_mask
 from fawtgym.core.so3_kernels import first_non_rotation
 from fawtgym.observers._checks import (
+    INPUT_CHECKS,
     ROTATION_TOL,
     first_bad_estimate,
     first_bad_wrench,
@@ -128,6 +131,9 @@ class Observer:
     MAX_ANGULAR_ACCELERATION: ClassVar[float] = 1e5
     #: whether :meth:`update` may take :meth:`_update_checked` (set per class by :meth:`__init_subclass__`)
     _checked_path: ClassVar[bool] = False
+    #: (:attr:`required_keys`, their check kernel, the kernel's argument order): :func:`_input_checks` of the keys,
+    #: with the instance's own keys object (``update`` compares it by identity)
+    _input_checks: tuple[tuple[str, ...] | None, Any, Any] = (None, None, None)
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         """A class's :meth:`_update_checked` (the law and the checks in one compiled call) stands for :meth:`_update`,
@@ -244,23 +250,49 @@ class Observer:
         or absurdly large (a force component above :attr:`MAX_FORCE_WEIGHTS` vehicle weights, a torque
         component above :attr:`MAX_ANGULAR_ACCELERATION` times the largest principal inertia) ->
         FloatingPointError naming the observer and the channel, and the state is left as it was before the
-        update (the law's new state is stored, by :meth:`_commit`, only after the estimate passed).  A law with a
-        checked kernel (:meth:`_update_checked`) does the same checks, the law and the store in one compiled call
-        when its inputs are already C-contiguous float64 arrays (else, or on any failed check, this path runs and
-        words the error); a subclass that overrides ``_update``, ``_check_estimate`` or ``_commit`` never takes it.
+        update (the law's new state is stored, by :meth:`_commit`, only after the estimate passed).
+
+        Two compiled fast paths run the same checks when the inputs are already what the Python checks pass on
+        unchanged (a ``dict`` measurement whose required keys are C-contiguous float64 ndarrays (N, *trailing),
+        thrust (N,), torque (N, 3), ``dt`` a float): a law with a checked kernel (:meth:`_update_checked`) does the
+        checks, the law and the store in one compiled call (a subclass that overrides ``_update``,
+        ``_check_estimate`` or ``_commit`` never takes it); every other observer checks the inputs' shapes and values
+        in one compiled call (:data:`~fawtgym.observers._checks.INPUT_CHECKS`, the kernel for the kinds of its keys,
+        with the same row checks), then runs :meth:`_update`, :meth:`_check_estimate` and :meth:`_commit` as here.
+        On anything else (another type, layout or shape, a key set outside the kernel family) and on any failed check
+        the Python checks run: they convert the inputs or word the error, so the error is the same either way, and
+        the law receives the same arrays (bitwise the same estimates).
         """
         n = self._n_rows
-        if self._checked_path and n is not None and type(dt) is float and 0.0 < dt <= self.max_dt:
-            est = self._update_checked(measurement, thrust, torque, dt, n)
-            if est is not None:  # the law's kernel checked its inputs and its estimate (one compiled call)
-                return est
+        meas = None
+        if n is not None and type(dt) is float and 0.0 < dt <= self.max_dt:
+            if self._checked_path:
+                est = self._update_checked(measurement, thrust, torque, dt, n)
+                if est is not None:  # the law's kernel checked its inputs and its estimate (one compiled call)
+                    return est
+            elif type(measurement) is dict and type(thrust) is _ND and type(torque) is _ND:
+                # the compiled input checks (Observer._input_checks): the measurement the law reads, or None
+                keys, kernel, order = self._input_checks
+                if keys is not self.required_keys:      # the first update, or an instance that changed its keys
+                    keys = self.required_keys
+                    kernel, order = _input_checks(keys)
+                    self._input_checks = (keys, kernel, order)
+                if kernel is not None:
+                    try:    # a key missing (KeyError), an array of another dtype, ndim or layout (TypeError)
+                        meas = {key: value for key in keys if type(value := measurement[key]) is _ND}
+                        if (len(meas) != len(keys) or not TYPED_DISPATCH and not _fast_types(meas, thrust, torque, n)
+                                or not kernel(n, thrust, torque, *(meas.values() if order is None else order(meas)))):
+                            meas = None
+                    except (KeyError, TypeError):
+                        meas = None
         who = self.name or type(self).__name__
-        if n is None:
-            raise RuntimeError(f"{who}: update() before reset(); call reset(measurement) first")
-        step = check_dt(dt, self.max_dt, who)
-        meas = check_measurement(measurement, self.required_keys, n, who)
-        f, tau = check_inputs(thrust, torque, n, who)
-        est, state = self._update(meas, f, tau, step)
+        if meas is None:        # the Python checks: they convert the inputs or word the error
+            if n is None:
+                raise RuntimeError(f"{who}: update() before reset(); call reset(measurement) first")
+            dt = check_dt(dt, self.max_dt, who)
+            meas = check_measurement(measurement, self.required_keys, n, who)
+            thrust, torque = check_inputs(thrust, torque, n, who)
+        est, state = self._update(meas, thrust, torque, dt)  # type: ignore[arg-type]
         self._check_estimate(est, who)
         self._commit(state)
         return est
@@ -506,6 +538,45 @@ def _guess_rows(guess: ArrayLike | None, n: int, rows: NDArray[np.bool_], label:
                          f"per row of the batch), got shape {g.shape}")
     return g if g.ndim == 1 else g[rows]
 
+
+_INPUT_CHECKS: dict[tuple[str, ...], tuple[Any, Any]] = {}
+_ND = np.ndarray
+
+
+def _input_checks(keys: tuple[str, ...]) -> tuple[Any, Any]:
+    """(check kernel, order) for the compiled input checks of :meth:`Observer.update`: the kernel of
+    :data:`~fawtgym.observers._checks.INPUT_CHECKS` for the kinds of ``keys`` (compiled for its one signature on first
+    use), None for a key set outside the family (no fast path), and ``order``: None if the kernel takes the keys'
+    arrays in the order of ``keys``, else an itemgetter putting the attitude first.  Memoized per key set."""
+    plan = _INPUT_CHECKS.get(keys)
+    if plan is not None:
+        return plan
+    rotations = tuple(k for k in keys if TRAILING_SHAPES.get(k) == (3, 3))
+    vectors = tuple(k for k in keys if TRAILING_SHAPES.get(k) == (3,))
+    entry = INPUT_CHECKS.get((bool(rotations), len(vectors)))
+    kernel = order = None
+    if (entry is not None and len(rotations) <= 1 and len(rotations) + len(vectors) == len(keys)
+            and len(set(keys)) == len(keys)):
+        kernel, signature = entry
+        if TYPED_DISPATCH and kernel not in _COMPILED:
+            compile_only(kernel, signature)
+            _COMPILED.add(kernel)
+        ordered = rotations + vectors
+        order = None if ordered == keys else itemgetter(*ordered)
+    plan = _INPUT_CHECKS[keys] = (kernel, order)
+    return plan
+
+
+def _fast_types(meas: dict[str, NDArray[np.float64]], thrust: NDArray[np.float64], torque: NDArray[np.float64],
+                n: int) -> bool:
+    """Under ``NUMBA_DISABLE_JIT=1`` (plain Python kernels accept anything): whether the arrays are float64 of the
+    shapes the check kernels' signatures and shape checks take (:func:`fast_inputs`), as numba's typed dispatch finds
+    when compiled."""
+    return fast_inputs(meas, input_shapes(tuple(meas), n), thrust, torque, n) is not None
+
+
+#: the check kernels already compiled for their one signature (:func:`~fawtgym.core.kernel_types.compile_only`)
+_COMPILED: set[Any] = set()
 
 _REGISTRY: dict[str, type[Observer]] = {}
 
