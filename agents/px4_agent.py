@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import check_flag
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED
 from fawtgym.core.rows import check_row_mask
 from fawtgym.envs.motors import allocation_matrix
@@ -341,6 +342,8 @@ class PX4ObserverAgent(PX4Agent):
 
     def __init__(self, observer: Any = "ffts_eso", force_ff: bool = True, torque_ff: bool = True,
                  observer_kwargs: Mapping[str, Any] | None = None, **kwargs: Any) -> None:
+        force_ff = check_flag(force_ff, "force_ff")
+        torque_ff = check_flag(torque_ff, "torque_ff")
         super().__init__(**kwargs)
         from fawtgym.observers.base import Observer, make_observer
 
@@ -356,8 +359,8 @@ class PX4ObserverAgent(PX4Agent):
         self.observer = observer
         #: the observer's latest (force (N, 3), torque (N, 3)) estimates, None before the first act
         self.raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
-        self.force_ff = bool(force_ff) and "force" in observer.channels
-        self.torque_ff = bool(torque_ff) and "torque" in observer.channels
+        self.force_ff = force_ff and "force" in observer.channels
+        self.torque_ff = torque_ff and "torque" in observer.channels
 
     def _reset_estimator(self, meas: dict[str, NDArray[np.float64]], seed: int | None,
                          rows: NDArray[np.bool_] | None) -> None:
