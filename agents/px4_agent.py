@@ -55,7 +55,7 @@ from fawtgym.envs.motors import allocation_matrix
 from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
 
 from . import px4_cascade as C
-from .base import Agent, applied_from_info, measurement_from_info
+from .base import Agent, applied_from_info, measurement_from_info, refuse_measurement
 from .observer_inputs import (
     OBSERVER_INPUTS,
     POSE_KEYS,
@@ -178,8 +178,9 @@ class PX4Agent(Agent):
         self.__dict__.update(state)
         self._pack_constants()
 
-    #: (the gyro key and observer the measurement keys depend on, the keys act reads): see :meth:`_measurement_keys`
-    _keys: tuple[Any, Any, tuple[str, ...] | None] = (None, None, ())
+    #: (the gyro key and observer the measurement keys depend on, the keys act reads, the keys the cascade needs
+    #: (``position`` first), the agent's name): see :meth:`_measurement_keys`
+    _keys: tuple[Any, Any, tuple[str, ...] | None, tuple[str, ...], str] = (None, None, (), (), "")
     #: the observer's latest (force (N, 3), torque (N, 3)) estimates (None: no observer, or before the first act)
     raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
 
@@ -265,20 +266,43 @@ class PX4Agent(Agent):
         """The measurement keys ``act`` reads: the cascade's (pose, gyro, accelerometer); None: every key."""
         return tuple(dict.fromkeys((*POSE_KEYS, "angular_velocity", self.gyro_key, "specific_force")))
 
+    def _cascade_keys(self, meas: Mapping[str, Any], optional: bool = False) -> tuple[str, ...]:
+        """The measurement keys the cascade needs (``position`` first): the pose and the gyro (``gyro_key``, or
+        ``angular_velocity`` when the measurement has no ``gyro_key``); with ``optional``, also the specific force
+        if present (the hover-thrust estimator's, checked when given)."""
+        gyro = self.gyro_key if self.gyro_key in meas else "angular_velocity"
+        return (*POSE_KEYS, gyro, *(("specific_force",) if optional and "specific_force" in meas else ()))
+
     def act(self, observation: Any, info: Mapping[str, Any]) -> NDArray[np.float64]:
+        """The motor commands for this step (module docstring).
+
+        A measurement the cascade cannot use -- a key missing, a non-finite position, velocity, gyro or specific
+        force, an attitude that is not a rotation -- is refused with the observers' one-line ValueError (named
+        ``PX4Agent: ...``, the same text at every N) before any state changes (the kernel's ``BAD_MEASUREMENT``).
+        """
         keys = self._keys  # only the keys read are converted (rebuilt if the gyro key or the observer changes)
         if keys[0] != self.gyro_key or keys[1] is not getattr(self, "observer", None):
-            keys = self._keys = (self.gyro_key, getattr(self, "observer", None), self._measurement_keys())
-        meas, batched = measurement_from_info(info, keys[2])
+            keys = self._keys = (self.gyro_key, getattr(self, "observer", None), self._measurement_keys(),
+                                 (*POSE_KEYS, self.gyro_key), type(self).__name__)
+        meas, batched = measurement_from_info(info, keys[2], keys[3], keys[4])
         pos = meas["position"]
         n = pos.shape[0]
         if n != self._n:
             if self._n == 0:
                 raise RuntimeError(f"{type(self).__name__}.act() before reset(): call reset(info) first")
             raise ValueError(f"act() got {n} vehicles but reset() saw {self._n}; call reset() first")
-        if self._pose_delay.steps:
+        try:
+            gyro = meas.get(self.gyro_key)
+            if gyro is None:
+                gyro = meas["angular_velocity"]
+            vel, att = meas["velocity"], meas["attitude"]
+        except KeyError:
+            refuse_measurement(meas, self._cascade_keys(meas), n, keys[4])  # names the missing keys
+            raise
+        if self._pose_delay.steps:  # the pose enters the delay line checked (the kernel sees it steps later)
+            refuse_measurement(meas, POSE_KEYS, n, keys[4])
             meas = self._pose_delay(meas)
-            pos = meas["position"]
+            pos, vel, att = meas["position"], meas["velocity"], meas["attitude"]
         if not self._setpoint_override:
             sp = info.get("setpoint")
             if sp is not None:  # one NED point (3,) for every row is passed as a (1, 3) view, not copied
@@ -289,22 +313,27 @@ class PX4Agent(Agent):
         self.last_estimate = (force_hat, torque_hat)
         raw = self.raw_estimate
         force, torque = (self._no_estimate, self._no_estimate) if raw is None else raw
-        gyro = meas.get(self.gyro_key)
         sf = meas.get("specific_force")
         _c = np.ascontiguousarray
         code, row = C.cascade_step(
-            _c(pos), _c(meas["velocity"]), _c(meas["attitude"]), _c(meas["angular_velocity"] if gyro is None else gyro),
-            self._no_estimate if sf is None else _c(sf), sf is not None, self._setpoint,
-            self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt, self._constants,
-            self._state, self.position_control.state, self.hover_thrust_estimator.state,
+            _c(pos), _c(vel), _c(att), _c(gyro), self._no_estimate if sf is None else _c(sf), sf is not None,
+            self._setpoint, self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt,
+            self._constants, self._state, self.position_control.state, self.hover_thrust_estimator.state,
             self.rate_control.state, self._att_sp, self._action)
         if code:
             self._raise_status(code, row, meas)
         return self._action.copy() if batched else self._action[0].copy()  # unbatched: N = 1 (pos was (3,))
 
     def _raise_status(self, code: int, row: int, meas: Mapping[str, NDArray[np.float64]]) -> None:
-        """The FloatingPointError of a cascade status code (:data:`~fawtgym.agents.px4_cascade.BAD_ESTIMATE`,
-        :data:`~fawtgym.agents.px4_cascade.BAD_ACTION`)."""
+        """The error of a cascade status code: :data:`~fawtgym.agents.px4_cascade.BAD_MEASUREMENT` -> the
+        observers' ValueError (:func:`~fawtgym.agents.base.refuse_measurement`),
+        :data:`~fawtgym.agents.px4_cascade.BAD_ESTIMATE`, :data:`~fawtgym.agents.px4_cascade.BAD_ACTION` ->
+        FloatingPointError."""
+        who = type(self).__name__
+        if code == C.BAD_MEASUREMENT:
+            refuse_measurement(meas, self._cascade_keys(meas, optional=True), meas["position"].shape[0], who)
+            raise ValueError(f"{who}: measurement row {row} refused by the cascade (not finite, or the attitude "
+                             "is not a rotation)")  # the check above words it; kept should the two ever disagree
         if code == C.BAD_ESTIMATE:
             raise FloatingPointError(self._bad_estimate(row))
         if code == C.BAD_ACTION:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fawtgym.agents.px4_agent import PX4ObserverAgent
+from fawtgym.agents.px4_agent import PX4Agent, PX4ObserverAgent
 from fawtgym.agents.spec import make_agent
 from fawtgym.envs.hover_batch_env import HoverBatchEnv
 
@@ -48,3 +48,115 @@ def test_agent_spec_refuses_a_string_flag(n: int, flag: str) -> None:
         make_agent(spec, env)
     assert str(exc.value) == f"agent {spec!r}: {flag} must be True or False, got 'False' (str)"
     assert getattr(make_agent(f"px4+ffts_eso({flag}=False)", env), flag) is False
+
+
+# ---- D9-agent: PX4Agent (no observer) refuses a measurement it cannot use, as the observers do -------------------
+def _agent_and_info(n: int, **kwargs: object) -> tuple[PX4Agent, dict]:
+    """A PX4Agent after one act, and the next step's info: N copies of one vehicle's (so only N differs)."""
+    env = HoverBatchEnv(1, sensors="mocap_imu")
+    infos = [env.reset(seed=0)[1], env.step(env.hover_action())[4]]
+    infos = [{part: {k: np.repeat(np.asarray(v), n, axis=0) for k, v in one[part].items()}
+              for part in ("measurement", "applied")} for one in infos]
+    agent = PX4Agent.for_env(env, **kwargs)
+    agent.reset(infos[0])
+    agent.act(None, infos[0])
+    env.close()
+    return agent, infos[1]
+
+
+def _bad(info: dict, case: str) -> dict:
+    """``info`` with row 0 of its measurement spoilt by ``case`` (a key missing, an attitude that is not a rotation,
+    a non-finite entry)."""
+    meas = dict(info["measurement"])
+    if case.startswith("no "):
+        for key in case[3:].split("+"):
+            del meas[key]
+    elif case.startswith("attitude "):
+        att = meas["attitude"].copy()
+        att[0] = {"reflection": np.diag([1.0, 1.0, -1.0]), "2I": 2 * np.eye(3), "-I": -np.eye(3),
+                  "1.001R": 1.001 * att[0], "nan": np.full((3, 3), np.nan)}[case[9:]]
+        meas["attitude"] = att
+    else:  # "nan <key>"
+        key = case[4:]
+        meas[key] = meas[key].copy()
+        meas[key][0, 1] = np.inf if key == "velocity" else np.nan
+    return {**info, "measurement": meas}
+
+
+def _observer_text(info: dict, keys: tuple[str, ...], n: int) -> str:
+    """The observers' own check on the same measurement (the text PX4Agent must give, with its name)."""
+    from fawtgym.observers.base import check_measurement
+
+    with pytest.raises(ValueError) as exc:
+        check_measurement(info["measurement"], keys, n, "PX4Agent")
+    return str(exc.value)
+
+
+CASES = {
+    "no velocity": "PX4Agent: measurement needs the keys ['position', 'velocity', 'attitude', 'angular_velocity']; "
+                   "missing ['velocity']",
+    "no position+attitude": "PX4Agent: measurement needs the keys ['position', 'velocity', 'attitude', "
+                            "'angular_velocity']; missing ['position', 'attitude']",
+    "no angular_velocity": "PX4Agent: measurement needs the keys ['position', 'velocity', 'attitude', "
+                           "'angular_velocity']; missing ['angular_velocity']",
+    "attitude reflection": "PX4Agent: measurement['attitude'] row 0 is not a rotation matrix (allowed: "
+                           "max |R^T R - I| <= 1e-06 and det R = +1; got max |R^T R - I| = 0, det R = -1)",
+    "attitude 2I": "PX4Agent: measurement['attitude'] row 0 is not a rotation matrix (allowed: max |R^T R - I| <= "
+                   "1e-06 and det R = +1; got max |R^T R - I| = 3, det R = 8)",
+    "attitude -I": "PX4Agent: measurement['attitude'] row 0 is not a rotation matrix (allowed: max |R^T R - I| <= "
+                   "1e-06 and det R = +1; got max |R^T R - I| = 0, det R = -1)",
+    "attitude 1.001R": "PX4Agent: measurement['attitude'] row 0 is not a rotation matrix (allowed: max |R^T R - I| "
+                       "<= 1e-06 and det R = +1; got max |R^T R - I| = 0.002, det R = 1.003)",
+    "attitude nan": "PX4Agent: measurement['attitude'] has a non-finite entry in row 0: "
+                    "[[nan, nan, nan], [nan, nan, nan], [nan, nan, nan]]",
+    "nan position": "PX4Agent: measurement['position'] has a non-finite entry in row 0: [",
+    "nan velocity": "PX4Agent: measurement['velocity'] has a non-finite entry in row 0: [",
+    "nan angular_velocity": "PX4Agent: measurement['angular_velocity'] has a non-finite entry in row 0: [",
+    "nan specific_force": "PX4Agent: measurement['specific_force'] has a non-finite entry in row 0: [",
+}
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_px4_agent_refuses_a_bad_measurement_as_the_observers_do(case: str) -> None:
+    """The same one-line ValueError at N = 1 and N = 3, the observers' text (their check run on the same input),
+    and the refused act changes nothing: the agent then flies bitwise as a twin that never saw it."""
+    texts = []
+    for n in (1, 3):
+        agent, info = _agent_and_info(n)
+        twin, _ = _agent_and_info(n)
+        bad = _bad(info, case)
+        with pytest.raises(ValueError) as exc:
+            agent.act(None, bad)
+        texts.append(str(exc.value))
+        assert "\n" not in texts[-1]
+        for _ in range(3):
+            np.testing.assert_array_equal(agent.act(None, info), twin.act(None, info))
+        np.testing.assert_array_equal(agent.position_control.state, twin.position_control.state)
+        np.testing.assert_array_equal(agent.rate_control.state, twin.rate_control.state)
+        np.testing.assert_array_equal(agent.hover_thrust_estimator.state, twin.hover_thrust_estimator.state)
+    assert texts[0] == texts[1]
+    assert texts[0].startswith(CASES[case]), texts[0]
+    keys = ("position", "velocity", "attitude", "angular_velocity", "specific_force")
+    assert texts[1] == _observer_text(bad, keys if not case.startswith("no ") else keys[:4], 3)
+
+
+@pytest.mark.parametrize("case", ["no velocity", "attitude reflection", "nan position"])
+def test_a_delayed_pose_is_checked_when_it_arrives(case: str) -> None:
+    """With ``pose_latency`` the cascade sees the pose steps later: it is refused at once, and the delay line is
+    left as it was (the agent flies on bitwise as its twin)."""
+    agent, info = _agent_and_info(1, pose_latency=0.02)
+    twin, _ = _agent_and_info(1, pose_latency=0.02)
+    with pytest.raises(ValueError, match=r"^PX4Agent: measurement"):
+        agent.act(None, _bad(info, case))
+    for _ in range(4):
+        np.testing.assert_array_equal(agent.act(None, info), twin.act(None, info))
+
+
+def test_a_single_env_info_is_refused_alike() -> None:
+    """Unbatched (3,) / (3, 3) measurements of the single env: the same text as the N = 1 batch."""
+    agent, info = _agent_and_info(1)
+    single = {**info, "measurement": {k: v[0] for k, v in info["measurement"].items()}}
+    bad = {**single, "measurement": {**single["measurement"], "attitude": np.diag([1.0, 1.0, -1.0])}}
+    with pytest.raises(ValueError) as exc:
+        agent.act(None, bad)
+    assert str(exc.value) == CASES["attitude reflection"]
