@@ -49,10 +49,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.checks import check_flag
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED
 from fawtgym.core.rows import check_row_mask
 from fawtgym.envs.motors import allocation_matrix
-from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
+from fawtgym.envs.vehicles import VehiclePreset, make_vehicle
 
 from . import px4_cascade as C
 from .base import Agent, applied_from_info, measurement_from_info, refuse_measurement

@@ -36,8 +36,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.so3_kernels import ROTATION_TOL, first_non_rotation
-from fawtgym.envs.vehicles import GRAVITY
 
 from .px4_allocation import allocate_row, rotor_command_row
 from .px4_attitude_control import N_PARAMS as N_ATT_PARAMS
