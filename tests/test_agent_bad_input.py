@@ -160,3 +160,12 @@ def test_a_single_env_info_is_refused_alike() -> None:
     with pytest.raises(ValueError) as exc:
         agent.act(None, bad)
     assert str(exc.value) == CASES["attitude reflection"]
+
+
+def test_the_cascade_and_the_observers_share_the_rotation_tolerance() -> None:
+    """The cascade refuses an attitude by core's ROTATION_TOL and words it with the observers' check: they must agree
+    (else the cascade's fallback text would show); observers/_checks.py should import it from core."""
+    from fawtgym.core.so3_kernels import ROTATION_TOL
+    from fawtgym.observers import _checks
+
+    assert _checks.ROTATION_TOL == ROTATION_TOL
