@@ -42,6 +42,7 @@ through its thrust model, off by the relative ``thrust_model_error``), what a re
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping
 from typing import Any
 
@@ -82,6 +83,17 @@ def _rate(name: str, value: float | None, default: float, control_rate: float) -
     return float(value)
 
 
+#: the measurement keys ``gyro_key`` may name: the estimator-grade body rate or the raw gyroscope (both (N, 3) rad/s)
+GYRO_KEYS = ("angular_velocity", "gyro")
+
+
+def _yaw(value: object) -> float:
+    """A heading setpoint [rad]: a finite real number (bool, str, complex, NaN refused with one line)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise ValueError(f"yaw_setpoint must be a finite heading [rad] (a real number), got {value!r}")
+    return float(value)
+
+
 _F64 = np.dtype(np.float64)
 
 
@@ -106,7 +118,8 @@ class PX4Agent(Agent):
         point), when present, is followed at every step unless :meth:`set_setpoint` was called.
     yaw_setpoint: heading [rad].
     hover_thrust: normalized hover thrust, or None to derive ``m g / (4 T_max)`` from the preset.
-    gyro_key: measurement key of the (bias-corrected, unfiltered) gyro fed to the filters.
+    gyro_key: measurement key of the (bias-corrected, unfiltered) gyro fed to the filters, one of
+        :data:`GYRO_KEYS` (a measurement without it: ``angular_velocity``).
     px4_version: "1.13" (the paper's) or "1.14" (position-law differences, module docstring).
     pose_latency: delay [s] of the pose the controller sees (a multiple of the control period).
     observer_inputs: "applied" (exact applied wrench) or "commanded" (commanded thrust through a thrust model).
@@ -147,7 +160,9 @@ class PX4Agent(Agent):
         self.setpoint = np.array(FAWT_HOVER_POINT_NED if setpoint is None else setpoint, dtype=float)
         if self.setpoint.shape[-1:] != (3,) or not np.all(np.isfinite(self.setpoint)):
             raise ValueError(f"setpoint must be a finite NED position (3,) or (N, 3), got {setpoint!r}")
-        self.yaw_setpoint = float(yaw_setpoint)
+        self.yaw_setpoint = _yaw(yaw_setpoint)
+        if not (isinstance(gyro_key, str) and gyro_key in GYRO_KEYS):
+            raise ValueError(f"gyro_key must be one of {list(GYRO_KEYS)}, got {gyro_key!r}")
         self.gyro_key = gyro_key
         fs = self.control_rate
         self._config = C.configuration(
@@ -258,10 +273,10 @@ class PX4Agent(Agent):
         pos = np.asarray(position, dtype=float)
         if pos.shape[-1:] != (3,) or not np.all(np.isfinite(pos)):
             raise ValueError(f"setpoint must be a finite NED position (3,) or (N, 3), got {position!r}")
+        heading = self.yaw_setpoint if yaw is None else _yaw(yaw)  # checked before anything changes
         self._setpoint = _rows3(pos, max(self._n, 1)).copy()
         self._setpoint_override = True
-        if yaw is not None:
-            self.yaw_setpoint = float(yaw)
+        self.yaw_setpoint = heading
 
     def _measurement_keys(self) -> tuple[str, ...] | None:
         """The measurement keys ``act`` reads: the cascade's (pose, gyro, accelerometer); None: every key."""

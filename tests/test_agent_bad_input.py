@@ -169,3 +169,36 @@ def test_the_cascade_and_the_observers_share_the_rotation_tolerance() -> None:
     from fawtgym.observers import _checks
 
     assert _checks.ROTATION_TOL == ROTATION_TOL
+
+
+# ---- options the cascade reads every step: refused at construction (a NaN heading made every action NaN) ----------
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), "0.5", True, np.bool_(False), 1j, None])
+def test_yaw_setpoint_is_a_finite_heading(value: object) -> None:
+    with pytest.raises(ValueError) as exc:
+        PX4Agent(yaw_setpoint=value)
+    assert str(exc.value) == f"yaw_setpoint must be a finite heading [rad] (a real number), got {value!r}"
+
+
+@pytest.mark.parametrize("value", [float("nan"), "0.5", True, 1j])
+def test_set_setpoint_refuses_a_bad_heading_and_changes_nothing(value: object) -> None:
+    agent, info = _agent_and_info(1)
+    twin, _ = _agent_and_info(1)
+    with pytest.raises(ValueError) as exc:
+        agent.set_setpoint([0.0, 0.0, -1.0], yaw=value)
+    assert str(exc.value) == f"yaw_setpoint must be a finite heading [rad] (a real number), got {value!r}"
+    assert agent.yaw_setpoint == 0.0
+    for _ in range(3):  # neither the position setpoint nor the override took effect: it flies as its twin
+        np.testing.assert_array_equal(agent.act(None, info), twin.act(None, info))
+
+
+@pytest.mark.parametrize("value", [0.5, -3, np.float32(1.0), np.int64(2)])
+def test_yaw_setpoint_takes_real_numbers(value: object) -> None:
+    assert PX4Agent(yaw_setpoint=value).yaw_setpoint == float(value)
+
+
+@pytest.mark.parametrize("value", ["gyr0", "magnetometer", "position", 3, None])
+def test_gyro_key_names_a_gyro(value: object) -> None:
+    """A misspelt key used to fall back silently to angular_velocity."""
+    with pytest.raises(ValueError) as exc:
+        PX4Agent(gyro_key=value)
+    assert str(exc.value) == f"gyro_key must be one of ['angular_velocity', 'gyro'], got {value!r}"
