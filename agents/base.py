@@ -67,12 +67,15 @@ class Agent(abc.ABC):
         return self.act(observation, info)
 
 
-def measurement_from_info(info: Mapping[str, Any],
-                          keys: tuple[str, ...] | None = None) -> tuple[dict[str, NDArray[np.float64]], bool]:
+def measurement_from_info(info: Mapping[str, Any], keys: tuple[str, ...] | None = None,
+                          required: tuple[str, ...] = (), who: str = "agent") -> tuple[dict[str, NDArray[np.float64]],
+                                                                                       bool]:
     """``(measurement with a batch axis, was_batched)`` from an env info dict (only ``keys``, if given: the keys
     an agent reads; those absent from the info are left out).
 
-    Raises ValueError if ``info`` has no ``"measurement"`` mapping.
+    Raises ValueError if ``info`` has no ``"measurement"`` mapping, or if it has no ``"position"``: with the keys
+    the agent ``who`` needs, ``required`` (``"position"`` first), the observers' message
+    (:func:`refuse_measurement`: ``"<who>: measurement needs the keys [...]; missing [...]"``).
     """
     # type(...) is dict first: the env's plain dicts skip the (slower) ABC isinstance check
     raw = info.get("measurement") if type(info) is dict or isinstance(info, Mapping) else None
@@ -81,10 +84,24 @@ def measurement_from_info(info: Mapping[str, Any],
                          f"(keys: position, velocity, attitude, angular_velocity, ...); got {type(info).__name__}"
                          + (f" with keys {sorted(info)}" if isinstance(info, Mapping) else ""))
     if "position" not in raw:
+        if required:
+            refuse_measurement(raw, required, 1, who)
         raise ValueError(f"info['measurement'] has no 'position'; keys: {sorted(raw)}")
     pos = raw["position"]
     batched = (pos.ndim if type(pos) is np.ndarray else np.ndim(pos)) == 2
     return batch_measurement(raw, keys), batched
+
+
+def refuse_measurement(measurement: Mapping[str, Any], keys: tuple[str, ...], n: int, who: str) -> None:
+    """Raise the one-line error the observers give for what is wrong with ``measurement`` (a key of ``keys``
+    missing, a wrong shape or row count, a value not real, a non-finite entry, an attitude that is not a rotation):
+    :func:`fawtgym.observers.base.check_measurement` with ``who`` (the agent's name), so the text is written once
+    and reads the same at every N.  Returns if it finds nothing wrong.  For error paths only (a Python check of
+    every key, ~1-2 us at N = 1): an agent's hot path reads a status code of its kernel and calls this to word it.
+    """
+    from fawtgym.observers.base import check_measurement  # agents -> observers; imported only when refusing
+
+    check_measurement(measurement, keys, n, who)
 
 
 _F64 = np.dtype(np.float64)

@@ -26,6 +26,7 @@ import dataclasses
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.so3 import cross, hat, log_so3, vee
 
 _E3 = np.array([0.0, 0.0, 1.0])
@@ -62,7 +63,7 @@ class LeeSE3Controller:
 
     mass: float
     inertia: NDArray[np.float64]
-    gravity: float = 9.80665
+    gravity: float = GRAVITY
     kx: float | None = None
     kv: float | None = None
     kr: float = 8.81

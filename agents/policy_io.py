@@ -20,8 +20,9 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.constants import GRAVITY
 from fawtgym.envs.motors import allocation_matrix
-from fawtgym.envs.vehicles import GRAVITY, VehiclePreset
+from fawtgym.envs.vehicles import VehiclePreset
 
 from .base import measurement_from_info, observer_step
 

@@ -42,19 +42,22 @@ through its thrust model, off by the relative ``thrust_model_error``), what a re
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import check_flag
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED
 from fawtgym.core.rows import check_row_mask
 from fawtgym.envs.motors import allocation_matrix
-from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
+from fawtgym.envs.vehicles import VehiclePreset, make_vehicle
 
 from . import px4_cascade as C
-from .base import Agent, applied_from_info, measurement_from_info
+from .base import Agent, applied_from_info, measurement_from_info, refuse_measurement
 from .observer_inputs import (
     OBSERVER_INPUTS,
     POSE_KEYS,
@@ -77,6 +80,17 @@ def _rate(name: str, value: float | None, default: float, control_rate: float) -
     value = default if value is None else value
     if not (isinstance(value, (int, float)) and math.isfinite(value) and 0 < value <= control_rate * (1 + 1e-9)):
         raise ValueError(f"{name} must be a frequency in (0, control_rate={control_rate:g}] Hz, got {value!r}")
+    return float(value)
+
+
+#: the measurement keys ``gyro_key`` may name: the estimator-grade body rate or the raw gyroscope (both (N, 3) rad/s)
+GYRO_KEYS = ("angular_velocity", "gyro")
+
+
+def _yaw(value: object) -> float:
+    """A heading setpoint [rad]: a finite real number (bool, str, complex, NaN refused with one line)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise ValueError(f"yaw_setpoint must be a finite heading [rad] (a real number), got {value!r}")
     return float(value)
 
 
@@ -104,7 +118,8 @@ class PX4Agent(Agent):
         point), when present, is followed at every step unless :meth:`set_setpoint` was called.
     yaw_setpoint: heading [rad].
     hover_thrust: normalized hover thrust, or None to derive ``m g / (4 T_max)`` from the preset.
-    gyro_key: measurement key of the (bias-corrected, unfiltered) gyro fed to the filters.
+    gyro_key: measurement key of the (bias-corrected, unfiltered) gyro fed to the filters, one of
+        :data:`GYRO_KEYS` (a measurement without it: ``angular_velocity``).
     px4_version: "1.13" (the paper's) or "1.14" (position-law differences, module docstring).
     pose_latency: delay [s] of the pose the controller sees (a multiple of the control period).
     observer_inputs: "applied" (exact applied wrench) or "commanded" (commanded thrust through a thrust model).
@@ -145,7 +160,9 @@ class PX4Agent(Agent):
         self.setpoint = np.array(FAWT_HOVER_POINT_NED if setpoint is None else setpoint, dtype=float)
         if self.setpoint.shape[-1:] != (3,) or not np.all(np.isfinite(self.setpoint)):
             raise ValueError(f"setpoint must be a finite NED position (3,) or (N, 3), got {setpoint!r}")
-        self.yaw_setpoint = float(yaw_setpoint)
+        self.yaw_setpoint = _yaw(yaw_setpoint)
+        if not (isinstance(gyro_key, str) and gyro_key in GYRO_KEYS):
+            raise ValueError(f"gyro_key must be one of {list(GYRO_KEYS)}, got {gyro_key!r}")
         self.gyro_key = gyro_key
         fs = self.control_rate
         self._config = C.configuration(
@@ -177,8 +194,9 @@ class PX4Agent(Agent):
         self.__dict__.update(state)
         self._pack_constants()
 
-    #: (the gyro key and observer the measurement keys depend on, the keys act reads): see :meth:`_measurement_keys`
-    _keys: tuple[Any, Any, tuple[str, ...] | None] = (None, None, ())
+    #: (the gyro key and observer the measurement keys depend on, the keys act reads, the keys the cascade needs
+    #: (``position`` first), the agent's name): see :meth:`_measurement_keys`
+    _keys: tuple[Any, Any, tuple[str, ...] | None, tuple[str, ...], str] = (None, None, (), (), "")
     #: the observer's latest (force (N, 3), torque (N, 3)) estimates (None: no observer, or before the first act)
     raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
 
@@ -255,29 +273,52 @@ class PX4Agent(Agent):
         pos = np.asarray(position, dtype=float)
         if pos.shape[-1:] != (3,) or not np.all(np.isfinite(pos)):
             raise ValueError(f"setpoint must be a finite NED position (3,) or (N, 3), got {position!r}")
+        heading = self.yaw_setpoint if yaw is None else _yaw(yaw)  # checked before anything changes
         self._setpoint = _rows3(pos, max(self._n, 1)).copy()
         self._setpoint_override = True
-        if yaw is not None:
-            self.yaw_setpoint = float(yaw)
+        self.yaw_setpoint = heading
 
     def _measurement_keys(self) -> tuple[str, ...] | None:
         """The measurement keys ``act`` reads: the cascade's (pose, gyro, accelerometer); None: every key."""
         return tuple(dict.fromkeys((*POSE_KEYS, "angular_velocity", self.gyro_key, "specific_force")))
 
+    def _cascade_keys(self, meas: Mapping[str, Any], optional: bool = False) -> tuple[str, ...]:
+        """The measurement keys the cascade needs (``position`` first): the pose and the gyro (``gyro_key``, or
+        ``angular_velocity`` when the measurement has no ``gyro_key``); with ``optional``, also the specific force
+        if present (the hover-thrust estimator's, checked when given)."""
+        gyro = self.gyro_key if self.gyro_key in meas else "angular_velocity"
+        return (*POSE_KEYS, gyro, *(("specific_force",) if optional and "specific_force" in meas else ()))
+
     def act(self, observation: Any, info: Mapping[str, Any]) -> NDArray[np.float64]:
+        """The motor commands for this step (module docstring).
+
+        A measurement the cascade cannot use -- a key missing, a non-finite position, velocity, gyro or specific
+        force, an attitude that is not a rotation -- is refused with the observers' one-line ValueError (named
+        ``PX4Agent: ...``, the same text at every N) before any state changes (the kernel's ``BAD_MEASUREMENT``).
+        """
         keys = self._keys  # only the keys read are converted (rebuilt if the gyro key or the observer changes)
         if keys[0] != self.gyro_key or keys[1] is not getattr(self, "observer", None):
-            keys = self._keys = (self.gyro_key, getattr(self, "observer", None), self._measurement_keys())
-        meas, batched = measurement_from_info(info, keys[2])
+            keys = self._keys = (self.gyro_key, getattr(self, "observer", None), self._measurement_keys(),
+                                 (*POSE_KEYS, self.gyro_key), type(self).__name__)
+        meas, batched = measurement_from_info(info, keys[2], keys[3], keys[4])
         pos = meas["position"]
         n = pos.shape[0]
         if n != self._n:
             if self._n == 0:
                 raise RuntimeError(f"{type(self).__name__}.act() before reset(): call reset(info) first")
             raise ValueError(f"act() got {n} vehicles but reset() saw {self._n}; call reset() first")
-        if self._pose_delay.steps:
+        try:
+            gyro = meas.get(self.gyro_key)
+            if gyro is None:
+                gyro = meas["angular_velocity"]
+            vel, att = meas["velocity"], meas["attitude"]
+        except KeyError:
+            refuse_measurement(meas, self._cascade_keys(meas), n, keys[4])  # names the missing keys
+            raise
+        if self._pose_delay.steps:  # the pose enters the delay line checked (the kernel sees it steps later)
+            refuse_measurement(meas, POSE_KEYS, n, keys[4])
             meas = self._pose_delay(meas)
-            pos = meas["position"]
+            pos, vel, att = meas["position"], meas["velocity"], meas["attitude"]
         if not self._setpoint_override:
             sp = info.get("setpoint")
             if sp is not None:  # one NED point (3,) for every row is passed as a (1, 3) view, not copied
@@ -288,22 +329,27 @@ class PX4Agent(Agent):
         self.last_estimate = (force_hat, torque_hat)
         raw = self.raw_estimate
         force, torque = (self._no_estimate, self._no_estimate) if raw is None else raw
-        gyro = meas.get(self.gyro_key)
         sf = meas.get("specific_force")
         _c = np.ascontiguousarray
         code, row = C.cascade_step(
-            _c(pos), _c(meas["velocity"]), _c(meas["attitude"]), _c(meas["angular_velocity"] if gyro is None else gyro),
-            self._no_estimate if sf is None else _c(sf), sf is not None, self._setpoint,
-            self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt, self._constants,
-            self._state, self.position_control.state, self.hover_thrust_estimator.state,
+            _c(pos), _c(vel), _c(att), _c(gyro), self._no_estimate if sf is None else _c(sf), sf is not None,
+            self._setpoint, self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt,
+            self._constants, self._state, self.position_control.state, self.hover_thrust_estimator.state,
             self.rate_control.state, self._att_sp, self._action)
         if code:
             self._raise_status(code, row, meas)
         return self._action.copy() if batched else self._action[0].copy()  # unbatched: N = 1 (pos was (3,))
 
     def _raise_status(self, code: int, row: int, meas: Mapping[str, NDArray[np.float64]]) -> None:
-        """The FloatingPointError of a cascade status code (:data:`~fawtgym.agents.px4_cascade.BAD_ESTIMATE`,
-        :data:`~fawtgym.agents.px4_cascade.BAD_ACTION`)."""
+        """The error of a cascade status code: :data:`~fawtgym.agents.px4_cascade.BAD_MEASUREMENT` -> the
+        observers' ValueError (:func:`~fawtgym.agents.base.refuse_measurement`),
+        :data:`~fawtgym.agents.px4_cascade.BAD_ESTIMATE`, :data:`~fawtgym.agents.px4_cascade.BAD_ACTION` ->
+        FloatingPointError."""
+        who = type(self).__name__
+        if code == C.BAD_MEASUREMENT:
+            refuse_measurement(meas, self._cascade_keys(meas, optional=True), meas["position"].shape[0], who)
+            raise ValueError(f"{who}: measurement row {row} refused by the cascade (not finite, or the attitude "
+                             "is not a rotation)")  # the check above words it; kept should the two ever disagree
         if code == C.BAD_ESTIMATE:
             raise FloatingPointError(self._bad_estimate(row))
         if code == C.BAD_ACTION:
@@ -341,6 +387,8 @@ class PX4ObserverAgent(PX4Agent):
 
     def __init__(self, observer: Any = "ffts_eso", force_ff: bool = True, torque_ff: bool = True,
                  observer_kwargs: Mapping[str, Any] | None = None, **kwargs: Any) -> None:
+        force_ff = check_flag(force_ff, "force_ff")
+        torque_ff = check_flag(torque_ff, "torque_ff")
         super().__init__(**kwargs)
         from fawtgym.observers.base import Observer, make_observer
 
@@ -356,8 +404,8 @@ class PX4ObserverAgent(PX4Agent):
         self.observer = observer
         #: the observer's latest (force (N, 3), torque (N, 3)) estimates, None before the first act
         self.raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
-        self.force_ff = bool(force_ff) and "force" in observer.channels
-        self.torque_ff = bool(torque_ff) and "torque" in observer.channels
+        self.force_ff = force_ff and "force" in observer.channels
+        self.torque_ff = torque_ff and "torque" in observer.channels
 
     def _reset_estimator(self, meas: dict[str, NDArray[np.float64]], seed: int | None,
                          rows: NDArray[np.bool_] | None) -> None:

@@ -21,8 +21,11 @@ State.  Everything the cascade itself keeps is one row of the agent state (layou
 state rows are those of :class:`PositionControl`, :class:`HoverThrustEstimator` and :class:`RateControl`.
 A per-row reset writes a fresh row (:func:`fresh_state`): a masked write.
 
-Status.  The kernel returns ``(code, row)``: ``OK``, ``BAD_ESTIMATE`` (a non-finite disturbance estimate,
-found before any state changes) or ``BAD_ACTION`` (a non-finite motor command); the agent raises.
+Status.  The kernel returns ``(code, row)``: ``OK``, ``BAD_MEASUREMENT`` (a non-finite position, velocity, gyro
+or specific force, or an attitude that is not a rotation: :func:`~fawtgym.core.so3_kernels.first_non_rotation`
+within :data:`~fawtgym.core.so3_kernels.ROTATION_TOL`), ``BAD_ESTIMATE`` (a non-finite disturbance estimate), both
+found before any state changes, or ``BAD_ACTION`` (a non-finite motor command); the agent raises (it words a bad
+measurement with the observers' check, :func:`fawtgym.agents.base.refuse_measurement`).
 """
 
 from __future__ import annotations
@@ -33,7 +36,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from fawtgym.envs.vehicles import GRAVITY
+from fawtgym.core.constants import GRAVITY
+from fawtgym.core.so3_kernels import ROTATION_TOL, first_non_rotation
 
 from .px4_allocation import allocate_row, rotor_command_row
 from .px4_attitude_control import N_PARAMS as N_ATT_PARAMS
@@ -59,7 +63,7 @@ from .px4_rate_control import N_STATE as N_RATE_STATE
 from .px4_rate_control import SAT_NEG, SAT_POS, rate_control_row
 
 #: kernel status codes
-OK, BAD_ESTIMATE, BAD_ACTION = 0, 1, 2
+OK, BAD_ESTIMATE, BAD_ACTION, BAD_MEASUREMENT = 0, 1, 2, 3
 #: |unallocated roll/pitch/yaw|^2 above which the allocation reports saturation to the rate loop
 SAT_EPS = 1e-6
 
@@ -172,10 +176,10 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
                  action: np.ndarray) -> tuple[int, int]:
     """One ``act`` of the cascade for every row (module docstring); writes ``action`` (N, 4) motor commands.
 
-    Inputs (N, 3) / (N, 3, 3) are the measurement (pose possibly delayed), the position setpoint ((1, 3): the
-    same for every row) and the disturbance estimates (zeros without an observer; C-contiguous or strided, e.g. the
-    columns of an observer's estimate buffer; both checked finite, fed forward if ``use_force`` / ``use_torque``);
-    the state arrays are updated in place.
+    Inputs (N, 3) / (N, 3, 3) are the measurement (pose possibly delayed; checked finite, the attitude a rotation:
+    ``BAD_MEASUREMENT``), the position setpoint ((1, 3): the same for every row) and the disturbance estimates
+    (zeros without an observer; C-contiguous or strided, e.g. the columns of an observer's estimate buffer; both
+    checked finite, fed forward if ``use_force`` / ``use_torque``); the state arrays are updated in place.
     """
     cfg = constants[K_CONFIG:K_POS]
     pos_prm = constants[K_POS:K_HTE]
@@ -194,7 +198,16 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
     alloc_scale = constants[K_ALLOC_SCALE:K_ROTOR_MAP]
     rotor_map = constants[K_ROTOR_MAP:N_CONSTANTS]
     n = pos.shape[0]
-    for i in range(n):  # a diverging observer stops the step before anything changes
+    # a bad measurement or a diverging observer stops the step before anything changes
+    for i in range(n):
+        for j in range(3):
+            if not (math.isfinite(pos[i, j]) and math.isfinite(vel[i, j]) and math.isfinite(gyro[i, j])
+                    and math.isfinite(specific_force[i, j])):
+                return BAD_MEASUREMENT, i
+    row = first_non_rotation(att, ROTATION_TOL)  # NaN entries fail it too
+    if row >= 0:
+        return BAD_MEASUREMENT, row
+    for i in range(n):
         for j in range(3):
             if not (math.isfinite(force_hat[i, j]) and math.isfinite(torque_hat[i, j])):
                 return BAD_ESTIMATE, i

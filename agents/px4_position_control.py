@@ -41,8 +41,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import check_dt
-from fawtgym.envs.vehicles import GRAVITY
 
 from .px4_params import PX4Params
 from .shared_params import InPlaceArray

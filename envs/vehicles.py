@@ -40,7 +40,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-GRAVITY = 9.80665  #: standard gravity [m/s^2] (PX4's CONSTANTS_ONE_G)
+from fawtgym.core.constants import GRAVITY  # defined in core; importable from here too (compatibility)
+
 AIR_DENSITY = 1.225  #: ISA sea-level air density [kg/m^3]
 
 #: PX4 quad X motor order: unit arm directions in body FRD and spin directions (+1 = CCW).

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from fawtgym.agents.px4_allocation import QuadXAllocation
+from fawtgym.core.constants import GRAVITY
 from fawtgym.envs.motors import command_to_thrust, hover_command
-from fawtgym.envs.vehicles import GRAVITY, make_vehicle
+from fawtgym.envs.vehicles import make_vehicle
 
 
 @pytest.fixture(scope="module")

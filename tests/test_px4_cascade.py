@@ -116,7 +116,8 @@ def test_errors_read_the_same_at_every_n(case: str) -> None:
     kind, text = _error_text(1, case)
     assert (kind, text) == _error_text(3, case)
     expected = {"estimate": (FloatingPointError, "observer 'diverging' returned a non-finite estimate (row 0)"),
-                "measurement": (FloatingPointError, "non-finite action for rows [0];"),
+                "measurement": (ValueError, "PX4Agent: measurement['angular_velocity'] has a non-finite entry in "
+                                            "row 0: [nan, nan, nan]"),
                 "before reset": (RuntimeError, "act() before reset()")}[case]
     assert kind is expected[0] and expected[1] in text, text
 

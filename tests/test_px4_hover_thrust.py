@@ -12,7 +12,7 @@ from fawtgym.agents.px4_agent import PX4Agent
 from fawtgym.agents.px4_hover_thrust import HoverThrustEstimator
 from fawtgym.agents.px4_params import PX4Params
 from fawtgym.agents.px4_position_control import PositionControl
-from fawtgym.envs.vehicles import GRAVITY
+from fawtgym.core.constants import GRAVITY
 
 DT = 0.01  # s, the position loop / local-position rate
 Z3 = np.zeros((1, 3))

@@ -20,8 +20,8 @@ from fawtgym.agents.px4_position_control import (
     thrust_to_attitude,
 )
 from fawtgym.agents.px4_rate_control import RateControl
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.frames import euler_to_rot, quat_to_rot, rot_to_quat
-from fawtgym.envs.vehicles import GRAVITY
 
 G = GRAVITY
 Z3 = np.zeros((1, 3))

@@ -27,6 +27,7 @@ import mujoco
 import numpy as np
 
 from fawtgym.cli_parser import ArgumentParser, bounded_int, positive_float, positive_int
+from fawtgym.core.constants import GRAVITY
 from fawtgym.envs.hover_env import HoverEnv
 
 
@@ -43,7 +44,7 @@ def _time_env(env: HoverEnv, steps: int) -> float:
 
 def _time_raw(env: HoverEnv, steps: int) -> float:
     m, d = env.model, env.data
-    thrust = env.preset.mass * 9.80665 / 4
+    thrust = env.preset.mass * GRAVITY / 4
     d.ctrl[:4] = thrust
     t0 = time.perf_counter()
     for _ in range(steps * env.n_substeps):

@@ -27,10 +27,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from fawtgym.cli_parser import ArgumentParser, positive_int
+from fawtgym.core.constants import GRAVITY as G
 
 MASS = 4.34
 INERTIA = np.diag([0.0820, 0.0845, 0.1377])
-G = 9.80665
 
 QUAD_XML = """
 <mujoco model="bench_quad">

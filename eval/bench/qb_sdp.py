@@ -17,12 +17,11 @@ from collections.abc import Sequence
 import numpy as np
 
 from fawtgym.cli_parser import ArgumentParser, positive_float, positive_int
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.so3 import exp_so3
 from fawtgym.observers.qb_design import lmi_residuals, solve_qb_lmi
 from fawtgym.observers.qb_observer import QBObserver
 from fawtgym.observers.qb_uav_model import HUMMINGBIRD_INERTIA, HUMMINGBIRD_MASS, uav_model
-
-GRAVITY = 9.80665
 
 
 def time_sdp(alpha: float, r: int, solver: str | None, rounds: int) -> dict[str, float]:

@@ -39,6 +39,7 @@ from scipy.linalg import sqrtm
 from scipy.optimize import minimize_scalar
 
 from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
+from fawtgym.core.constants import GRAVITY
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce.progress import Progress, add_flag, bar
 from fawtgym.observers.qb_design import (
@@ -52,7 +53,6 @@ from fawtgym.observers.qb_design import (
 from fawtgym.observers.qb_observer import QBGain, QBObserver, design_uav_gain
 from fawtgym.observers.qb_uav_model import HUMMINGBIRD_INERTIA, HUMMINGBIRD_MASS, paper_q2, uav_model
 
-GRAVITY = 9.80665
 FULL_GRID = np.concatenate([np.geomspace(0.02, 1.0, 14), np.linspace(1.5, 20.0, 20)])
 QUICK_GRID = np.array([0.05, 0.15, 0.4, 1.0, 3.0, 8.0, 20.0])
 MU_CURVES = (0.05, 0.2, 0.5, 0.8, 0.95)

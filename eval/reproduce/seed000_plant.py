@@ -18,11 +18,11 @@ import dataclasses
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.so3 import cross, exp_so3
 
 MASS = 4.34
 INERTIA = np.diag([0.0820, 0.0845, 0.1377])
-GRAVITY = 9.80665
 STEP = 1e-3
 DURATION = 30.0
 _E3 = np.array([0.0, 0.0, 1.0])

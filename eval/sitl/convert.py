@@ -38,9 +38,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.frames import quat_to_rot, rot_to_quat
 from fawtgym.envs.motors import command_to_thrust, rotor_wrench, thrust_to_command
-from fawtgym.envs.vehicles import GRAVITY, VehiclePreset
+from fawtgym.envs.vehicles import VehiclePreset
 
 EARTH_RADIUS = 6371000.0  #: [m], PX4 CONSTANTS_RADIUS_OF_EARTH
 ISA_T0 = 288.15  #: sea-level temperature [K]

@@ -20,10 +20,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED
 from fawtgym.envs.hover_env import HoverEnv
 from fawtgym.envs.mjcf import hull_points
-from fawtgym.envs.vehicles import GRAVITY, VehiclePreset, make_vehicle
+from fawtgym.envs.vehicles import VehiclePreset, make_vehicle
 
 from .airframe import iris
 from .mavio import SitlError

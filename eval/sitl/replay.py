@@ -56,6 +56,7 @@ from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED, euler_to_rot, rot_to_euler
 from fawtgym.envs.ctbr import MAX_RATES
 from fawtgym.envs.observation import hover_observation
@@ -444,7 +445,7 @@ class Replay:
         the agent's observer gets with the next :meth:`command`: those of the last command sent (the thrust
         sent, our rate loop's torque), or the hover thrust and no torque at the start of a flight."""
         if self._known is None:
-            return {"thrust": self.preset.mass * 9.80665, "torque": np.zeros(3)}
+            return {"thrust": self.preset.mass * GRAVITY, "torque": np.zeros(3)}
         return {"thrust": self._known[0], "torque": self._known[1].copy()}
 
     def command(self, measurement: Mapping[str, Any], setpoint: ArrayLike) -> SetpointCommand:

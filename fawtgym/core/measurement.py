@@ -24,6 +24,8 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
+from .constants import EARTH_FIELD_NED as _EARTH_FIELD_NED
+
 POSITION = "position"
 VELOCITY = "velocity"
 ATTITUDE = "attitude"
@@ -38,8 +40,8 @@ MEASUREMENT_KEYS = (POSITION, VELOCITY, ATTITUDE, ANGULAR_VELOCITY, SPECIFIC_FOR
 TRAILING_SHAPES = {POSITION: (3,), VELOCITY: (3,), ATTITUDE: (3, 3), ANGULAR_VELOCITY: (3,), SPECIFIC_FORCE: (3,),
                    GYRO: (3,), MAGNETOMETER: (3,), TIME: ()}
 
-#: Earth magnetic field used by the simulated magnetometer, world NED [gauss] (mid-latitude, ~60 deg dip).
-EARTH_FIELD_NED = np.array([0.22, 0.0, 0.42])
+#: Earth magnetic field used by the simulated magnetometer, world NED [gauss] (:mod:`fawtgym.core.constants`).
+EARTH_FIELD_NED = _EARTH_FIELD_NED
 
 
 _F64 = np.dtype(np.float64)

@@ -24,6 +24,11 @@ from numba import njit
 
 #: below this squared angle [rad^2] the Rodrigues coefficients use their Taylor series (as core.so3)
 SMALL_ANGLE_SQ = 1e-8
+#: a measured attitude R is a rotation if max |(R^T R - I)_jk| <= ROTATION_TOL and det R > 0 (the tolerance the
+#: callers of :func:`first_non_rotation` pass: the observers' input checks, the PX4 cascade's).  Rotations built from
+#: a unit quaternion in float64 are orthonormal to ~1e-15, from float32 entries to ~1e-7 (a flight log); a
+#: 1.001-scaled rotation is off by 2e-3, a reflection has det -1.
+ROTATION_TOL = 1e-6
 
 
 @njit(cache=True, inline="always")

@@ -46,8 +46,9 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from fawtgym.core.constants import GRAVITY
 from fawtgym.envs.motors import command_to_thrust, rotor_wrench
-from fawtgym.envs.vehicles import GRAVITY, QUAD_X_ARMS, QUAD_X_DIRECTIONS, VehiclePreset
+from fawtgym.envs.vehicles import QUAD_X_ARMS, QUAD_X_DIRECTIONS, VehiclePreset
 
 from .errors import FlightLogError
 from .logdata import FlightLog

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.frames import rot_to_quat
 
 BOOT_UNIX = 1.7e9  #: UNIX time of the simulated boot [s] (the tlog's receive stamps)
@@ -63,7 +64,7 @@ def write_test_tlog(path: str | Path, truth_csv: str | Path, *, seconds: float =
 
     rest = dict(info["measurement"])
     rest.update(velocity=np.zeros(3), angular_velocity=np.zeros(3), gyro=np.zeros(3), attitude=np.eye(3),
-                specific_force=np.array([0.0, 0.0, -9.80665]))
+                specific_force=np.array([0.0, 0.0, -GRAVITY]))
     n_ground = int(round(ground_seconds * log_rate))
     for k in range(n_ground):
         state(k / log_rate, rest, [900] * 4, False, k % int(log_rate / 2) == 0)
