@@ -133,7 +133,7 @@ from mujoco import rollout
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.arrays import as_f64
+from fawtgym.core.arrays import as_f64, read_only
 from fawtgym.core.frames import SIGN_MJ_NED, rot_ned_to_quat_mj
 from fawtgym.core.so3 import exp_so3
 
@@ -178,6 +178,10 @@ _MJ_T0 = 1.0  #: MuJoCo time at the start of every rollout (a MuJoCo reset sets 
 _STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 _CONTROL_SPEC = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED)
 _SIGN = SIGN_MJ_NED
+#: the error of assigning kernel state (the compiled kernels read and write it by index: a wrong shape corrupts memory)
+_KERNEL_STATE = "HoverBatchEnv.{} is kernel state (read-only): {}"
+_USE_RANDOMIZER = ("set {} per row with a randomizer (HoverBatchEnv(..., randomizer=...)), applied at each episode "
+                   "start")
 #: the autoreset modes of HoverBatchEnv (module docstring)
 AUTORESET_MODES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP}
 #: what a randomizer's draws may set, one value per starting row (module docstring)
@@ -301,7 +305,7 @@ class HoverBatchEnv(VectorEnv):
         self._body = self.model.body("vehicle").id
         self._nominal_mass = float(self.model.body_mass[self._body])
         self._nominal_inertia = self.model.body_inertia[self._body].copy()
-        self.mass_scale, self.inertia_scale, self.drag_scale = np.ones(n), np.ones(n), np.ones(n)
+        self._mass_scale, self._inertia_scale, self._drag_scale = np.ones(n), np.ones(n), np.ones(n)
         self._qfrc_col = self.model.nu  # qfrc_applied follows ctrl in the control vector
         self.wind = BatchWind(opts.wind, n)
         self.aero = AeroModel(opts.preset)
@@ -341,7 +345,7 @@ class HoverBatchEnv(VectorEnv):
         self._failure_code = np.zeros(n, dtype=np.int8)
         self._no_failure = np.full(n, "", dtype="<U14")
         self._t_end = _MJ_T0 + self.n_substeps * self.physics_dt  # MuJoCo time after a control step's rollout
-        self.time = np.zeros(n)
+        self._time = np.zeros(n)
         sensor, aero = self.sensor, self.aero
         self._params = step_params(  # the constants of the step kernels, one array
             t0=_MJ_T0, t_end=self._t_end if self._rate_loop is None else _MJ_T0 + self.physics_dt,  # ctbr: 1 substep
@@ -361,6 +365,54 @@ class HoverBatchEnv(VectorEnv):
         self._params[start:start + 8] = self.aero.coefficients
         self.aero.coefficients = self._params[start:start + 8]
 
+    # ---- kernel state, read-only (the compiled kernels trust these arrays' shapes: never assigned from outside) ----
+    @property
+    def rotor_speeds(self) -> NDArray[np.float64]:
+        """Rotor speeds [rad/s] at the end of the last step (N, 4): a read-only view."""
+        return read_only(self._rotor_speeds)
+
+    @rotor_speeds.setter
+    def rotor_speeds(self, value: object) -> None:
+        raise AttributeError(_KERNEL_STATE.format("rotor_speeds", "they follow the actions (step) and reset"))
+
+    @property
+    def time(self) -> NDArray[np.float64]:
+        """Episode time of each row [s] (N,): a read-only view."""
+        return read_only(self._time)
+
+    @time.setter
+    def time(self, value: object) -> None:
+        raise AttributeError(_KERNEL_STATE.format("time", "it advances with step and restarts at reset"))
+
+    @property
+    def mass_scale(self) -> NDArray[np.float64]:
+        """Each row's body mass over the nominal one (N,) (module docstring, Domain randomization): a read-only
+        view."""
+        return read_only(self._mass_scale)
+
+    @mass_scale.setter
+    def mass_scale(self, value: object) -> None:
+        raise AttributeError(_KERNEL_STATE.format("mass_scale", _USE_RANDOMIZER.format("mass_scale")))
+
+    @property
+    def inertia_scale(self) -> NDArray[np.float64]:
+        """Each row's body inertia over the nominal one (N,) (module docstring, Domain randomization): a read-only
+        view."""
+        return read_only(self._inertia_scale)
+
+    @inertia_scale.setter
+    def inertia_scale(self, value: object) -> None:
+        raise AttributeError(_KERNEL_STATE.format("inertia_scale", _USE_RANDOMIZER.format("inertia_scale")))
+
+    @property
+    def drag_scale(self) -> NDArray[np.float64]:
+        """Each row's aerodynamic wrench scale (N,) (module docstring, Domain randomization): a read-only view."""
+        return read_only(self._drag_scale)
+
+    @drag_scale.setter
+    def drag_scale(self, value: object) -> None:
+        raise AttributeError(_KERNEL_STATE.format("drag_scale", _USE_RANDOMIZER.format("drag_scale")))
+
     @property
     def _force(self) -> NDArray[np.float64]:
         """The held aero force (N, 3) world NED [N] (a view of ``_wrench``)."""
@@ -378,8 +430,9 @@ class HoverBatchEnv(VectorEnv):
 
     @property
     def external_force(self) -> NDArray[np.float64]:
-        """The constant external force (N, 3) world NED [N] (:meth:`set_external_wrench`; a view)."""
-        return self._wrench[:, 9:12]
+        """The constant external force (N, 3) world NED [N] (a read-only view; assign it or call
+        :meth:`set_external_wrench`)."""
+        return read_only(self._wrench[:, 9:12])
 
     @external_force.setter
     def external_force(self, value: ArrayLike) -> None:
@@ -387,8 +440,9 @@ class HoverBatchEnv(VectorEnv):
 
     @property
     def external_torque(self) -> NDArray[np.float64]:
-        """The constant external torque (N, 3) body FRD [N m] (:meth:`set_external_wrench`; a view)."""
-        return self._wrench[:, 12:15]
+        """The constant external torque (N, 3) body FRD [N m] (a read-only view; assign it or call
+        :meth:`set_external_wrench`)."""
+        return read_only(self._wrench[:, 12:15])
 
     @external_torque.setter
     def external_torque(self, value: ArrayLike) -> None:
@@ -493,12 +547,12 @@ class HoverBatchEnv(VectorEnv):
         b, v, r, w = np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3, 3)), np.empty((k, 3))
         states_to_ned(s, b, v, r, w)
         self._pos[rows], self._vel[rows], self._rot[rows], self._omega[rows] = b, v, r, w
-        self.rotor_speeds[rows] = self.preset.hover_omega
+        self._rotor_speeds[rows] = self.preset.hover_omega
         self._applied[rows] = self.preset.k_thrust * self.preset.hover_omega**2
         self._last_action[rows] = self._hover
         self._accel[rows] = 0.0
         self._steps[rows] = 0
-        self.time[rows] = 0.0
+        self._time[rows] = 0.0
         self._failure_code[rows] = 0
         self.sensor.reset_rows(rows, sensor_rngs)
         winds = None if self.randomizer is None else self._apply_draws(rows, self.randomizer(rows, draw_rngs))
@@ -538,9 +592,9 @@ class HoverBatchEnv(VectorEnv):
         if winds is not None and (len(winds) != k or not all(isinstance(w, WindModel) for w in winds)):
             raise ValueError(f"randomizer draw 'wind' must be a list of {k} WindModel (one per starting row)")
         if "mass_scale" in values or "inertia_scale" in values:
-            mass = values.get("mass_scale", self.mass_scale[rows])
-            inertia = values.get("inertia_scale", self.inertia_scale[rows])
-            self.mass_scale[rows], self.inertia_scale[rows] = mass, inertia
+            mass = values.get("mass_scale", self._mass_scale[rows])
+            inertia = values.get("inertia_scale", self._inertia_scale[rows])
+            self._mass_scale[rows], self._inertia_scale[rows] = mass, inertia
             for row, sm, sj in zip(rows.tolist(), mass.tolist(), inertia.tolist(), strict=True):  # reset path only
                 model = self._models[row]
                 if model is self.model:
@@ -551,11 +605,8 @@ class HoverBatchEnv(VectorEnv):
                 model.body_inertia[self._body] = self._nominal_inertia * sj
                 mujoco.mj_setConst(model, self._data)  # derived constants (subtree masses, ...) of the new body
         if "drag_scale" in values:
-            self.drag_scale[rows] = values["drag_scale"]
-        if "gyro_bias" in values:
-            self.sensor.gyro_bias[rows] = values["gyro_bias"]
-        if "accel_bias" in values:
-            self.sensor.accel_bias[rows] = values["accel_bias"]
+            self._drag_scale[rows] = values["drag_scale"]
+        self.sensor.set_bias_rows(rows, values.get("gyro_bias"), values.get("accel_bias"))
         return None if winds is None else list(winds)
 
     # ---- gym API -------------------------------------------------------------------------
@@ -585,7 +636,7 @@ class HoverBatchEnv(VectorEnv):
             self.init_noise = noise
         self._pos, self._vel = np.zeros((n, 3)), np.zeros((n, 3))
         self._rot, self._omega = np.zeros((n, 3, 3)), np.zeros((n, 3))
-        self.rotor_speeds, self._applied = np.zeros((n, 4)), np.zeros((n, 4))
+        self._rotor_speeds, self._applied = np.zeros((n, 4)), np.zeros((n, 4))
         self._last_action, self._accel = np.zeros((n, 4)), np.zeros((n, 3))
         self._steps = np.zeros(n, dtype=np.int64)
         self._wrench[:, :9] = 0.0  # the held aero wrench and wind (the external wrench is kept)
@@ -647,7 +698,7 @@ class HoverBatchEnv(VectorEnv):
         stepping = ~resetting if any_reset else self._all_rows
         clipped, action_clipped = np.empty((n, 4)), np.empty(n, dtype=bool)
         motors = self._rate_loop is None
-        bad = act_rows(a, self._params, stepping, motors, self._decay_up, self._decay_down, self.rotor_speeds,
+        bad = act_rows(a, self._params, stepping, motors, self._decay_up, self._decay_down, self._rotor_speeds,
                        self._wrench, clipped, action_clipped, self._ctrl, self._applied)
         if bad >= 0:
             row, entry = divmod(bad, 4)
@@ -664,11 +715,11 @@ class HoverBatchEnv(VectorEnv):
         obs, reward = np.empty((n, OBS_SIZE), dtype=np.float32), np.empty(n)
         prev = self._last_action
         s = self.sensor
-        z = s.noise() if not any_reset else s.no_noise  # drawn after the restarts below if any row restarts
+        z = s.noise() if not any_reset else s._no_noise  # drawn after the restarts below if any row restarts
         n_ended, status = step_rows(self._params, states, stepping, diverged, self._mj_state, self._pos, self._vel,
                                     self._rot, self._omega, self._accel, self._setpoint, self._failure_code,
-                                    self.time, self._steps, flags, points, not any_reset, z, s.count, s.state,
-                                    clipped, prev, self._applied, self.rotor_speeds, buf, obs, reward)
+                                    self._time, self._steps, flags, points, not any_reset, z, s._count, s._state,
+                                    clipped, prev, self._applied, self._rotor_speeds, buf, obs, reward)
         codes = self._failure_code
         self._last_action = clipped
         if any_reset:
@@ -736,12 +787,12 @@ class HoverBatchEnv(VectorEnv):
         s = self.sensor
         if not s.noisy:
             return True, s.noise()
-        state = (self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
+        state = (self._time, self._pos, self._vel, self._rot, self._omega, self._accel)
         fresh = s.measure_rows(rows, rngs, *(x[rows] for x in state))
         for key, view in info_views(buf, self.num_envs, False)["measurement"].items():
             view[...] = measurement[key]
             view[rows] = fresh[key]
-        return False, s.no_noise
+        return False, s._no_noise
 
     def _rollout_rows(self, state: NDArray[np.float64], ctrl: NDArray[np.float64], out: NDArray[np.float64]
                       ) -> NDArray[np.float64]:
@@ -770,7 +821,7 @@ class HoverBatchEnv(VectorEnv):
         gains = (loop.kp, loop.ki, loop.kd, loop.j, loop.b_inv, loop.t_min, loop.t_max, loop.i_lim, loop.dt)
         for k in range(self.n_substeps):  # substeps (the rate loop closes the loop at the physics rate)
             ctbr_substep(collective, rate_sp, state, final, k == 0, t_end, self.physics_dt, gains,
-                         (loop.integral, loop.prev_rate, loop.has_prev), self.rotor_speeds, self._k_thrust,
+                         (loop.integral, loop.prev_rate, loop.has_prev), self._rotor_speeds, self._k_thrust,
                          self._sub_decay_up, self._sub_decay_down, force, torque, self._ctrl1, self._applied, total,
                          diverged)
             state[:, 0] = _MJ_T0  # ctbr_substep carried the last substep's final state (and its time) over
@@ -788,9 +839,9 @@ class HoverBatchEnv(VectorEnv):
         """The aero wrench of every row in ``wind`` (N, 5, 3) held for the next step by the rows of ``keep``, and the
         truth's wind, force and torque into ``buf`` (:func:`disturbance_rows`)."""
         wind = as_f64(wind, "wind")
-        if disturbance_rows(self._params, self._rot, self._vel, self._omega, self.rotor_speeds, wind, self.drag_scale,
+        if disturbance_rows(self._params, self._rot, self._vel, self._omega, self._rotor_speeds, wind, self._drag_scale,
                             keep, self._wrench, buf) >= 0:
-            self.aero.wrench(self._rot, self._vel, self._omega, self.rotor_speeds, wind)  # raises, naming the inputs
+            self.aero.wrench(self._rot, self._vel, self._omega, self._rotor_speeds, wind)  # raises, naming the inputs
 
     def _update_disturbance(self, rows: NDArray[np.bool_], buf: NDArray[np.float64],
                             points: NDArray[np.float64] | None = None) -> None:
@@ -799,7 +850,7 @@ class HoverBatchEnv(VectorEnv):
         acts from the next step on."""
         if points is None:
             points = self._wind_points()
-        self._disturbance(self.wind.step(self.time, self.dt, points, self._vel), rows, buf)
+        self._disturbance(self.wind.step(self._time, self.dt, points, self._vel), rows, buf)
 
     def _observe(self, buf: NDArray[np.float64], z: NDArray[np.float64], measure: bool, action: NDArray[np.float64],
                  prev_action: NDArray[np.float64]) -> tuple[NDArray[np.float32], NDArray[np.float64]]:
@@ -809,8 +860,8 @@ class HoverBatchEnv(VectorEnv):
         s = self.sensor
         obs, reward = np.empty((n, OBS_SIZE), dtype=np.float32), np.empty(n)
         status = observe_rows(self._params, z, measure, self._pos, self._vel, self._rot, self._omega, self._accel,
-                              self.time, self._setpoint, self._failure_code, s.count, s.state, action, prev_action,
-                              self._applied, self.rotor_speeds, buf, obs, reward)
+                              self._time, self._setpoint, self._failure_code, s._count, s._state, action, prev_action,
+                              self._applied, self._rotor_speeds, buf, obs, reward)
         if status >= 0:
             self._raise_observe(status, buf, action)
         return obs, reward

@@ -182,7 +182,7 @@ class SensorModel:
 
     @gyro_bias.setter
     def gyro_bias(self, value: Any) -> None:
-        self._batch.gyro_bias[0] = _bias("gyro_bias", value)
+        self._batch.gyro_bias = _bias("gyro_bias", value)
 
     @property
     def accel_bias(self) -> NDArray[np.float64]:
@@ -191,7 +191,7 @@ class SensorModel:
 
     @accel_bias.setter
     def accel_bias(self, value: Any) -> None:
-        self._batch.accel_bias[0] = _bias("accel_bias", value)
+        self._batch.accel_bias = _bias("accel_bias", value)
 
     def measure(self, t: float, position: NDArray[np.float64], velocity: NDArray[np.float64],
                 rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],

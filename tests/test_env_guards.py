@@ -1,0 +1,114 @@
+"""Issue 14 audit (D10, D1, D3, D2, D8, D7, D9): the env's state and settings cannot be changed past their checks.
+
+Kernel state is handed out as read-only views (assigning raises one line naming what to use instead), settings are
+validated properties, a failed reset changes nothing, and every refusal has the same text at N = 1 and N = 3 (and for
+HoverEnv where it has the attribute); a refused call leaves the trajectory bitwise as if it had never been made.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import pytest
+
+from fawtgym.envs.hover_batch_env import HoverBatchEnv
+from fawtgym.envs.hover_env import HoverEnv
+
+
+def _error(kind: type[Exception], call: Callable[[], Any]) -> str:
+    """The one-line text of the ``kind`` error ``call`` raises."""
+    with pytest.raises(kind) as err:
+        call()
+    text = str(err.value)
+    assert "\n" not in text, text
+    assert type(err.value) is kind, type(err.value)
+    return text
+
+
+def _rollout(env: HoverBatchEnv, steps: int = 15) -> list[np.ndarray]:
+    """``steps`` hover steps: observations, rewards and the truth's force, as bytes-comparable arrays."""
+    out = []
+    for _ in range(steps):
+        obs, reward, _, _, info = env.step(env.hover_action())
+        out += [obs.copy(), reward.copy(), info["truth"]["force"].copy(), info["time"].copy()]
+    return out
+
+
+def _same(a: list[np.ndarray], b: list[np.ndarray]) -> None:
+    assert len(a) == len(b)
+    for x, y in zip(a, b, strict=True):
+        assert x.tobytes() == y.tobytes()
+
+
+def _fresh(n: int, **kwargs: Any) -> HoverBatchEnv:
+    env = HoverBatchEnv(n, wind="fawt-50", sensors="mocap_imu", **kwargs)
+    env.reset(seed=0)
+    return env
+
+
+# ---- D10: kernel state is read-only ---------------------------------------------------------------------------------
+KERNEL_STATE = {
+    "rotor_speeds": (lambda e: e, r"HoverBatchEnv\.rotor_speeds is kernel state \(read-only\): they follow the "),
+    "time": (lambda e: e, r"HoverBatchEnv\.time is kernel state \(read-only\): it advances with step"),
+    "mass_scale": (lambda e: e, r"HoverBatchEnv\.mass_scale is kernel state \(read-only\): set mass_scale per row "
+                                r"with a randomizer"),
+    "inertia_scale": (lambda e: e, r"HoverBatchEnv\.inertia_scale is kernel state \(read-only\): set inertia_scale"),
+    "drag_scale": (lambda e: e, r"HoverBatchEnv\.drag_scale is kernel state \(read-only\): set drag_scale per row "
+                                r"with a randomizer"),
+    "state": (lambda e: e.sensor, r"BatchSensorModel\.state is the sensor kernel's state \(read-only\): set the "
+                                  r"turn-on biases through gyro_bias / accel_bias"),
+    "count": (lambda e: e.sensor, r"BatchSensorModel\.count is the sensor kernel's state \(read-only\)"),
+    "no_noise": (lambda e: e.sensor, r"BatchSensorModel\.no_noise is the sensor kernel's state \(read-only\)"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(KERNEL_STATE))
+def test_kernel_state_cannot_be_assigned_or_written(name):
+    owner_of, pattern = KERNEL_STATE[name]
+    texts = set()
+    for n in (1, 3):
+        env, ref = _fresh(n), _fresh(n)
+        owner = owner_of(env)
+        before = np.array(getattr(owner, name))
+        # the audit's reproducers: a wrong shape (heap corruption on main), a wrong type, NaN
+        for value in (np.ones((2, 4)), np.zeros(1), "x", np.full(before.shape, np.nan)):
+            texts.add(_error(AttributeError, lambda v=value, o=owner: setattr(o, name, v)))
+        view = getattr(owner, name)
+        with pytest.raises(ValueError, match="read-only"):
+            view[...] = 5
+        assert not view.flags.writeable
+        np.testing.assert_array_equal(getattr(owner, name), before)
+        _same(_rollout(env), _rollout(ref))  # the refused writes changed nothing
+    assert len(texts) == 1, texts
+    assert re.search(pattern, texts.pop())
+
+
+@pytest.mark.parametrize("name", ["pose_pos", "pose_vel", "pose_att", "gyro_bias", "accel_bias"])
+def test_sensor_views_are_read_only(name):
+    env = _fresh(3)
+    with pytest.raises(ValueError, match="read-only"):
+        getattr(env.sensor, name)[0] = np.nan
+
+
+def test_external_wrench_views_are_read_only_and_the_setter_still_works():
+    env, ref = _fresh(3), _fresh(3)
+    for name in ("external_force", "external_torque"):
+        with pytest.raises(ValueError, match="read-only"):
+            getattr(env, name)[0, 0] = np.nan
+    _same(_rollout(env), _rollout(ref))
+    env.external_force = [0.1, 0.0, 0.0]
+    ref.set_external_wrench([0.1, 0.0, 0.0])
+    _same(_rollout(env), _rollout(ref))
+
+
+def test_single_env_state_is_a_copy_or_read_only():
+    env = HoverEnv()
+    env.reset(seed=0)
+    speeds = env.rotor_speeds
+    speeds[0] = 0.0  # a copy: the env's state is untouched
+    assert env.rotor_speeds[0] != 0.0
+    with pytest.raises(ValueError, match="read-only"):
+        env.sensor.gyro_bias[0] = 1.0
