@@ -145,6 +145,7 @@ from .observation import OBS_SIZE, hover_observation, observation_bounds
 from .options import (
     INIT_SPREAD,
     check_actions,
+    check_init_noise,
     check_reset_options,
     check_setpoint,
     hover_action,
@@ -280,7 +281,7 @@ class HoverBatchEnv(VectorEnv):
         self.action_type = opts.action_type
         self.n_substeps, self.physics_dt, self.dt = opts.n_substeps, opts.physics_dt, opts.dt
         self.episode_seconds = opts.episode_seconds
-        self.init_noise = opts.init_noise
+        self._init_noise = opts.init_noise
         self.reward_weights = dict(opts.reward_weights)
         w = self.reward_weights
         self._reward_w = np.array([w[key] for key in REWARD_TERMS])
@@ -460,6 +461,16 @@ class HoverBatchEnv(VectorEnv):
                 or value > 2**52:
             raise ValueError(f"max_steps must be an int >= 1, got {value!r}")
         self._params[STEP_PARAM_START["max_steps"]] = int(value)
+
+    @property
+    def init_noise(self) -> float:
+        """Scale of the random initial perturbation (:data:`INIT_SPREAD` at 1; 0: start exactly hovering at the set
+        point); assign a finite number >= 0 (checked; from the next reset on)."""
+        return self._init_noise
+
+    @init_noise.setter
+    def init_noise(self, value: Any) -> None:
+        self._init_noise = check_init_noise(value)
 
     @property
     def max_position_error(self) -> float:

@@ -264,11 +264,12 @@ class HoverEnv(gym.Env):
 
     @property
     def init_noise(self) -> float:
+        """Scale of the random initial perturbation (the batch's :attr:`HoverBatchEnv.init_noise`, checked there)."""
         return self._batch.init_noise
 
     @init_noise.setter
     def init_noise(self, value: Any) -> None:
-        self._batch.init_noise = check_init_noise(value)
+        self._batch.init_noise = value
 
     @property
     def max_steps(self) -> int:

@@ -112,3 +112,25 @@ def test_single_env_state_is_a_copy_or_read_only():
     assert env.rotor_speeds[0] != 0.0
     with pytest.raises(ValueError, match="read-only"):
         env.sensor.gyro_bias[0] = 1.0
+
+
+# ---- D1: HoverBatchEnv.init_noise is checked like HoverEnv's ---------------------------------------------------------
+@pytest.mark.parametrize("value", [-1.0, float("nan"), float("inf"), "a", True, np.True_, None, 1j, [1.0]])
+def test_init_noise_checked_at_assignment_same_text_everywhere(value):
+    texts = set()
+    for make in (HoverEnv, lambda: HoverBatchEnv(1), lambda: HoverBatchEnv(3)):
+        env = make()
+        texts.add(_error(ValueError, lambda e=env: setattr(e, "init_noise", value)))
+        assert env.init_noise == 1.0  # unchanged
+    assert texts == {f"init_noise must be a finite number >= 0, got {value!r}"}, texts
+
+
+def test_refused_init_noise_changes_no_trajectory():
+    env, ref = _fresh(3), _fresh(3)
+    with pytest.raises(ValueError):
+        env.init_noise = float("nan")
+    env.reset(seed=4)
+    ref.reset(seed=4)
+    _same(_rollout(env), _rollout(ref))
+    env.init_noise = np.float32(0.5)  # numpy reals accepted, stored as float
+    assert type(env.init_noise) is float and env.init_noise == 0.5
