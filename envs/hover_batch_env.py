@@ -489,13 +489,13 @@ class HoverBatchEnv(VectorEnv):
 
     @property
     def setpoint(self) -> NDArray[np.float64]:
-        """Hover set points, world NED [m] (N, 3); assign (3,) or (N, 3) any time (validated, from the next step)."""
-        return self._setpoint
+        """Hover set points, world NED [m] (N, 3), a read-only view; assign (3,) or (N, 3) any time (validated, from
+        the next step)."""
+        return read_only(self._setpoint)
 
     @setpoint.setter
     def setpoint(self, value: ArrayLike) -> None:
-        sp = check_setpoint(value, self.num_envs)
-        self._setpoint = np.broadcast_to(sp, (self.num_envs, 3)).copy()
+        self._setpoint[...] = check_setpoint(value, self.num_envs)  # broadcast (3,) to every row
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickle/deepcopy: MuJoCo's model and data are copied; the rollout (threads, not picklable) is rebuilt."""

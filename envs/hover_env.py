@@ -293,7 +293,7 @@ class HoverEnv(gym.Env):
 
     @property
     def setpoint(self) -> NDArray[np.float64]:
-        """Hover set point, world NED [m] (3,); assign a new one any time (validated)."""
+        """Hover set point, world NED [m] (3,), a read-only view; assign a new one any time (validated)."""
         return self._batch.setpoint[0]
 
     @setpoint.setter

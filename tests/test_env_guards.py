@@ -134,3 +134,30 @@ def test_refused_init_noise_changes_no_trajectory():
     _same(_rollout(env), _rollout(ref))
     env.init_noise = np.float32(0.5)  # numpy reals accepted, stored as float
     assert type(env.init_noise) is float and env.init_noise == 0.5
+
+
+# ---- D3: the setpoint getters hand out read-only views ---------------------------------------------------------------
+@pytest.mark.parametrize("make", [lambda: _fresh(1), lambda: _fresh(3)], ids=["N1", "N3"])
+def test_batch_setpoint_getter_is_read_only(make):
+    env, ref = make(), make()
+    with pytest.raises(ValueError, match="read-only"):
+        env.setpoint[0, 2] = 5.0  # below the floor: the setter would refuse it
+    with pytest.raises(ValueError, match="read-only"):
+        env.setpoint[:, 1] = np.nan
+    _same(_rollout(env), _rollout(ref))
+    held = env.setpoint
+    env.setpoint = [0.0, 0.0, -2.0]  # the setter copies in place: a view taken before follows it
+    ref.setpoint = [0.0, 0.0, -2.0]
+    np.testing.assert_array_equal(held, np.tile([0.0, 0.0, -2.0], (env.num_envs, 1)))
+    _same(_rollout(env), _rollout(ref))
+
+
+def test_single_setpoint_getter_is_read_only():
+    env = HoverEnv()
+    env.reset(seed=0)
+    before = env.setpoint.copy()
+    with pytest.raises(ValueError, match="read-only"):
+        env.setpoint[2] = 5.0
+    np.testing.assert_array_equal(env.setpoint, before)
+    obs, reward, terminated, _, info = env.step(env.hover_action())
+    assert not terminated and info["failure"] == ""
