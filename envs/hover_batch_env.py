@@ -527,19 +527,25 @@ class HoverBatchEnv(VectorEnv):
     def _reset_rows(self, rows: NDArray[np.intp]) -> list[np.random.Generator]:
         """HoverEnv.reset for ``rows`` (each row draws from its own generator, in HoverEnv's order), then the
         randomizer's draws; returns the rows' sensor generators."""
+        assert self._row_rngs is not None  # reset() made them
+        return self._start_rows(rows, self._draw_rows(rows, self._row_rngs, self.init_noise))
+
+    def _draw_rows(self, rows: NDArray[np.intp], row_rngs: list[np.random.Generator], init_noise: float
+                   ) -> tuple[Any, ...]:
+        """Everything a reset of ``rows`` draws, checked, with nothing of the env written (only the rows' generators
+        ``row_rngs[row]`` advance): the initial perturbations, the wind and sensor seeds and the randomizer's
+        checked draws (:meth:`_check_draws`); :meth:`_start_rows` applies them."""
         k = rows.size
         du = np.empty((k, 4, 3))
         ints: list[int] = []
         wind_seeds: list[np.random.SeedSequence] = []
         sensor_rngs: list[np.random.Generator] = []
         draw_rngs: list[np.random.Generator] = []
-        row_rngs = self._row_rngs
-        assert row_rngs is not None  # reset() made them
         spread = np.array([INIT_SPREAD[key] for key in ("position", "velocity", "attitude", "angular_velocity")])
         for j, row in enumerate(rows.tolist()):  # reset path only: per-row generators
             rng = row_rngs[row]
             for i in range(4):
-                du[j, i] = rng.uniform(-1.0, 1.0, 3) * spread[i] * self.init_noise
+                du[j, i] = rng.uniform(-1.0, 1.0, 3) * spread[i] * init_noise
             seed_int = int(rng.integers(2**63))
             # children 0, 1 as HoverEnv's spawn(2); child 2 (randomizer only) leaves them unchanged
             wind_seed, sensor_seed, *draw_seed = np.random.SeedSequence(seed_int).spawn(
@@ -548,9 +554,17 @@ class HoverBatchEnv(VectorEnv):
             wind_seeds.append(wind_seed)
             sensor_rngs.append(np.random.default_rng(sensor_seed))
             draw_rngs.extend(np.random.default_rng(d) for d in draw_seed)
+        draws = None if self.randomizer is None else self._check_draws(rows, self.randomizer(rows, draw_rngs))
+        return du, ints, wind_seeds, sensor_rngs, draws
+
+    def _start_rows(self, rows: NDArray[np.intp], drawn: tuple[Any, ...]) -> list[np.random.Generator]:
+        """Write the new episodes of ``rows`` from :meth:`_draw_rows`' ``drawn``; returns the rows' sensor
+        generators."""
+        du, ints, wind_seeds, sensor_rngs, draws = drawn
+        k = rows.size
         s = np.zeros((k, self._mj_state.shape[1]))
         s[:, 0] = _MJ_T0  # MuJoCo time at the start of every rollout (module docstring: divergence test)
-        s[:, 1:4] = (self.setpoint[rows] + du[:, 0]) * _SIGN
+        s[:, 1:4] = (self._setpoint[rows] + du[:, 0]) * _SIGN
         s[:, 4:8] = rot_ned_to_quat_mj(exp_so3(du[:, 2]))
         s[:, 8:11] = du[:, 1] * _SIGN
         s[:, 11:14] = du[:, 3] * _SIGN
@@ -566,7 +580,10 @@ class HoverBatchEnv(VectorEnv):
         self._time[rows] = 0.0
         self._failure_code[rows] = 0
         self.sensor.reset_rows(rows, sensor_rngs)
-        winds = None if self.randomizer is None else self._apply_draws(rows, self.randomizer(rows, draw_rngs))
+        winds = None
+        if draws is not None:
+            values, winds = draws
+            self._apply_draws(rows, values)
         self.wind.reset_rows(rows, ints, wind_seeds, winds)
         if self._rate_loop is not None:
             self._rate_loop.reset(rows)
@@ -574,15 +591,14 @@ class HoverBatchEnv(VectorEnv):
             self.sensor.set_noise_rng(sensor_rngs[0])
         return sensor_rngs
 
-    def _apply_draws(self, rows: NDArray[np.intp], draws: Mapping[str, Any]) -> list[WindModel] | None:
-        """Apply a randomizer's draws to ``rows`` (module docstring); returns the rows' wind models (or None).
-
-        The whole draw is checked before anything is applied (ValueError naming the key and what is allowed).
-        """
+    def _check_draws(self, rows: NDArray[np.intp], draws: Any
+                     ) -> tuple[dict[str, NDArray[np.float64]], list[WindModel] | None]:
+        """A randomizer's ``draws`` for ``rows`` checked (ValueError naming the key and what is allowed), nothing
+        applied: the numeric draws as float64 arrays, and the rows' wind models (or None)."""
         k = rows.size
         if not isinstance(draws, Mapping):
             raise ValueError(f"randomizer must return a mapping of {list(RANDOMIZER_KEYS)}, got {type(draws).__name__}")
-        unknown = sorted(set(draws) - set(RANDOMIZER_KEYS))
+        unknown = sorted(set(draws) - set(RANDOMIZER_KEYS), key=str)
         if unknown:
             raise ValueError(f"randomizer draws {unknown} are unknown; valid: {list(RANDOMIZER_KEYS)}")
         values = {}
@@ -602,6 +618,10 @@ class HoverBatchEnv(VectorEnv):
         winds = draws.get("wind")
         if winds is not None and (len(winds) != k or not all(isinstance(w, WindModel) for w in winds)):
             raise ValueError(f"randomizer draw 'wind' must be a list of {k} WindModel (one per starting row)")
+        return values, None if winds is None else list(winds)
+
+    def _apply_draws(self, rows: NDArray[np.intp], values: Mapping[str, NDArray[np.float64]]) -> None:
+        """Apply a randomizer's checked numeric draws (:meth:`_check_draws`) to ``rows`` (module docstring)."""
         if "mass_scale" in values or "inertia_scale" in values:
             mass = values.get("mass_scale", self._mass_scale[rows])
             inertia = values.get("inertia_scale", self._inertia_scale[rows])
@@ -618,7 +638,6 @@ class HoverBatchEnv(VectorEnv):
         if "drag_scale" in values:
             self._drag_scale[rows] = values["drag_scale"]
         self.sensor.set_bias_rows(rows, values.get("gyro_bias"), values.get("accel_bias"))
-        return None if winds is None else list(winds)
 
     # ---- gym API -------------------------------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None,
@@ -632,10 +651,23 @@ class HoverBatchEnv(VectorEnv):
         n = self.num_envs
         seeds = _check_seeds(seed, n)
         sp, noise = check_reset_options(options, n)  # checked before anything changes
-        if self._row_rngs is None or seed is not None:
-            old = self._row_rngs
-            self._row_rngs = [seeding.np_random(s)[0] if (s is not None or old is None) else old[i]
-                              for i, s in enumerate(seeds)]
+        # a failed reset changes nothing: everything is drawn and checked (the randomizer's draws included) before
+        # the env is written; the only thing drawing advances, the kept row generators, is restored on failure
+        old = self._row_rngs
+        if old is None or seed is not None:
+            row_rngs = [seeding.np_random(s)[0] if (s is not None or old is None) else old[i]
+                        for i, s in enumerate(seeds)]
+        else:
+            row_rngs = old
+        old_ids = {id(g) for g in old or []}
+        kept = [(g, g.bit_generator.state) for g in row_rngs if id(g) in old_ids]  # generators this reset keeps
+        try:
+            drawn = self._draw_rows(np.arange(n), row_rngs, self._init_noise if noise is None else noise)
+        except BaseException:
+            for g, state in kept:
+                g.bit_generator.state = state
+            raise
+        self._row_rngs = row_rngs
         if seed is not None or not hasattr(self, "_noise_seeded"):
             ints = [int(x) for x in seeds if isinstance(x, (int, np.integer)) and not isinstance(x, bool)]
             entropy = None if len(ints) < n else [*ints, n, 0x5E45]  # reproducible iff every row has a seed
@@ -644,7 +676,7 @@ class HoverBatchEnv(VectorEnv):
         if sp is not None:
             self.setpoint = sp
         if noise is not None:
-            self.init_noise = noise
+            self._init_noise = noise
         self._pos, self._vel = np.zeros((n, 3)), np.zeros((n, 3))
         self._rot, self._omega = np.zeros((n, 3, 3)), np.zeros((n, 3))
         self._rotor_speeds, self._applied = np.zeros((n, 4)), np.zeros((n, 4))
@@ -653,7 +685,7 @@ class HoverBatchEnv(VectorEnv):
         self._wrench[:, :9] = 0.0  # the held aero wrench and wind (the external wrench is kept)
         self._autoreset = np.zeros(n, dtype=bool)
         self._n_autoreset = 0  # rows of _autoreset set
-        self._reset_rows(np.arange(n))
+        self._start_rows(np.arange(n), drawn)
         buf = np.empty(n * INFO_WIDTH)
         self._update_disturbance(self._all_rows, buf)
         obs, _ = self._observe(buf, self.sensor.noise(), True, self._last_action, self._last_action)

@@ -161,3 +161,43 @@ def test_single_setpoint_getter_is_read_only():
     np.testing.assert_array_equal(env.setpoint, before)
     obs, reward, terminated, _, info = env.step(env.hover_action())
     assert not terminated and info["failure"] == ""
+
+
+# ---- D2: a reset whose randomizer fails (or whose draws are refused) changes nothing ---------------------------------
+class _FailOnce:
+    """A randomizer that draws nothing, except at call ``bad`` where it returns ``draw`` (refused) or raises."""
+
+    def __init__(self, bad: int, draw: Any = None) -> None:
+        self.calls, self.bad, self.draw = 0, bad, draw
+
+    def __call__(self, rows: np.ndarray, rngs: list[np.random.Generator]) -> dict[str, Any]:
+        self.calls += 1
+        if self.calls != self.bad:
+            return {}
+        if self.draw is None:
+            raise RuntimeError("randomizer failed")
+        return self.draw(rows.size)
+
+
+@pytest.mark.parametrize("n", [1, 3])
+@pytest.mark.parametrize("seed", [9, None], ids=["seeded", "unseeded"])
+@pytest.mark.parametrize(("draw", "kind", "pattern"), [
+    (lambda k: {"mass_scale": -np.ones(k)}, ValueError, r"randomizer draw 'mass_scale' must be > 0 with shape"),
+    (None, RuntimeError, r"randomizer failed"),
+], ids=["refused", "raises"])
+def test_failed_reset_changes_nothing(n, seed, draw, kind, pattern):
+    env = HoverBatchEnv(n, wind="dryden-light", sensors="mocap_imu", randomizer=_FailOnce(2, draw))
+    ref = HoverBatchEnv(n, wind="dryden-light", sensors="mocap_imu", randomizer=_FailOnce(0))
+    env.reset(seed=3)
+    ref.reset(seed=3)
+    _same(_rollout(env, 5), _rollout(ref, 5))
+    setpoint, noise, time = env.setpoint.copy(), env.init_noise, env.time.copy()
+    text = _error(kind, lambda: env.reset(seed=seed, options={"setpoint": [0, 0, -3.0], "init_noise": 0.5}))
+    assert re.fullmatch(pattern + ".*", text), text
+    np.testing.assert_array_equal(env.setpoint, setpoint)  # the audit's reproducer: the set point was applied
+    assert env.init_noise == noise
+    np.testing.assert_array_equal(env.time, time)
+    _same(_rollout(env, 10), _rollout(ref, 10))  # continues bitwise as if the failed reset never happened
+    env.reset()  # the row generators are where they were (not advanced by the failed reset's draws)
+    ref.reset()
+    _same(_rollout(env, 10), _rollout(ref, 10))
