@@ -146,12 +146,12 @@ from .options import (
     INIT_SPREAD,
     check_actions,
     check_init_noise,
+    check_max_position_error,
     check_reset_options,
     check_setpoint,
     hover_action,
     hover_action_space,
     hover_options,
-    positive_number,
     raise_action_not_finite,
 )
 from .sensors_batch import SENSOR_NOT_FINITE, BatchSensorModel
@@ -474,13 +474,13 @@ class HoverBatchEnv(VectorEnv):
 
     @property
     def max_position_error(self) -> float:
-        """Half-size of the termination box [m]; assign a finite positive number (the box from the next step on; the
-        observation bounds stay those of construction)."""
+        """Half-size of the termination box [m]; assign a finite positive number up to 1e9 (the box from the next
+        step on; the observation bounds stay those of construction)."""
         return float(self._params[STEP_PARAM_START["max_position_error"]])
 
     @max_position_error.setter
     def max_position_error(self, value: Any) -> None:
-        self._params[STEP_PARAM_START["max_position_error"]] = positive_number(value, "max_position_error")
+        self._params[STEP_PARAM_START["max_position_error"]] = check_max_position_error(value)
 
     # ---- public helpers -------------------------------------------------------------------
     def hover_action(self) -> NDArray[np.float32]:

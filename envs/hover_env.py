@@ -192,10 +192,12 @@ class HoverEnv(gym.Env):
         sensors: ``"none"``, ``"seed000"``, ``"mocap_imu"``, a SensorSpec or a mapping.
         control_rate, physics_rate: Hz; ``physics_rate / control_rate`` must be an integer.
         episode_seconds: truncation time.
-        setpoint: hover set point, world NED (default: the FAWT hover point of Wang et al. 2024, Sec. 7.3).
-        init_noise: scale of the random initial perturbation (0: start exactly hovering at the set point).
+        setpoint: hover set point, world NED (default: the FAWT hover point of Wang et al. 2024, Sec. 7.3); above the
+            floor (z < 0), every coordinate at most 1e4 m in magnitude.
+        init_noise: scale of the random initial perturbation in [0, 10] (0: start exactly hovering at the set point;
+            10: up to 1 m, 1 m/s, 30 deg, 1 rad/s off hover).
         reward_weights: overrides of :data:`DEFAULT_REWARD_WEIGHTS`.
-        max_position_error: half-size of the termination box [m].
+        max_position_error: half-size of the termination box [m], in (0, 1e9] (1e9: the SITL plant's "no box").
         integrator: MuJoCo integrator name.
         render_mode: ``None`` or ``"rgb_array"`` (headless via MUJOCO_GL=egl, set by default).
     """

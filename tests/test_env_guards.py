@@ -201,3 +201,45 @@ def test_failed_reset_changes_nothing(n, seed, draw, kind, pattern):
     env.reset()  # the row generators are where they were (not advanced by the failed reset's draws)
     ref.reset()
     _same(_rollout(env, 10), _rollout(ref, 10))
+
+
+# ---- D8: upper bounds for init_noise, the set point and max_position_error ------------------------------------------
+BOUNDS = [
+    ("init_noise", 1e300, r"init_noise must be at most 10 \(a start up to 1 m, 1 m/s, 30 deg, 1 rad/s off hover\), "
+                          r"got 1e\+300"),
+    ("init_noise", 1e6, r"init_noise must be at most 10 .*, got 1000000.0"),
+    ("init_noise", np.nextafter(10.0, 11.0), r"init_noise must be at most 10 "),
+    ("setpoint", [1e12, 0.0, -1.0], r"setpoint coordinates must be at most 10000 m in magnitude \(10 km from the "
+                                    r"origin\), got \[1000000000000.0, 0.0, -1.0\]"),
+    ("setpoint", [0.0, 0.0, -1e5], r"setpoint coordinates must be at most 10000 m in magnitude"),
+    ("max_position_error", 1e300, r"max_position_error must be at most 1e\+09 m \(the SITL plant's 'no box'\), "
+                                  r"got 1e\+300"),
+]
+
+
+@pytest.mark.parametrize(("name", "value", "pattern"), BOUNDS, ids=[f"{n}={v!r}"[:40] for n, v, _ in BOUNDS])
+def test_upper_bounds_one_line_same_text_everywhere(name, value, pattern):
+    texts = set()
+    for make in (HoverEnv, lambda **kw: HoverBatchEnv(1, **kw), lambda **kw: HoverBatchEnv(3, **kw)):
+        with np.errstate(all="raise"):  # no overflow warning on the way to the error
+            texts.add(_error(ValueError, lambda m=make: m(**{name: value})))
+        env, ref = make(), make()
+        env.reset(seed=0)
+        ref.reset(seed=0)
+        texts.add(_error(ValueError, lambda e=env: setattr(e, name, value)))  # the setters: same check
+        if name != "max_position_error":
+            texts.add(_error(ValueError, lambda e=env: e.reset(seed=1, options={name: value})))
+        ref.reset(seed=1)
+        env.reset(seed=1)
+        obs, ref_obs = env.step(env.hover_action())[0], ref.step(ref.hover_action())[0]
+        assert obs.tobytes() == ref_obs.tobytes()
+    assert len(texts) == 1, texts
+    assert re.fullmatch(pattern + ".*", texts.pop())
+
+
+def test_upper_bounds_themselves_are_usable():
+    env = HoverBatchEnv(3, init_noise=10.0, max_position_error=1e9, setpoint=[1e4, -1e4, -1e4])
+    obs, _ = env.reset(seed=0)
+    assert np.all(np.isfinite(obs)) and np.all(np.isfinite(env.single_observation_space.high))
+    _, reward, _, _, info = env.step(env.hover_action())
+    assert np.all(np.isfinite(reward)) and not np.any(info["failure"] == "diverged")
