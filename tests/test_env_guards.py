@@ -243,3 +243,31 @@ def test_upper_bounds_themselves_are_usable():
     assert np.all(np.isfinite(obs)) and np.all(np.isfinite(env.single_observation_space.high))
     _, reward, _, _, info = env.step(env.hover_action())
     assert np.all(np.isfinite(reward)) and not np.any(info["failure"] == "diverged")
+
+
+# ---- D7: vehicle vector fields refuse bool / complex / str, naming the field -----------------------------------------
+VECTOR_FIELDS = [
+    ("inertia", (True, True, True)), ("body_drag", (True, False, True)), ("inertia", ("a", "b", "c")),
+    ("cop_offset", "abc"), ("inertia", (0.03 + 1j, 0.03, 0.06)), ("cop_offset", np.array([1j, 0, 0])),
+    ("body_drag", None), ("inertia", [[0.03, 0.0], [0.03]]), ("cop_offset", np.array([True, False, True])),
+]
+
+
+@pytest.mark.parametrize(("field", "value"), VECTOR_FIELDS, ids=[f"{f}={v!r}"[:40] for f, v in VECTOR_FIELDS])
+def test_vehicle_vector_fields_refuse_non_real_entries(field, value):
+    import gymnasium as gym
+
+    import fawtgym  # noqa: F401  (registers the env ids)
+
+    vehicle = {"base": "s500", field: value}
+    texts = {_error(ValueError, lambda: gym.make("fawtgym/Hover-v0", vehicle=vehicle)),
+             _error(ValueError, lambda: HoverEnv(vehicle=vehicle)),
+             _error(ValueError, lambda: HoverBatchEnv(1, vehicle=vehicle)),
+             _error(ValueError, lambda: HoverBatchEnv(3, vehicle=vehicle))}
+    assert texts == {f"vehicle field {field!r} must be real numbers (not bool, complex or str), got {value!r}"}, texts
+
+
+def test_vehicle_vector_fields_accept_numpy_reals():
+    env = HoverBatchEnv(1, vehicle={"base": "s500", "inertia": np.array([0.03, 0.03, 0.05], dtype=np.float32),
+                                    "body_drag": np.array([1, 1, 2], dtype=np.int64), "cop_offset": [0, 0, -0.02]})
+    assert env.preset.body_drag == (1.0, 1.0, 2.0) and type(env.preset.inertia[0]) is float
