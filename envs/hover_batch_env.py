@@ -121,6 +121,7 @@ import copy
 import os
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
+from types import MappingProxyType
 from typing import Any
 
 import mujoco
@@ -145,12 +146,14 @@ from .observation import OBS_SIZE, hover_observation, observation_bounds
 from .options import (
     INIT_SPREAD,
     check_actions,
+    check_external_wrench,
     check_init_noise,
     check_max_position_error,
     check_reset_options,
     check_setpoint,
     hover_action,
     hover_action_space,
+    hover_mass_scales,
     hover_options,
     raise_action_not_finite,
 )
@@ -282,8 +285,8 @@ class HoverBatchEnv(VectorEnv):
         self.n_substeps, self.physics_dt, self.dt = opts.n_substeps, opts.physics_dt, opts.dt
         self.episode_seconds = opts.episode_seconds
         self._init_noise = opts.init_noise
-        self.reward_weights = dict(opts.reward_weights)
-        w = self.reward_weights
+        self._reward_weights = dict(opts.reward_weights)
+        w = self._reward_weights
         self._reward_w = np.array([w[key] for key in REWARD_TERMS])
         self.single_action_space = hover_action_space(opts.action_type)
         low, high = observation_bounds(opts.max_position_error, self.single_action_space.low,
@@ -457,10 +460,22 @@ class HoverBatchEnv(VectorEnv):
 
     @max_steps.setter
     def max_steps(self, value: Any) -> None:
+        self._check_idle("setting max_steps")
         if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1 \
                 or value > 2**52:
             raise ValueError(f"max_steps must be an int >= 1, got {value!r}")
         self._params[STEP_PARAM_START["max_steps"]] = int(value)
+
+    @property
+    def reward_weights(self) -> Mapping[str, float]:
+        """The reward's weights (a read-only mapping, fixed at construction: the step kernels hold a copy; pass
+        ``reward_weights=`` to the constructor to change them)."""
+        return MappingProxyType(self._reward_weights)
+
+    @reward_weights.setter
+    def reward_weights(self, value: object) -> None:
+        raise AttributeError("reward_weights is fixed at construction (the step kernels hold a copy): pass "
+                             "reward_weights={...} to the constructor instead")
 
     @property
     def init_noise(self) -> float:
@@ -470,6 +485,7 @@ class HoverBatchEnv(VectorEnv):
 
     @init_noise.setter
     def init_noise(self, value: Any) -> None:
+        self._check_idle("setting init_noise")
         self._init_noise = check_init_noise(value)
 
     @property
@@ -480,6 +496,7 @@ class HoverBatchEnv(VectorEnv):
 
     @max_position_error.setter
     def max_position_error(self, value: Any) -> None:
+        self._check_idle("setting max_position_error")
         self._params[STEP_PARAM_START["max_position_error"]] = check_max_position_error(value)
 
     # ---- public helpers -------------------------------------------------------------------
@@ -495,6 +512,7 @@ class HoverBatchEnv(VectorEnv):
 
     @setpoint.setter
     def setpoint(self, value: ArrayLike) -> None:
+        self._check_idle("setting setpoint")
         self._setpoint[...] = check_setpoint(value, self.num_envs)  # broadcast (3,) to every row
 
     def __getstate__(self) -> dict[str, Any]:
@@ -511,16 +529,10 @@ class HoverBatchEnv(VectorEnv):
 
     def set_external_wrench(self, force_ned: ArrayLike = (0.0, 0.0, 0.0),
                             torque_frd: ArrayLike = (0.0, 0.0, 0.0)) -> None:
-        """Constant extra disturbance per row: force NED (3,) or (N, 3) [N], torque FRD (3,) or (N, 3) [N m]."""
-        n = self.num_envs
-        try:
-            f = np.broadcast_to(np.asarray(force_ned, dtype=float), (n, 3)).copy()
-            t = np.broadcast_to(np.asarray(torque_frd, dtype=float), (n, 3)).copy()
-        except ValueError as exc:
-            raise ValueError(f"external wrench must be (3,) or ({n}, 3) arrays, got shapes "
-                             f"{np.shape(force_ned)}, {np.shape(torque_frd)}") from exc
-        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(t))):
-            raise ValueError(f"external wrench must be finite, got {force_ned!r}, {torque_frd!r}")
+        """Constant extra disturbance per row: force NED (3,) or (N, 3) [N], torque FRD (3,) or (N, 3) [N m] (finite
+        real numbers, checked), from the next step on."""
+        self._check_idle("set_external_wrench() called")
+        f, t = check_external_wrench(force_ned, torque_frd, self.num_envs)
         self._wrench[:, 9:12], self._wrench[:, 12:15] = f, t
 
     # ---- state ------------------------------------------------------------------------------
@@ -607,17 +619,34 @@ class HoverBatchEnv(VectorEnv):
                                      ("drag_scale", (k,), ">= 0", np.greater_equal),
                                      ("gyro_bias", (k, 3), "finite", None), ("accel_bias", (k, 3), "finite", None)):
             if key in draws:
-                v = np.asarray(draws[key], dtype=float)
+                raw = draws[key]
+                try:
+                    v = np.asarray(raw)
+                except ValueError:  # ragged nested sequences
+                    v = np.asarray(None)
+                if v.dtype.kind not in "iuf":  # bool, complex, str, objects: no silent conversion
+                    raise ValueError(f"randomizer draw {key!r} must be {need} with shape {shape} (one per starting "
+                                     f"row) of real numbers, got {raw!r:.80} ({type(raw).__name__}, dtype {v.dtype})")
+                v = v.astype(np.float64)
                 if v.shape != shape or not np.all(np.isfinite(v)) or (ok is not None and not np.all(ok(v, 0.0))):
                     raise ValueError(f"randomizer draw {key!r} must be {need} with shape {shape} (one per starting "
                                      f"row), got shape {v.shape}: {v.ravel()[:6].tolist()}")
                 values[key] = v
+        if "mass_scale" in values:  # the row must still hover: weight between the rotors' idle and maximum thrust
+            lo, hi = hover_mass_scales(self.preset)
+            bad = np.flatnonzero(~((values["mass_scale"] > lo) & (values["mass_scale"] < hi)))
+            if bad.size:
+                raise ValueError(f"randomizer draw 'mass_scale' must be in ({lo:.4g}, {hi:.4g}) for vehicle "
+                                 f"{self.preset.name!r} to hover (weight between the rotors' idle and maximum "
+                                 f"thrust), got {values['mass_scale'][bad[0]]!r} for starting row {int(bad[0])}")
         if ("gyro_bias" in values or "accel_bias" in values) and not self.sensor.noisy:
             raise ValueError("randomizer draws IMU biases but the sensors are exact (sensors='none' has no biases); "
                              "use a noisy preset such as 'mocap_imu'")
         winds = draws.get("wind")
-        if winds is not None and (len(winds) != k or not all(isinstance(w, WindModel) for w in winds)):
-            raise ValueError(f"randomizer draw 'wind' must be a list of {k} WindModel (one per starting row)")
+        if winds is not None and (not isinstance(winds, Sequence) or isinstance(winds, str) or len(winds) != k
+                                  or not all(isinstance(w, WindModel) for w in winds)):
+            raise ValueError(f"randomizer draw 'wind' must be a list of {k} WindModel (one per starting row), got "
+                             f"{winds!r:.80} ({type(winds).__name__})")
         return values, None if winds is None else list(winds)
 
     def _apply_draws(self, rows: NDArray[np.intp], values: Mapping[str, NDArray[np.float64]]) -> None:

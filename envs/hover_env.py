@@ -167,6 +167,7 @@ from .options import (
     INIT_SPREAD,
     RENDER_MODES,
     check_actions,
+    check_external_wrench,
     check_init_noise,
     check_reset_options,
     check_setpoint,
@@ -237,7 +238,6 @@ class HoverEnv(gym.Env):
         self.action_type = b.action_type
         self.n_substeps, self.physics_dt, self.dt = b.n_substeps, b.physics_dt, b.dt
         self.episode_seconds = b.episode_seconds
-        self.reward_weights = b.reward_weights
         self.action_space = b.single_action_space
         self.observation_space = b.single_observation_space
         self._act_low, self._act_high = b._act_low, b._act_high
@@ -263,6 +263,15 @@ class HoverEnv(gym.Env):
     def sensor(self) -> BatchSensorModel:
         """The sensor model (a batch of one: ``gyro_bias`` and ``accel_bias`` are (1, 3))."""
         return self._batch.sensor
+
+    @property
+    def reward_weights(self) -> Mapping[str, float]:
+        """The reward's weights (read-only, fixed at construction: :attr:`HoverBatchEnv.reward_weights`)."""
+        return self._batch.reward_weights
+
+    @reward_weights.setter
+    def reward_weights(self, value: object) -> None:
+        self._batch.reward_weights = value  # raises (fixed at construction)
 
     @property
     def init_noise(self) -> float:
@@ -316,9 +325,7 @@ class HoverEnv(gym.Env):
                             torque_frd: ArrayLike = (0.0, 0.0, 0.0)) -> None:
         """A constant extra disturbance (force world NED [N], torque body FRD [N m]) added to the aero wrench from the
         next step on (and reported in ``info["truth"]``)."""
-        if np.shape(force_ned) != (3,) or np.shape(torque_frd) != (3,):
-            raise ValueError(f"external wrench must be two finite 3-vectors, got {force_ned!r}, {torque_frd!r}")
-        self._batch.set_external_wrench(force_ned, torque_frd)
+        self._batch.set_external_wrench(*check_external_wrench(force_ned, torque_frd))
 
     def hover_action(self) -> NDArray[np.float32]:
         """The action that holds the weight at rest (equal rotors / level, zero rates)."""

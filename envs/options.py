@@ -138,6 +138,31 @@ def check_setpoint(value: Any, n: int | None = None) -> NDArray[np.float64]:
     return sp
 
 
+def _one_line(value: Any) -> str:
+    """``repr(value)`` on one line (a numpy array's repr wraps), at most 200 characters."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 200 else text[:197] + "..."
+
+
+def check_external_wrench(force: Any, torque: Any, n: int | None = None
+                          ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """An external wrench: force NED [N] and torque FRD [N m], each 3 finite real numbers ((3,), or (n, 3) one per
+    row if ``n`` is given); returns them broadcast to (n, 3) (or (3,))."""
+    shapes = "(3,)" if n is None else f"(3,) or ({n}, 3)"
+    what = f"two {shapes} arrays of finite real numbers (force NED [N], torque FRD [N m])"
+    error = f"external wrench must be {what}, got {_one_line(force)}, {_one_line(torque)}"
+    out = []
+    for value in (force, torque):
+        try:
+            a = _real_array(value, "external wrench", what)
+        except ValueError:
+            raise ValueError(error) from None
+        if (a.shape != (3,) and (n is None or a.shape != (n, 3))) or not np.all(np.isfinite(a)):
+            raise ValueError(error)
+        out.append(a if n is None else np.broadcast_to(a, (n, 3)))
+    return out[0], out[1]
+
+
 def check_reward_weights(value: Any) -> dict[str, float]:
     """``reward_weights``: None or a mapping of some of :data:`DEFAULT_REWARD_WEIGHTS` to finite numbers >= 0."""
     weights = dict(DEFAULT_REWARD_WEIGHTS)
@@ -184,6 +209,13 @@ def _render_size(value: Any, name: str) -> int:
 def hover_thrust_ratio(preset: VehiclePreset) -> float:
     """Weight over the four rotors' maximum thrust, m g / (4 k_T omega_max^2): the hover throttle."""
     return preset.mass * GRAVITY / (4.0 * preset.max_thrust_per_rotor)
+
+
+def hover_mass_scales(preset: VehiclePreset) -> tuple[float, float]:
+    """The open interval of mass scales s at which ``preset`` can hover: s m g between the four rotors' idle thrust
+    4 k_T omega_min^2 and their maximum thrust 4 k_T omega_max^2 (:func:`check_can_hover` at s = 1)."""
+    weight = preset.mass * GRAVITY
+    return 4.0 * preset.k_thrust * preset.omega_min**2 / weight, 4.0 * preset.max_thrust_per_rotor / weight
 
 
 def check_can_hover(preset: VehiclePreset) -> None:

@@ -271,3 +271,121 @@ def test_vehicle_vector_fields_accept_numpy_reals():
     env = HoverBatchEnv(1, vehicle={"base": "s500", "inertia": np.array([0.03, 0.03, 0.05], dtype=np.float32),
                                     "body_drag": np.array([1, 1, 2], dtype=np.int64), "cop_offset": [0, 0, -0.02]})
     assert env.preset.body_drag == (1.0, 1.0, 2.0) and type(env.preset.inertia[0]) is float
+
+
+# ---- D9: reward_weights read-only, documented ValueErrors, draws named, step_async guards ---------------------------
+def test_reward_weights_are_read_only_everywhere():
+    import gymnasium as gym
+
+    import fawtgym  # noqa: F401  (registers the env ids)
+
+    texts = set()
+    for env in (gym.make("fawtgym/Hover-v0").unwrapped, HoverEnv(), HoverBatchEnv(1), HoverBatchEnv(3)):
+        with pytest.raises(TypeError):
+            env.reward_weights["pos"] = 1e6  # was silently ignored (the kernel reads a copy)
+        texts.add(_error(AttributeError, lambda e=env: setattr(e, "reward_weights", "x")))
+        assert dict(env.reward_weights)["pos"] == 2.0
+    assert texts == {"reward_weights is fixed at construction (the step kernels hold a copy): pass "
+                     "reward_weights={...} to the constructor instead"}
+
+
+@pytest.mark.parametrize(("kwargs", "text"), [
+    ({"vehicle": 5}, "vehicle must be a preset name, a VehiclePreset, a mapping or a .yaml/.json path, got 5 (int)"),
+    ({"vehicle": 1j}, "vehicle must be a preset name, a VehiclePreset, a mapping or a .yaml/.json path, got 1j "
+                      "(complex)"),
+    ({"wind": 5}, "wind must be a name, a WindModel or a mapping, got 5 (int)"),
+    ({"wind": 2.5 + 0j}, "wind must be a name, a WindModel or a mapping, got (2.5+0j) (complex)"),
+])
+def test_bad_vehicle_or_wind_type_is_the_documented_value_error(kwargs, text):
+    import gymnasium as gym
+
+    import fawtgym  # noqa: F401  (registers the env ids)
+
+    texts = {_error(ValueError, lambda: gym.make("fawtgym/Hover-v0", **kwargs)),
+             _error(ValueError, lambda: HoverBatchEnv(1, **kwargs)),
+             _error(ValueError, lambda: HoverBatchEnv(3, **kwargs))}
+    assert texts == {text}
+
+
+def test_mean_wind_accepts_numpy_bools():
+    a = HoverBatchEnv(2, wind={"name": "dryden-light", "mean_wind": np.True_})
+    b = HoverBatchEnv(2, wind={"name": "dryden-light", "mean_wind": True})
+    a.reset(seed=0)
+    b.reset(seed=0)
+    _same(_rollout(a, 5), _rollout(b, 5))
+    HoverBatchEnv(1, wind={"name": "dryden-light", "mean_wind": np.False_})
+
+
+@pytest.mark.parametrize(("force", "torque"), [
+    ((True, False, True), (0.0, 0.0, 0.0)), ((1j, 0, 0), (0.0, 0.0, 0.0)), ((0.0, 0.0, 0.0), ("a", 0, 0)),
+    ((0.0, np.nan, 0.0), (0.0, 0.0, 0.0)), ((0.0, 0.0), (0.0, 0.0, 0.0)), ([[0.0], [0.0, 1.0]], (0.0, 0.0, 0.0)),
+])
+def test_external_wrench_refuses_non_real_entries(force, torque):
+    texts = set()
+    for make in (HoverEnv, lambda: HoverBatchEnv(1), lambda: HoverBatchEnv(3)):
+        env, ref = make(), make()
+        env.reset(seed=0)
+        ref.reset(seed=0)
+        text = _error(ValueError, lambda e=env: e.set_external_wrench(force, torque))
+        texts.add(re.sub(r"\(3,\)( or \(\d, 3\))?", "(3,)", text))
+        obs, ref_obs = env.step(env.hover_action())[0], ref.step(ref.hover_action())[0]
+        assert obs.tobytes() == ref_obs.tobytes()  # the refused wrench changed nothing
+    assert texts == {f"external wrench must be two (3,) arrays of finite real numbers (force NED [N], torque FRD "
+                     f"[N m]), got {force!r}, {torque!r}"}, texts
+
+
+DRAWS = [
+    ({"mass_scale": "a"}, r"randomizer draw 'mass_scale' must be > 0 with shape \((\d),\) \(one per starting row\) of "
+                          r"real numbers, got 'a' \(str, dtype <U1\)"),
+    ({"mass_scale": [True] * 9}, r"randomizer draw 'mass_scale' must be > 0 .* of real numbers, got \[True"),
+    ({"drag_scale": np.ones(9, dtype=complex)}, r"randomizer draw 'drag_scale' must be >= 0 .* of real numbers"),
+    ({"wind": 5}, r"randomizer draw 'wind' must be a list of (\d) WindModel \(one per starting row\), got 5 \(int\)"),
+    ({"wind": "fawt-50"}, r"randomizer draw 'wind' must be a list of (\d) WindModel"),
+    # s500: idle / max thrust of 4 rotors k_T omega^2 (omega 88, 880 rad/s, k_T 1.15e-5) over the weight 1 kg * g
+    ({"mass_scale": np.full(9, 5.0)}, rf"randomizer draw 'mass_scale' must be in "
+                                      rf"\({4 * 1.15e-5 * 88**2 / 9.80665:.4g}, {4 * 1.15e-5 * 880**2 / 9.80665:.4g}\) "
+                                      r"for vehicle 's500' "
+                                      r"to hover \(weight between the rotors' idle and maximum thrust\), got "
+                                      r"np.float64\(5.0\) for starting row 0"),
+]
+
+
+@pytest.mark.parametrize(("draw", "pattern"), DRAWS, ids=[repr(d)[:40] for d, _ in DRAWS])
+def test_bad_randomizer_draws_name_the_key(draw, pattern):
+    texts = set()
+    for n in (1, 3):
+        def randomizer(rows, rngs, n=n):
+            return {k: (v[:n] if isinstance(v, (list, np.ndarray)) else v) for k, v in draw.items()}
+
+        env = HoverBatchEnv(n, randomizer=randomizer)
+        text = _error(ValueError, lambda e=env: e.reset(seed=0))
+        assert re.fullmatch(pattern + ".*", text), text
+        texts.add(text.split(", got ")[0].replace(f"({n},)", "(N,)").replace(f"list of {n} ", "list of N "))
+    assert len(texts) == 1, texts  # the same text at N = 1 and N = 3 but for N and the value drawn
+
+
+@pytest.mark.parametrize(("name", "call"), [
+    ("setpoint", lambda e: setattr(e, "setpoint", [0.0, 0.0, -2.0])),
+    ("set_external_wrench() called", lambda e: e.set_external_wrench((0.1, 0, 0))),
+    ("set_external_wrench() called", lambda e: setattr(e, "external_force", (0.1, 0, 0))),
+    ("init_noise", lambda e: setattr(e, "init_noise", 0.5)),
+    ("max_steps", lambda e: setattr(e, "max_steps", 5)),
+    ("max_position_error", lambda e: setattr(e, "max_position_error", 1.0)),
+])
+def test_setters_refuse_while_a_step_async_step_runs(name, call):
+    env, ref = _fresh(3), _fresh(3)
+    env.step_async(env.hover_action())
+    text = _error(RuntimeError, lambda: call(env))
+    prefix = name if name.endswith("called") else f"setting {name}"
+    assert text == f"HoverBatchEnv: {prefix} while a step_async() step is running: call step_wait() first"
+    got, want = env.step_wait(), ref.step(ref.hover_action())
+    assert got[0].tobytes() == want[0].tobytes()
+    _same(_rollout(env), _rollout(ref))  # nothing was applied
+    call(env)  # allowed again after step_wait
+
+
+def test_external_wrench_error_is_one_line_for_arrays():
+    env = HoverBatchEnv(2)
+    text = _error(ValueError, lambda: env.set_external_wrench(np.full((2, 3), np.nan), np.zeros((2, 3))))
+    assert text.startswith("external wrench must be two (3,) or (2, 3) arrays of finite real numbers (force NED [N], "
+                           "torque FRD [N m]), got array([[nan, nan, nan], [nan, nan, nan]]), array([[0., 0., 0.],")
