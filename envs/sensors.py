@@ -207,9 +207,10 @@ class SensorModel:
 
 def _bias(name: str, value: Any) -> NDArray[np.float64]:
     try:
-        b = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        b = np.array([np.nan])
+        raw = np.asarray(value)
+    except ValueError:  # ragged nested sequences
+        raw = np.asarray(None)
+    b = raw.astype(np.float64) if raw.dtype.kind in "iuf" else np.full(1, np.nan)  # bool/complex/str refused
     if b.shape != (3,) or not np.all(np.isfinite(b)):
-        raise ValueError(f"{name} must be 3 finite values, got {value!r}")
+        raise ValueError(f"{name} must be 3 finite real numbers, got {value!r}")
     return b

@@ -257,9 +257,13 @@ class BatchSensorModel:
             self._state[rows, 18:21] = accel
 
     def _bias(self, name: str, value: Any) -> NDArray[np.float64]:
-        b = np.asarray(value, dtype=float)
+        try:
+            raw = np.asarray(value)
+        except ValueError:  # ragged nested sequences
+            raw = np.asarray(None)
+        b = raw.astype(np.float64) if raw.dtype.kind in "iuf" else np.full(1, np.nan)  # bool/complex/str refused
         if b.shape not in ((3,), (self.n, 3)) or not np.all(np.isfinite(b)):
-            raise ValueError(f"{name} must be 3 finite numbers or ({self.n}, 3), got {value!r}")
+            raise ValueError(f"{name} must be 3 finite real numbers or ({self.n}, 3), got {value!r}")
         return np.broadcast_to(b, (self.n, 3)).copy()
 
     def set_noise_rng(self, rng: np.random.Generator) -> None:

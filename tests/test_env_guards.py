@@ -389,3 +389,15 @@ def test_external_wrench_error_is_one_line_for_arrays():
     text = _error(ValueError, lambda: env.set_external_wrench(np.full((2, 3), np.nan), np.zeros((2, 3))))
     assert text.startswith("external wrench must be two (3,) or (2, 3) arrays of finite real numbers (force NED [N], "
                            "torque FRD [N m]), got array([[nan, nan, nan], [nan, nan, nan]]), array([[0., 0., 0.],")
+
+
+@pytest.mark.parametrize("value", [(True, False, True), (1j, 0, 0), ("a", 0, 0), (0.0, np.nan, 0.0), (0.0, 0.0)])
+@pytest.mark.parametrize("name", ["gyro_bias", "accel_bias"])
+def test_sensor_bias_setters_refuse_non_real_entries(name, value):
+    texts = set()
+    for n in (1, 3):
+        sensor = HoverBatchEnv(n, sensors="mocap_imu").sensor
+        before = np.array(getattr(sensor, name))
+        texts.add(_error(ValueError, lambda s=sensor: setattr(s, name, value)).replace(f"({n}, 3)", "(N, 3)"))
+        np.testing.assert_array_equal(getattr(sensor, name), before)
+    assert texts == {f"{name} must be 3 finite real numbers or (N, 3), got {value!r}"}, texts
