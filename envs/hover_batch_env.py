@@ -367,7 +367,7 @@ class HoverBatchEnv(VectorEnv):
         start = STEP_PARAM_START["cop"]
         assert STEP_PARAM_START["k_r"] == start + 7  # cop 3, body_drag 3, k_d, k_r: AeroModel.coefficients' layout
         self._params[start:start + 8] = self.aero.coefficients
-        self.aero.coefficients = self._params[start:start + 8]
+        self.aero._share(self._params[start:start + 8])
 
     # ---- kernel state, read-only (the compiled kernels trust these arrays' shapes: never assigned from outside) ----
     @property

@@ -401,3 +401,19 @@ def test_sensor_bias_setters_refuse_non_real_entries(name, value):
         texts.add(_error(ValueError, lambda s=sensor: setattr(s, name, value)).replace(f"({n}, 3)", "(N, 3)"))
         np.testing.assert_array_equal(getattr(sensor, name), before)
     assert texts == {f"{name} must be 3 finite real numbers or (N, 3), got {value!r}"}, texts
+
+
+# ---- the aero coefficients: the shared array cannot be replaced (an env would silently keep the old one) -------------
+def test_aero_coefficients_cannot_be_replaced_and_refuse_bools():
+    texts = set()
+    for env in (HoverEnv(wind="fawt-50"), HoverBatchEnv(1, wind="fawt-50"), HoverBatchEnv(3, wind="fawt-50")):
+        texts.add(_error(AttributeError, lambda e=env: setattr(e.aero, "coefficients", np.ones(8))))
+        for name, value in (("k_d", True), ("k_r", np.True_), ("cop", (True, False, True)), ("body_drag", (1j, 0, 0))):
+            with pytest.raises(ValueError, match=rf"AeroModel\.{name} must be "):
+                setattr(env.aero, name, value)
+    assert texts == {"AeroModel.coefficients is the array the env's step kernels read: edit it in place or assign "
+                     "k_d, k_r, cop, body_drag (checked) instead"}
+    env, ref = _fresh(2), _fresh(2)
+    env.aero.k_d = 3 * env.aero.k_d  # the setters still act from the next step on
+    ref.aero.coefficients[6] *= 3  # as does the documented in-place edit
+    _same(_rollout(env), _rollout(ref))
