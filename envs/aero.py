@@ -125,9 +125,25 @@ class AeroModel:
         self._rotor_positions = hubs
         self.n_rotors = hubs.shape[0]
         #: cop 0-2, body_drag 3-5, k_d 6, k_r 7 (class docstring; the properties are views of it)
-        self.coefficients = np.concatenate([np.asarray(preset.cop_offset, dtype=float),
+        self._coefficients = np.concatenate([np.asarray(preset.cop_offset, dtype=float),
                                             np.asarray(preset.body_drag, dtype=float),
                                             [float(preset.rotor_drag), float(preset.rolling_moment)]])
+
+    @property
+    def coefficients(self) -> NDArray[np.float64]:
+        """cop 0-2, body_drag 3-5, k_d 6, k_r 7 (8,): the one array the env's step kernels read (class docstring);
+        edit it in place or assign ``k_d``, ``k_r``, ``cop``, ``body_drag`` (assigning the array itself would
+        unlink it from the env: refused)."""
+        return self._coefficients
+
+    @coefficients.setter
+    def coefficients(self, value: object) -> None:
+        raise AttributeError("AeroModel.coefficients is the array the env's step kernels read: edit it in place or "
+                             "assign k_d, k_r, cop, body_drag (checked) instead")
+
+    def _share(self, array: NDArray[np.float64]) -> None:
+        """Make ``array`` (8,) float64 (an env's step parameters, already holding these values) the coefficients."""
+        self._coefficients = array
 
     @property
     def rotor_positions(self) -> NDArray[np.float64]:
@@ -145,39 +161,39 @@ class AeroModel:
     @property
     def k_d(self) -> float:
         """Linear rotor drag coefficient (``F_i = k_d omega_i P a_i``); assign a finite number >= 0."""
-        return float(self.coefficients[6])
+        return float(self._coefficients[6])
 
     @k_d.setter
     def k_d(self, value: object) -> None:
-        self.coefficients[6] = _coefficient("k_d", value, (), nonnegative=True)
+        self._coefficients[6] = _coefficient("k_d", value, (), nonnegative=True)
 
     @property
     def k_r(self) -> float:
         """Blade-flapping moment coefficient (``M_i = k_r omega_i (a_i x e3)``); assign a finite number."""
-        return float(self.coefficients[7])
+        return float(self._coefficients[7])
 
     @k_r.setter
     def k_r(self, value: object) -> None:
-        self.coefficients[7] = _coefficient("k_r", value, (), nonnegative=False)
+        self._coefficients[7] = _coefficient("k_r", value, (), nonnegative=False)
 
     @property
     def cop(self) -> NDArray[np.float64]:
         """Centre of pressure (3,) body FRD [m] (a view of :attr:`coefficients`); assign 3 finite numbers."""
-        return self.coefficients[0:3]
+        return self._coefficients[0:3]
 
     @cop.setter
     def cop(self, value: object) -> None:
-        self.coefficients[0:3] = _coefficient("cop", value, (3,), nonnegative=False)
+        self._coefficients[0:3] = _coefficient("cop", value, (3,), nonnegative=False)
 
     @property
     def body_drag(self) -> NDArray[np.float64]:
         """Quadratic body drag per body axis (3,) [N/(m/s)^2] (a view of :attr:`coefficients`); assign 3 finite
         numbers >= 0."""
-        return self.coefficients[3:6]
+        return self._coefficients[3:6]
 
     @body_drag.setter
     def body_drag(self, value: object) -> None:
-        self.coefficients[3:6] = _coefficient("body_drag", value, (3,), nonnegative=True)
+        self._coefficients[3:6] = _coefficient("body_drag", value, (3,), nonnegative=True)
 
     def wrench(self, rotation: NDArray[np.float64], velocity: NDArray[np.float64],
                angular_velocity: NDArray[np.float64], rotor_speeds: NDArray[np.float64],
@@ -208,9 +224,10 @@ class AeroModel:
 def _coefficient(name: str, value: object, shape: tuple[int, ...], nonnegative: bool) -> NDArray[np.float64]:
     """An aero coefficient assigned to :class:`AeroModel`, checked: ``shape``, finite (and >= 0)."""
     try:
-        v = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        v = np.array(np.nan)
+        raw = np.asarray(value)
+    except ValueError:  # ragged nested sequences
+        raw = np.asarray(None)
+    v = raw.astype(np.float64) if raw.dtype.kind in "iuf" else np.array(np.nan)  # bool/complex/str refused
     if v.shape != shape or not np.all(np.isfinite(v)) or (nonnegative and np.any(v < 0)):
         what = "a finite number" if not shape else f"{shape[0]} finite numbers"
         raise ValueError(f"AeroModel.{name} must be {what}{' >= 0' if nonnegative else ''}, got {value!r}")

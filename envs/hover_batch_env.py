@@ -121,6 +121,7 @@ import copy
 import os
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
+from types import MappingProxyType
 from typing import Any
 
 import mujoco
@@ -133,7 +134,7 @@ from mujoco import rollout
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.arrays import as_f64
+from fawtgym.core.arrays import as_f64, read_only
 from fawtgym.core.frames import SIGN_MJ_NED, rot_ned_to_quat_mj
 from fawtgym.core.so3 import exp_so3
 
@@ -145,12 +146,15 @@ from .observation import OBS_SIZE, hover_observation, observation_bounds
 from .options import (
     INIT_SPREAD,
     check_actions,
+    check_external_wrench,
+    check_init_noise,
+    check_max_position_error,
     check_reset_options,
     check_setpoint,
     hover_action,
     hover_action_space,
+    hover_mass_scales,
     hover_options,
-    positive_number,
     raise_action_not_finite,
 )
 from .sensors_batch import SENSOR_NOT_FINITE, BatchSensorModel
@@ -178,6 +182,10 @@ _MJ_T0 = 1.0  #: MuJoCo time at the start of every rollout (a MuJoCo reset sets 
 _STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 _CONTROL_SPEC = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED)
 _SIGN = SIGN_MJ_NED
+#: the error of assigning kernel state (the compiled kernels read and write it by index: a wrong shape corrupts memory)
+_KERNEL_STATE = "HoverBatchEnv.{} is kernel state (read-only): {}"
+_USE_RANDOMIZER = ("set {} per row with a randomizer (HoverBatchEnv(..., randomizer=...)), applied at each episode "
+                   "start")
 #: the autoreset modes of HoverBatchEnv (module docstring)
 AUTORESET_MODES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP}
 #: what a randomizer's draws may set, one value per starting row (module docstring)
@@ -276,9 +284,9 @@ class HoverBatchEnv(VectorEnv):
         self.action_type = opts.action_type
         self.n_substeps, self.physics_dt, self.dt = opts.n_substeps, opts.physics_dt, opts.dt
         self.episode_seconds = opts.episode_seconds
-        self.init_noise = opts.init_noise
-        self.reward_weights = dict(opts.reward_weights)
-        w = self.reward_weights
+        self._init_noise = opts.init_noise
+        self._reward_weights = dict(opts.reward_weights)
+        w = self._reward_weights
         self._reward_w = np.array([w[key] for key in REWARD_TERMS])
         self.single_action_space = hover_action_space(opts.action_type)
         low, high = observation_bounds(opts.max_position_error, self.single_action_space.low,
@@ -301,7 +309,7 @@ class HoverBatchEnv(VectorEnv):
         self._body = self.model.body("vehicle").id
         self._nominal_mass = float(self.model.body_mass[self._body])
         self._nominal_inertia = self.model.body_inertia[self._body].copy()
-        self.mass_scale, self.inertia_scale, self.drag_scale = np.ones(n), np.ones(n), np.ones(n)
+        self._mass_scale, self._inertia_scale, self._drag_scale = np.ones(n), np.ones(n), np.ones(n)
         self._qfrc_col = self.model.nu  # qfrc_applied follows ctrl in the control vector
         self.wind = BatchWind(opts.wind, n)
         self.aero = AeroModel(opts.preset)
@@ -341,7 +349,7 @@ class HoverBatchEnv(VectorEnv):
         self._failure_code = np.zeros(n, dtype=np.int8)
         self._no_failure = np.full(n, "", dtype="<U14")
         self._t_end = _MJ_T0 + self.n_substeps * self.physics_dt  # MuJoCo time after a control step's rollout
-        self.time = np.zeros(n)
+        self._time = np.zeros(n)
         sensor, aero = self.sensor, self.aero
         self._params = step_params(  # the constants of the step kernels, one array
             t0=_MJ_T0, t_end=self._t_end if self._rate_loop is None else _MJ_T0 + self.physics_dt,  # ctbr: 1 substep
@@ -359,7 +367,55 @@ class HoverBatchEnv(VectorEnv):
         start = STEP_PARAM_START["cop"]
         assert STEP_PARAM_START["k_r"] == start + 7  # cop 3, body_drag 3, k_d, k_r: AeroModel.coefficients' layout
         self._params[start:start + 8] = self.aero.coefficients
-        self.aero.coefficients = self._params[start:start + 8]
+        self.aero._share(self._params[start:start + 8])
+
+    # ---- kernel state, read-only (the compiled kernels trust these arrays' shapes: never assigned from outside) ----
+    @property
+    def rotor_speeds(self) -> NDArray[np.float64]:
+        """Rotor speeds [rad/s] at the end of the last step (N, 4): a read-only view."""
+        return read_only(self._rotor_speeds)
+
+    @rotor_speeds.setter
+    def rotor_speeds(self, value: object) -> None:
+        raise AttributeError(_KERNEL_STATE.format("rotor_speeds", "they follow the actions (step) and reset"))
+
+    @property
+    def time(self) -> NDArray[np.float64]:
+        """Episode time of each row [s] (N,): a read-only view."""
+        return read_only(self._time)
+
+    @time.setter
+    def time(self, value: object) -> None:
+        raise AttributeError(_KERNEL_STATE.format("time", "it advances with step and restarts at reset"))
+
+    @property
+    def mass_scale(self) -> NDArray[np.float64]:
+        """Each row's body mass over the nominal one (N,) (module docstring, Domain randomization): a read-only
+        view."""
+        return read_only(self._mass_scale)
+
+    @mass_scale.setter
+    def mass_scale(self, value: object) -> None:
+        raise AttributeError(_KERNEL_STATE.format("mass_scale", _USE_RANDOMIZER.format("mass_scale")))
+
+    @property
+    def inertia_scale(self) -> NDArray[np.float64]:
+        """Each row's body inertia over the nominal one (N,) (module docstring, Domain randomization): a read-only
+        view."""
+        return read_only(self._inertia_scale)
+
+    @inertia_scale.setter
+    def inertia_scale(self, value: object) -> None:
+        raise AttributeError(_KERNEL_STATE.format("inertia_scale", _USE_RANDOMIZER.format("inertia_scale")))
+
+    @property
+    def drag_scale(self) -> NDArray[np.float64]:
+        """Each row's aerodynamic wrench scale (N,) (module docstring, Domain randomization): a read-only view."""
+        return read_only(self._drag_scale)
+
+    @drag_scale.setter
+    def drag_scale(self, value: object) -> None:
+        raise AttributeError(_KERNEL_STATE.format("drag_scale", _USE_RANDOMIZER.format("drag_scale")))
 
     @property
     def _force(self) -> NDArray[np.float64]:
@@ -378,8 +434,9 @@ class HoverBatchEnv(VectorEnv):
 
     @property
     def external_force(self) -> NDArray[np.float64]:
-        """The constant external force (N, 3) world NED [N] (:meth:`set_external_wrench`; a view)."""
-        return self._wrench[:, 9:12]
+        """The constant external force (N, 3) world NED [N] (a read-only view; assign it or call
+        :meth:`set_external_wrench`)."""
+        return read_only(self._wrench[:, 9:12])
 
     @external_force.setter
     def external_force(self, value: ArrayLike) -> None:
@@ -387,8 +444,9 @@ class HoverBatchEnv(VectorEnv):
 
     @property
     def external_torque(self) -> NDArray[np.float64]:
-        """The constant external torque (N, 3) body FRD [N m] (:meth:`set_external_wrench`; a view)."""
-        return self._wrench[:, 12:15]
+        """The constant external torque (N, 3) body FRD [N m] (a read-only view; assign it or call
+        :meth:`set_external_wrench`)."""
+        return read_only(self._wrench[:, 12:15])
 
     @external_torque.setter
     def external_torque(self, value: ArrayLike) -> None:
@@ -402,20 +460,44 @@ class HoverBatchEnv(VectorEnv):
 
     @max_steps.setter
     def max_steps(self, value: Any) -> None:
+        self._check_idle("setting max_steps")
         if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1 \
                 or value > 2**52:
             raise ValueError(f"max_steps must be an int >= 1, got {value!r}")
         self._params[STEP_PARAM_START["max_steps"]] = int(value)
 
     @property
+    def reward_weights(self) -> Mapping[str, float]:
+        """The reward's weights (a read-only mapping, fixed at construction: the step kernels hold a copy; pass
+        ``reward_weights=`` to the constructor to change them)."""
+        return MappingProxyType(self._reward_weights)
+
+    @reward_weights.setter
+    def reward_weights(self, value: object) -> None:
+        raise AttributeError("reward_weights is fixed at construction (the step kernels hold a copy): pass "
+                             "reward_weights={...} to the constructor instead")
+
+    @property
+    def init_noise(self) -> float:
+        """Scale of the random initial perturbation (:data:`INIT_SPREAD` at 1; 0: start exactly hovering at the set
+        point); assign a finite number >= 0 (checked; from the next reset on)."""
+        return self._init_noise
+
+    @init_noise.setter
+    def init_noise(self, value: Any) -> None:
+        self._check_idle("setting init_noise")
+        self._init_noise = check_init_noise(value)
+
+    @property
     def max_position_error(self) -> float:
-        """Half-size of the termination box [m]; assign a finite positive number (the box from the next step on; the
-        observation bounds stay those of construction)."""
+        """Half-size of the termination box [m]; assign a finite positive number up to 1e9 (the box from the next
+        step on; the observation bounds stay those of construction)."""
         return float(self._params[STEP_PARAM_START["max_position_error"]])
 
     @max_position_error.setter
     def max_position_error(self, value: Any) -> None:
-        self._params[STEP_PARAM_START["max_position_error"]] = positive_number(value, "max_position_error")
+        self._check_idle("setting max_position_error")
+        self._params[STEP_PARAM_START["max_position_error"]] = check_max_position_error(value)
 
     # ---- public helpers -------------------------------------------------------------------
     def hover_action(self) -> NDArray[np.float32]:
@@ -424,13 +506,14 @@ class HoverBatchEnv(VectorEnv):
 
     @property
     def setpoint(self) -> NDArray[np.float64]:
-        """Hover set points, world NED [m] (N, 3); assign (3,) or (N, 3) any time (validated, from the next step)."""
-        return self._setpoint
+        """Hover set points, world NED [m] (N, 3), a read-only view; assign (3,) or (N, 3) any time (validated, from
+        the next step)."""
+        return read_only(self._setpoint)
 
     @setpoint.setter
     def setpoint(self, value: ArrayLike) -> None:
-        sp = check_setpoint(value, self.num_envs)
-        self._setpoint = np.broadcast_to(sp, (self.num_envs, 3)).copy()
+        self._check_idle("setting setpoint")
+        self._setpoint[...] = check_setpoint(value, self.num_envs)  # broadcast (3,) to every row
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickle/deepcopy: MuJoCo's model and data are copied; the rollout (threads, not picklable) is rebuilt."""
@@ -446,35 +529,35 @@ class HoverBatchEnv(VectorEnv):
 
     def set_external_wrench(self, force_ned: ArrayLike = (0.0, 0.0, 0.0),
                             torque_frd: ArrayLike = (0.0, 0.0, 0.0)) -> None:
-        """Constant extra disturbance per row: force NED (3,) or (N, 3) [N], torque FRD (3,) or (N, 3) [N m]."""
-        n = self.num_envs
-        try:
-            f = np.broadcast_to(np.asarray(force_ned, dtype=float), (n, 3)).copy()
-            t = np.broadcast_to(np.asarray(torque_frd, dtype=float), (n, 3)).copy()
-        except ValueError as exc:
-            raise ValueError(f"external wrench must be (3,) or ({n}, 3) arrays, got shapes "
-                             f"{np.shape(force_ned)}, {np.shape(torque_frd)}") from exc
-        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(t))):
-            raise ValueError(f"external wrench must be finite, got {force_ned!r}, {torque_frd!r}")
+        """Constant extra disturbance per row: force NED (3,) or (N, 3) [N], torque FRD (3,) or (N, 3) [N m] (finite
+        real numbers, checked), from the next step on."""
+        self._check_idle("set_external_wrench() called")
+        f, t = check_external_wrench(force_ned, torque_frd, self.num_envs)
         self._wrench[:, 9:12], self._wrench[:, 12:15] = f, t
 
     # ---- state ------------------------------------------------------------------------------
     def _reset_rows(self, rows: NDArray[np.intp]) -> list[np.random.Generator]:
         """HoverEnv.reset for ``rows`` (each row draws from its own generator, in HoverEnv's order), then the
         randomizer's draws; returns the rows' sensor generators."""
+        assert self._row_rngs is not None  # reset() made them
+        return self._start_rows(rows, self._draw_rows(rows, self._row_rngs, self.init_noise))
+
+    def _draw_rows(self, rows: NDArray[np.intp], row_rngs: list[np.random.Generator], init_noise: float
+                   ) -> tuple[Any, ...]:
+        """Everything a reset of ``rows`` draws, checked, with nothing of the env written (only the rows' generators
+        ``row_rngs[row]`` advance): the initial perturbations, the wind and sensor seeds and the randomizer's
+        checked draws (:meth:`_check_draws`); :meth:`_start_rows` applies them."""
         k = rows.size
         du = np.empty((k, 4, 3))
         ints: list[int] = []
         wind_seeds: list[np.random.SeedSequence] = []
         sensor_rngs: list[np.random.Generator] = []
         draw_rngs: list[np.random.Generator] = []
-        row_rngs = self._row_rngs
-        assert row_rngs is not None  # reset() made them
         spread = np.array([INIT_SPREAD[key] for key in ("position", "velocity", "attitude", "angular_velocity")])
         for j, row in enumerate(rows.tolist()):  # reset path only: per-row generators
             rng = row_rngs[row]
             for i in range(4):
-                du[j, i] = rng.uniform(-1.0, 1.0, 3) * spread[i] * self.init_noise
+                du[j, i] = rng.uniform(-1.0, 1.0, 3) * spread[i] * init_noise
             seed_int = int(rng.integers(2**63))
             # children 0, 1 as HoverEnv's spawn(2); child 2 (randomizer only) leaves them unchanged
             wind_seed, sensor_seed, *draw_seed = np.random.SeedSequence(seed_int).spawn(
@@ -483,9 +566,17 @@ class HoverBatchEnv(VectorEnv):
             wind_seeds.append(wind_seed)
             sensor_rngs.append(np.random.default_rng(sensor_seed))
             draw_rngs.extend(np.random.default_rng(d) for d in draw_seed)
+        draws = None if self.randomizer is None else self._check_draws(rows, self.randomizer(rows, draw_rngs))
+        return du, ints, wind_seeds, sensor_rngs, draws
+
+    def _start_rows(self, rows: NDArray[np.intp], drawn: tuple[Any, ...]) -> list[np.random.Generator]:
+        """Write the new episodes of ``rows`` from :meth:`_draw_rows`' ``drawn``; returns the rows' sensor
+        generators."""
+        du, ints, wind_seeds, sensor_rngs, draws = drawn
+        k = rows.size
         s = np.zeros((k, self._mj_state.shape[1]))
         s[:, 0] = _MJ_T0  # MuJoCo time at the start of every rollout (module docstring: divergence test)
-        s[:, 1:4] = (self.setpoint[rows] + du[:, 0]) * _SIGN
+        s[:, 1:4] = (self._setpoint[rows] + du[:, 0]) * _SIGN
         s[:, 4:8] = rot_ned_to_quat_mj(exp_so3(du[:, 2]))
         s[:, 8:11] = du[:, 1] * _SIGN
         s[:, 11:14] = du[:, 3] * _SIGN
@@ -493,15 +584,18 @@ class HoverBatchEnv(VectorEnv):
         b, v, r, w = np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3, 3)), np.empty((k, 3))
         states_to_ned(s, b, v, r, w)
         self._pos[rows], self._vel[rows], self._rot[rows], self._omega[rows] = b, v, r, w
-        self.rotor_speeds[rows] = self.preset.hover_omega
+        self._rotor_speeds[rows] = self.preset.hover_omega
         self._applied[rows] = self.preset.k_thrust * self.preset.hover_omega**2
         self._last_action[rows] = self._hover
         self._accel[rows] = 0.0
         self._steps[rows] = 0
-        self.time[rows] = 0.0
+        self._time[rows] = 0.0
         self._failure_code[rows] = 0
         self.sensor.reset_rows(rows, sensor_rngs)
-        winds = None if self.randomizer is None else self._apply_draws(rows, self.randomizer(rows, draw_rngs))
+        winds = None
+        if draws is not None:
+            values, winds = draws
+            self._apply_draws(rows, values)
         self.wind.reset_rows(rows, ints, wind_seeds, winds)
         if self._rate_loop is not None:
             self._rate_loop.reset(rows)
@@ -509,15 +603,14 @@ class HoverBatchEnv(VectorEnv):
             self.sensor.set_noise_rng(sensor_rngs[0])
         return sensor_rngs
 
-    def _apply_draws(self, rows: NDArray[np.intp], draws: Mapping[str, Any]) -> list[WindModel] | None:
-        """Apply a randomizer's draws to ``rows`` (module docstring); returns the rows' wind models (or None).
-
-        The whole draw is checked before anything is applied (ValueError naming the key and what is allowed).
-        """
+    def _check_draws(self, rows: NDArray[np.intp], draws: Any
+                     ) -> tuple[dict[str, NDArray[np.float64]], list[WindModel] | None]:
+        """A randomizer's ``draws`` for ``rows`` checked (ValueError naming the key and what is allowed), nothing
+        applied: the numeric draws as float64 arrays, and the rows' wind models (or None)."""
         k = rows.size
         if not isinstance(draws, Mapping):
             raise ValueError(f"randomizer must return a mapping of {list(RANDOMIZER_KEYS)}, got {type(draws).__name__}")
-        unknown = sorted(set(draws) - set(RANDOMIZER_KEYS))
+        unknown = sorted(set(draws) - set(RANDOMIZER_KEYS), key=str)
         if unknown:
             raise ValueError(f"randomizer draws {unknown} are unknown; valid: {list(RANDOMIZER_KEYS)}")
         values = {}
@@ -526,21 +619,42 @@ class HoverBatchEnv(VectorEnv):
                                      ("drag_scale", (k,), ">= 0", np.greater_equal),
                                      ("gyro_bias", (k, 3), "finite", None), ("accel_bias", (k, 3), "finite", None)):
             if key in draws:
-                v = np.asarray(draws[key], dtype=float)
+                raw = draws[key]
+                try:
+                    v = np.asarray(raw)
+                except ValueError:  # ragged nested sequences
+                    v = np.asarray(None)
+                if v.dtype.kind not in "iuf":  # bool, complex, str, objects: no silent conversion
+                    raise ValueError(f"randomizer draw {key!r} must be {need} with shape {shape} (one per starting "
+                                     f"row) of real numbers, got {raw!r:.80} ({type(raw).__name__}, dtype {v.dtype})")
+                v = v.astype(np.float64)
                 if v.shape != shape or not np.all(np.isfinite(v)) or (ok is not None and not np.all(ok(v, 0.0))):
                     raise ValueError(f"randomizer draw {key!r} must be {need} with shape {shape} (one per starting "
                                      f"row), got shape {v.shape}: {v.ravel()[:6].tolist()}")
                 values[key] = v
+        if "mass_scale" in values:  # the row must still hover: weight between the rotors' idle and maximum thrust
+            lo, hi = hover_mass_scales(self.preset)
+            bad = np.flatnonzero(~((values["mass_scale"] > lo) & (values["mass_scale"] < hi)))
+            if bad.size:
+                raise ValueError(f"randomizer draw 'mass_scale' must be in ({lo:.4g}, {hi:.4g}) for vehicle "
+                                 f"{self.preset.name!r} to hover (weight between the rotors' idle and maximum "
+                                 f"thrust), got {values['mass_scale'][bad[0]]!r} for starting row {int(bad[0])}")
         if ("gyro_bias" in values or "accel_bias" in values) and not self.sensor.noisy:
             raise ValueError("randomizer draws IMU biases but the sensors are exact (sensors='none' has no biases); "
                              "use a noisy preset such as 'mocap_imu'")
         winds = draws.get("wind")
-        if winds is not None and (len(winds) != k or not all(isinstance(w, WindModel) for w in winds)):
-            raise ValueError(f"randomizer draw 'wind' must be a list of {k} WindModel (one per starting row)")
+        if winds is not None and (not isinstance(winds, Sequence) or isinstance(winds, str) or len(winds) != k
+                                  or not all(isinstance(w, WindModel) for w in winds)):
+            raise ValueError(f"randomizer draw 'wind' must be a list of {k} WindModel (one per starting row), got "
+                             f"{winds!r:.80} ({type(winds).__name__})")
+        return values, None if winds is None else list(winds)
+
+    def _apply_draws(self, rows: NDArray[np.intp], values: Mapping[str, NDArray[np.float64]]) -> None:
+        """Apply a randomizer's checked numeric draws (:meth:`_check_draws`) to ``rows`` (module docstring)."""
         if "mass_scale" in values or "inertia_scale" in values:
-            mass = values.get("mass_scale", self.mass_scale[rows])
-            inertia = values.get("inertia_scale", self.inertia_scale[rows])
-            self.mass_scale[rows], self.inertia_scale[rows] = mass, inertia
+            mass = values.get("mass_scale", self._mass_scale[rows])
+            inertia = values.get("inertia_scale", self._inertia_scale[rows])
+            self._mass_scale[rows], self._inertia_scale[rows] = mass, inertia
             for row, sm, sj in zip(rows.tolist(), mass.tolist(), inertia.tolist(), strict=True):  # reset path only
                 model = self._models[row]
                 if model is self.model:
@@ -551,12 +665,8 @@ class HoverBatchEnv(VectorEnv):
                 model.body_inertia[self._body] = self._nominal_inertia * sj
                 mujoco.mj_setConst(model, self._data)  # derived constants (subtree masses, ...) of the new body
         if "drag_scale" in values:
-            self.drag_scale[rows] = values["drag_scale"]
-        if "gyro_bias" in values:
-            self.sensor.gyro_bias[rows] = values["gyro_bias"]
-        if "accel_bias" in values:
-            self.sensor.accel_bias[rows] = values["accel_bias"]
-        return None if winds is None else list(winds)
+            self._drag_scale[rows] = values["drag_scale"]
+        self.sensor.set_bias_rows(rows, values.get("gyro_bias"), values.get("accel_bias"))
 
     # ---- gym API -------------------------------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None,
@@ -570,10 +680,23 @@ class HoverBatchEnv(VectorEnv):
         n = self.num_envs
         seeds = _check_seeds(seed, n)
         sp, noise = check_reset_options(options, n)  # checked before anything changes
-        if self._row_rngs is None or seed is not None:
-            old = self._row_rngs
-            self._row_rngs = [seeding.np_random(s)[0] if (s is not None or old is None) else old[i]
-                              for i, s in enumerate(seeds)]
+        # a failed reset changes nothing: everything is drawn and checked (the randomizer's draws included) before
+        # the env is written; the only thing drawing advances, the kept row generators, is restored on failure
+        old = self._row_rngs
+        if old is None or seed is not None:
+            row_rngs = [seeding.np_random(s)[0] if (s is not None or old is None) else old[i]
+                        for i, s in enumerate(seeds)]
+        else:
+            row_rngs = old
+        old_ids = {id(g) for g in old or []}
+        kept = [(g, g.bit_generator.state) for g in row_rngs if id(g) in old_ids]  # generators this reset keeps
+        try:
+            drawn = self._draw_rows(np.arange(n), row_rngs, self._init_noise if noise is None else noise)
+        except BaseException:
+            for g, state in kept:
+                g.bit_generator.state = state
+            raise
+        self._row_rngs = row_rngs
         if seed is not None or not hasattr(self, "_noise_seeded"):
             ints = [int(x) for x in seeds if isinstance(x, (int, np.integer)) and not isinstance(x, bool)]
             entropy = None if len(ints) < n else [*ints, n, 0x5E45]  # reproducible iff every row has a seed
@@ -582,16 +705,16 @@ class HoverBatchEnv(VectorEnv):
         if sp is not None:
             self.setpoint = sp
         if noise is not None:
-            self.init_noise = noise
+            self._init_noise = noise
         self._pos, self._vel = np.zeros((n, 3)), np.zeros((n, 3))
         self._rot, self._omega = np.zeros((n, 3, 3)), np.zeros((n, 3))
-        self.rotor_speeds, self._applied = np.zeros((n, 4)), np.zeros((n, 4))
+        self._rotor_speeds, self._applied = np.zeros((n, 4)), np.zeros((n, 4))
         self._last_action, self._accel = np.zeros((n, 4)), np.zeros((n, 3))
         self._steps = np.zeros(n, dtype=np.int64)
         self._wrench[:, :9] = 0.0  # the held aero wrench and wind (the external wrench is kept)
         self._autoreset = np.zeros(n, dtype=bool)
         self._n_autoreset = 0  # rows of _autoreset set
-        self._reset_rows(np.arange(n))
+        self._start_rows(np.arange(n), drawn)
         buf = np.empty(n * INFO_WIDTH)
         self._update_disturbance(self._all_rows, buf)
         obs, _ = self._observe(buf, self.sensor.noise(), True, self._last_action, self._last_action)
@@ -647,7 +770,7 @@ class HoverBatchEnv(VectorEnv):
         stepping = ~resetting if any_reset else self._all_rows
         clipped, action_clipped = np.empty((n, 4)), np.empty(n, dtype=bool)
         motors = self._rate_loop is None
-        bad = act_rows(a, self._params, stepping, motors, self._decay_up, self._decay_down, self.rotor_speeds,
+        bad = act_rows(a, self._params, stepping, motors, self._decay_up, self._decay_down, self._rotor_speeds,
                        self._wrench, clipped, action_clipped, self._ctrl, self._applied)
         if bad >= 0:
             row, entry = divmod(bad, 4)
@@ -664,11 +787,11 @@ class HoverBatchEnv(VectorEnv):
         obs, reward = np.empty((n, OBS_SIZE), dtype=np.float32), np.empty(n)
         prev = self._last_action
         s = self.sensor
-        z = s.noise() if not any_reset else s.no_noise  # drawn after the restarts below if any row restarts
+        z = s.noise() if not any_reset else s._no_noise  # drawn after the restarts below if any row restarts
         n_ended, status = step_rows(self._params, states, stepping, diverged, self._mj_state, self._pos, self._vel,
                                     self._rot, self._omega, self._accel, self._setpoint, self._failure_code,
-                                    self.time, self._steps, flags, points, not any_reset, z, s.count, s.state,
-                                    clipped, prev, self._applied, self.rotor_speeds, buf, obs, reward)
+                                    self._time, self._steps, flags, points, not any_reset, z, s._count, s._state,
+                                    clipped, prev, self._applied, self._rotor_speeds, buf, obs, reward)
         codes = self._failure_code
         self._last_action = clipped
         if any_reset:
@@ -736,12 +859,12 @@ class HoverBatchEnv(VectorEnv):
         s = self.sensor
         if not s.noisy:
             return True, s.noise()
-        state = (self.time, self._pos, self._vel, self._rot, self._omega, self._accel)
+        state = (self._time, self._pos, self._vel, self._rot, self._omega, self._accel)
         fresh = s.measure_rows(rows, rngs, *(x[rows] for x in state))
         for key, view in info_views(buf, self.num_envs, False)["measurement"].items():
             view[...] = measurement[key]
             view[rows] = fresh[key]
-        return False, s.no_noise
+        return False, s._no_noise
 
     def _rollout_rows(self, state: NDArray[np.float64], ctrl: NDArray[np.float64], out: NDArray[np.float64]
                       ) -> NDArray[np.float64]:
@@ -770,7 +893,7 @@ class HoverBatchEnv(VectorEnv):
         gains = (loop.kp, loop.ki, loop.kd, loop.j, loop.b_inv, loop.t_min, loop.t_max, loop.i_lim, loop.dt)
         for k in range(self.n_substeps):  # substeps (the rate loop closes the loop at the physics rate)
             ctbr_substep(collective, rate_sp, state, final, k == 0, t_end, self.physics_dt, gains,
-                         (loop.integral, loop.prev_rate, loop.has_prev), self.rotor_speeds, self._k_thrust,
+                         (loop.integral, loop.prev_rate, loop.has_prev), self._rotor_speeds, self._k_thrust,
                          self._sub_decay_up, self._sub_decay_down, force, torque, self._ctrl1, self._applied, total,
                          diverged)
             state[:, 0] = _MJ_T0  # ctbr_substep carried the last substep's final state (and its time) over
@@ -788,9 +911,9 @@ class HoverBatchEnv(VectorEnv):
         """The aero wrench of every row in ``wind`` (N, 5, 3) held for the next step by the rows of ``keep``, and the
         truth's wind, force and torque into ``buf`` (:func:`disturbance_rows`)."""
         wind = as_f64(wind, "wind")
-        if disturbance_rows(self._params, self._rot, self._vel, self._omega, self.rotor_speeds, wind, self.drag_scale,
+        if disturbance_rows(self._params, self._rot, self._vel, self._omega, self._rotor_speeds, wind, self._drag_scale,
                             keep, self._wrench, buf) >= 0:
-            self.aero.wrench(self._rot, self._vel, self._omega, self.rotor_speeds, wind)  # raises, naming the inputs
+            self.aero.wrench(self._rot, self._vel, self._omega, self._rotor_speeds, wind)  # raises, naming the inputs
 
     def _update_disturbance(self, rows: NDArray[np.bool_], buf: NDArray[np.float64],
                             points: NDArray[np.float64] | None = None) -> None:
@@ -799,7 +922,7 @@ class HoverBatchEnv(VectorEnv):
         acts from the next step on."""
         if points is None:
             points = self._wind_points()
-        self._disturbance(self.wind.step(self.time, self.dt, points, self._vel), rows, buf)
+        self._disturbance(self.wind.step(self._time, self.dt, points, self._vel), rows, buf)
 
     def _observe(self, buf: NDArray[np.float64], z: NDArray[np.float64], measure: bool, action: NDArray[np.float64],
                  prev_action: NDArray[np.float64]) -> tuple[NDArray[np.float32], NDArray[np.float64]]:
@@ -809,8 +932,8 @@ class HoverBatchEnv(VectorEnv):
         s = self.sensor
         obs, reward = np.empty((n, OBS_SIZE), dtype=np.float32), np.empty(n)
         status = observe_rows(self._params, z, measure, self._pos, self._vel, self._rot, self._omega, self._accel,
-                              self.time, self._setpoint, self._failure_code, s.count, s.state, action, prev_action,
-                              self._applied, self.rotor_speeds, buf, obs, reward)
+                              self._time, self._setpoint, self._failure_code, s._count, s._state, action, prev_action,
+                              self._applied, self._rotor_speeds, buf, obs, reward)
         if status >= 0:
             self._raise_observe(status, buf, action)
         return obs, reward

@@ -167,6 +167,7 @@ from .options import (
     INIT_SPREAD,
     RENDER_MODES,
     check_actions,
+    check_external_wrench,
     check_init_noise,
     check_reset_options,
     check_setpoint,
@@ -192,10 +193,12 @@ class HoverEnv(gym.Env):
         sensors: ``"none"``, ``"seed000"``, ``"mocap_imu"``, a SensorSpec or a mapping.
         control_rate, physics_rate: Hz; ``physics_rate / control_rate`` must be an integer.
         episode_seconds: truncation time.
-        setpoint: hover set point, world NED (default: the FAWT hover point of Wang et al. 2024, Sec. 7.3).
-        init_noise: scale of the random initial perturbation (0: start exactly hovering at the set point).
+        setpoint: hover set point, world NED (default: the FAWT hover point of Wang et al. 2024, Sec. 7.3); above the
+            floor (z < 0), every coordinate at most 1e4 m in magnitude.
+        init_noise: scale of the random initial perturbation in [0, 10] (0: start exactly hovering at the set point;
+            10: up to 1 m, 1 m/s, 30 deg, 1 rad/s off hover).
         reward_weights: overrides of :data:`DEFAULT_REWARD_WEIGHTS`.
-        max_position_error: half-size of the termination box [m].
+        max_position_error: half-size of the termination box [m], in (0, 1e9] (1e9: the SITL plant's "no box").
         integrator: MuJoCo integrator name.
         render_mode: ``None`` or ``"rgb_array"`` (headless via MUJOCO_GL=egl, set by default).
     """
@@ -235,7 +238,6 @@ class HoverEnv(gym.Env):
         self.action_type = b.action_type
         self.n_substeps, self.physics_dt, self.dt = b.n_substeps, b.physics_dt, b.dt
         self.episode_seconds = b.episode_seconds
-        self.reward_weights = b.reward_weights
         self.action_space = b.single_action_space
         self.observation_space = b.single_observation_space
         self._act_low, self._act_high = b._act_low, b._act_high
@@ -263,12 +265,22 @@ class HoverEnv(gym.Env):
         return self._batch.sensor
 
     @property
+    def reward_weights(self) -> Mapping[str, float]:
+        """The reward's weights (read-only, fixed at construction: :attr:`HoverBatchEnv.reward_weights`)."""
+        return self._batch.reward_weights
+
+    @reward_weights.setter
+    def reward_weights(self, value: object) -> None:
+        self._batch.reward_weights = value  # raises (fixed at construction)
+
+    @property
     def init_noise(self) -> float:
+        """Scale of the random initial perturbation (the batch's :attr:`HoverBatchEnv.init_noise`, checked there)."""
         return self._batch.init_noise
 
     @init_noise.setter
     def init_noise(self, value: Any) -> None:
-        self._batch.init_noise = check_init_noise(value)
+        self._batch.init_noise = value
 
     @property
     def max_steps(self) -> int:
@@ -292,7 +304,7 @@ class HoverEnv(gym.Env):
 
     @property
     def setpoint(self) -> NDArray[np.float64]:
-        """Hover set point, world NED [m] (3,); assign a new one any time (validated)."""
+        """Hover set point, world NED [m] (3,), a read-only view; assign a new one any time (validated)."""
         return self._batch.setpoint[0]
 
     @setpoint.setter
@@ -313,9 +325,7 @@ class HoverEnv(gym.Env):
                             torque_frd: ArrayLike = (0.0, 0.0, 0.0)) -> None:
         """A constant extra disturbance (force world NED [N], torque body FRD [N m]) added to the aero wrench from the
         next step on (and reported in ``info["truth"]``)."""
-        if np.shape(force_ned) != (3,) or np.shape(torque_frd) != (3,):
-            raise ValueError(f"external wrench must be two finite 3-vectors, got {force_ned!r}, {torque_frd!r}")
-        self._batch.set_external_wrench(force_ned, torque_frd)
+        self._batch.set_external_wrench(*check_external_wrench(force_ned, torque_frd))
 
     def hover_action(self) -> NDArray[np.float32]:
         """The action that holds the weight at rest (equal rotors / level, zero rates)."""

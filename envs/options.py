@@ -75,12 +75,33 @@ def positive_number(value: Any, name: str) -> float:
     return v
 
 
+#: the largest ``init_noise``: at 10 a row starts up to 1 m, 1 m/s, 30 deg and 1 rad/s off hover (:data:`INIT_SPREAD`
+#: times 10); beyond it the start is no hover (tilts past 90 deg from 30 on) and huge values make every episode diverge
+MAX_INIT_NOISE = 10.0
+#: the largest set point coordinate [m] (10 km from the origin; MuJoCo resets states beyond 1e10 as diverged)
+MAX_SETPOINT = 1e4
+#: the largest ``max_position_error`` [m]: 1e9 is the SITL plant's "no box"; the float32 observation bounds stay finite
+MAX_POSITION_ERROR = 1e9
+
+
 def check_init_noise(value: Any) -> float:
-    """``init_noise`` as a float; ValueError naming it unless a finite number >= 0."""
+    """``init_noise`` as a float; ValueError naming it unless a finite number in [0, :data:`MAX_INIT_NOISE`]."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or not (
             math.isfinite(float(value)) and float(value) >= 0):
         raise ValueError(f"init_noise must be a finite number >= 0, got {value!r}")
+    if float(value) > MAX_INIT_NOISE:
+        raise ValueError(f"init_noise must be at most {MAX_INIT_NOISE:g} (a start up to 1 m, 1 m/s, 30 deg, 1 rad/s "
+                         f"off hover), got {value!r}")
     return float(value)
+
+
+def check_max_position_error(value: Any) -> float:
+    """``max_position_error`` [m] as a float: finite, > 0 and at most :data:`MAX_POSITION_ERROR`."""
+    v = positive_number(value, "max_position_error")
+    if v > MAX_POSITION_ERROR:
+        raise ValueError(f"max_position_error must be at most {MAX_POSITION_ERROR:g} m (the SITL plant's 'no box'), "
+                         f"got {value!r}")
+    return v
 
 
 def _real_array(value: Any, name: str, what: str) -> NDArray[np.float64]:
@@ -97,7 +118,8 @@ def _real_array(value: Any, name: str, what: str) -> NDArray[np.float64]:
 def check_setpoint(value: Any, n: int | None = None) -> NDArray[np.float64]:
     """A hover set point, world NED [m]: 3 finite numbers (or (n, 3), one per row) above the floor.
 
-    The floor is z_NED = 0 (NED z points down), so z must be < 0.  A set point just above the floor is allowed
+    The floor is z_NED = 0 (NED z points down), so z must be < 0; every coordinate is at most :data:`MAX_SETPOINT`
+    (10 km) in magnitude.  A set point just above the floor is allowed
     (the SITL plant starts resting on the ground; the env then ends the episode with a ground contact).
     Shapes broadcast as numpy's do: (3,) and (1, 3) are every row's set point (at every batch size, the single
     env included), (n, 3) one per row.  Returns (3,) or (n, 3).
@@ -110,7 +132,35 @@ def check_setpoint(value: Any, n: int | None = None) -> NDArray[np.float64]:
         raise ValueError(f"setpoint must be 3 finite NED coordinates [m] of shape {shapes}, got {value!r}")
     if np.any(sp[..., 2] >= 0.0):
         raise ValueError(f"setpoint z must be above the floor (z_NED < 0: NED z points down), got {value!r}")
+    if np.any(np.abs(sp) > MAX_SETPOINT):
+        raise ValueError(f"setpoint coordinates must be at most {MAX_SETPOINT:g} m in magnitude (10 km from the "
+                         f"origin), got {value!r}")
     return sp
+
+
+def _one_line(value: Any) -> str:
+    """``repr(value)`` on one line (a numpy array's repr wraps), at most 200 characters."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 200 else text[:197] + "..."
+
+
+def check_external_wrench(force: Any, torque: Any, n: int | None = None
+                          ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """An external wrench: force NED [N] and torque FRD [N m], each 3 finite real numbers ((3,), or (n, 3) one per
+    row if ``n`` is given); returns them broadcast to (n, 3) (or (3,))."""
+    shapes = "(3,)" if n is None else f"(3,) or ({n}, 3)"
+    what = f"two {shapes} arrays of finite real numbers (force NED [N], torque FRD [N m])"
+    error = f"external wrench must be {what}, got {_one_line(force)}, {_one_line(torque)}"
+    out = []
+    for value in (force, torque):
+        try:
+            a = _real_array(value, "external wrench", what)
+        except ValueError:
+            raise ValueError(error) from None
+        if (a.shape != (3,) and (n is None or a.shape != (n, 3))) or not np.all(np.isfinite(a)):
+            raise ValueError(error)
+        out.append(a if n is None else np.broadcast_to(a, (n, 3)))
+    return out[0], out[1]
 
 
 def check_reward_weights(value: Any) -> dict[str, float]:
@@ -159,6 +209,13 @@ def _render_size(value: Any, name: str) -> int:
 def hover_thrust_ratio(preset: VehiclePreset) -> float:
     """Weight over the four rotors' maximum thrust, m g / (4 k_T omega_max^2): the hover throttle."""
     return preset.mass * GRAVITY / (4.0 * preset.max_thrust_per_rotor)
+
+
+def hover_mass_scales(preset: VehiclePreset) -> tuple[float, float]:
+    """The open interval of mass scales s at which ``preset`` can hover: s m g between the four rotors' idle thrust
+    4 k_T omega_min^2 and their maximum thrust 4 k_T omega_max^2 (:func:`check_can_hover` at s = 1)."""
+    weight = preset.mass * GRAVITY
+    return 4.0 * preset.k_thrust * preset.omega_min**2 / weight, 4.0 * preset.max_thrust_per_rotor / weight
 
 
 def check_can_hover(preset: VehiclePreset) -> None:
@@ -230,7 +287,7 @@ def hover_options(vehicle: Any = "s500", wind: Any = "calm", action_type: Any = 
     if episode_seconds > MAX_EPISODE_SECONDS:
         raise ValueError(f"episode_seconds must be at most {MAX_EPISODE_SECONDS:g} s (about "
                          f"{MAX_EPISODE_SECONDS / 3.156e7:.0f} years of simulated flight), got {episode_seconds!r}")
-    max_position_error = positive_number(max_position_error, "max_position_error")
+    max_position_error = check_max_position_error(max_position_error)
     sp = FAWT_HOVER_POINT_NED.copy() if setpoint is None else check_setpoint(setpoint)
     return HoverOptions(
         preset=preset, wind=make_wind(wind), action_type=action_type, sensors=check_sensors(sensors),

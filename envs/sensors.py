@@ -182,7 +182,7 @@ class SensorModel:
 
     @gyro_bias.setter
     def gyro_bias(self, value: Any) -> None:
-        self._batch.gyro_bias[0] = _bias("gyro_bias", value)
+        self._batch.gyro_bias = _bias("gyro_bias", value)
 
     @property
     def accel_bias(self) -> NDArray[np.float64]:
@@ -191,7 +191,7 @@ class SensorModel:
 
     @accel_bias.setter
     def accel_bias(self, value: Any) -> None:
-        self._batch.accel_bias[0] = _bias("accel_bias", value)
+        self._batch.accel_bias = _bias("accel_bias", value)
 
     def measure(self, t: float, position: NDArray[np.float64], velocity: NDArray[np.float64],
                 rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],
@@ -207,9 +207,10 @@ class SensorModel:
 
 def _bias(name: str, value: Any) -> NDArray[np.float64]:
     try:
-        b = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        b = np.array([np.nan])
+        raw = np.asarray(value)
+    except ValueError:  # ragged nested sequences
+        raw = np.asarray(None)
+    b = raw.astype(np.float64) if raw.dtype.kind in "iuf" else np.full(1, np.nan)  # bool/complex/str refused
     if b.shape != (3,) or not np.all(np.isfinite(b)):
-        raise ValueError(f"{name} must be 3 finite values, got {value!r}")
+        raise ValueError(f"{name} must be 3 finite real numbers, got {value!r}")
     return b

@@ -27,7 +27,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.arrays import as_f64
+from fawtgym.core.arrays import as_f64, read_only
 from fawtgym.core.so3_kernels import exp_so3_row, mat_mul_row
 
 from .sensors import SensorSpec, make_sensor_spec, pose_rate_error
@@ -55,6 +55,9 @@ class _SigmaEntry:
         raise AttributeError(_FIXED.format(self.name))
 
 
+#: the error of assigning kernel state (the compiled kernels trust its shape and dtype)
+_KERNEL_STATE = ("BatchSensorModel.{} is the sensor kernel's state (read-only): set the turn-on biases through "
+                 "gyro_bias / accel_bias (or a randomizer's gyro_bias / accel_bias draws); the rest follows from reset")
 #: the error of assigning a sensor setting fixed at construction
 _FIXED = ("BatchSensorModel.{} is fixed at construction (derived from the sensor spec, copied into the env's step "
           "parameters): build the sensors (or the env, sensors=...) with a SensorSpec or a mapping of its fields "
@@ -151,12 +154,12 @@ class BatchSensorModel:
         self.noisy = bool(np.any(sigma > 0) or spec.gyro_bias_sigma > 0 or spec.accel_bias_sigma > 0)
         #: per row: the held pose sample (position 3, velocity 3, attitude 9) and the turn-on biases (gyro 3,
         #: accelerometer 3), one (N, 21) array (the kernel's one argument; the properties below are views of it)
-        self.state = np.zeros((self.n, 21))
-        self.state[:, 6:15] = np.eye(3).ravel()
+        self._state = np.zeros((self.n, 21))
+        self._state[:, 6:15] = np.eye(3).ravel()
         #: steps since each row's episode start (the pose hold's clock), updated in place by the kernel
-        self.count = np.zeros(self.n, dtype=np.int64)
+        self._count = np.zeros(self.n, dtype=np.int64)
         #: exact sensors: the kernel reads zero normals (never written)
-        self.no_noise = np.zeros((self.n, 21))
+        self._no_noise = np.zeros((self.n, 21))
         self._z = np.empty((self.n, 21))  # the noisy sensors' normals, drawn into in place (never handed out)
         self.rng = np.random.default_rng(0)
 
@@ -182,44 +185,85 @@ class BatchSensorModel:
         raise AttributeError(_FIXED.format("sigma"))
 
     @property
+    def state(self) -> NDArray[np.float64]:
+        """Per row the held pose sample (position 3, velocity 3, attitude 9) and the turn-on biases (gyro 3,
+        accelerometer 3), (N, 21): a read-only view of the kernel's state (set the biases through
+        :attr:`gyro_bias` / :attr:`accel_bias`; the pose hold is the kernel's)."""
+        return read_only(self._state)
+
+    @state.setter
+    def state(self, value: object) -> None:
+        raise AttributeError(_KERNEL_STATE.format("state"))
+
+    @property
+    def count(self) -> NDArray[np.int64]:
+        """Steps since each row's episode start (N,) (the pose hold's clock): a read-only view."""
+        return read_only(self._count)
+
+    @count.setter
+    def count(self, value: object) -> None:
+        raise AttributeError(_KERNEL_STATE.format("count"))
+
+    @property
+    def no_noise(self) -> NDArray[np.float64]:
+        """The zero normals (N, 21) the kernel reads for exact sensors: a read-only view."""
+        return read_only(self._no_noise)
+
+    @no_noise.setter
+    def no_noise(self, value: object) -> None:
+        raise AttributeError(_KERNEL_STATE.format("no_noise"))
+
+    @property
     def pose_pos(self) -> NDArray[np.float64]:
-        """The held position samples (N, 3) (a view of :attr:`state`)."""
-        return self.state[:, 0:3]
+        """The held position samples (N, 3) (a read-only view of :attr:`state`)."""
+        return read_only(self._state[:, 0:3])
 
     @property
     def pose_vel(self) -> NDArray[np.float64]:
-        """The held velocity samples (N, 3) (a view of :attr:`state`)."""
-        return self.state[:, 3:6]
+        """The held velocity samples (N, 3) (a read-only view of :attr:`state`)."""
+        return read_only(self._state[:, 3:6])
 
     @property
     def pose_att(self) -> NDArray[np.float64]:
-        """The held attitude samples (N, 3, 3) (a view of :attr:`state`)."""
-        return self.state[:, 6:15].reshape(self.n, 3, 3)
+        """The held attitude samples (N, 3, 3) (a read-only view of :attr:`state`)."""
+        return read_only(self._state[:, 6:15].reshape(self.n, 3, 3))
 
     @property
     def gyro_bias(self) -> NDArray[np.float64]:
-        """Turn-on gyro biases (N, 3) [rad/s] (a view of :attr:`state`); assign (3,) or (N, 3) finite values
-        (checked)."""
-        return self.state[:, 15:18]
+        """Turn-on gyro biases (N, 3) [rad/s] (a read-only view of :attr:`state`); assign (3,) or (N, 3) finite
+        values (checked)."""
+        return read_only(self._state[:, 15:18])
 
     @gyro_bias.setter
     def gyro_bias(self, value: Any) -> None:
-        self.state[:, 15:18] = self._bias("gyro_bias", value)
+        self._state[:, 15:18] = self._bias("gyro_bias", value)
 
     @property
     def accel_bias(self) -> NDArray[np.float64]:
-        """Turn-on accelerometer biases (N, 3) [m/s^2] (a view of :attr:`state`); assign (3,) or (N, 3) finite
-        values (checked)."""
-        return self.state[:, 18:21]
+        """Turn-on accelerometer biases (N, 3) [m/s^2] (a read-only view of :attr:`state`); assign (3,) or (N, 3)
+        finite values (checked)."""
+        return read_only(self._state[:, 18:21])
 
     @accel_bias.setter
     def accel_bias(self, value: Any) -> None:
-        self.state[:, 18:21] = self._bias("accel_bias", value)
+        self._state[:, 18:21] = self._bias("accel_bias", value)
+
+    def set_bias_rows(self, rows: NDArray[np.intp], gyro: NDArray[np.float64] | None = None,
+                      accel: NDArray[np.float64] | None = None) -> None:
+        """Turn-on biases of ``rows`` (k,): ``gyro`` / ``accel`` (k, 3) finite (the caller checked them)."""
+        if gyro is not None:
+            self._state[rows, 15:18] = gyro
+        if accel is not None:
+            self._state[rows, 18:21] = accel
 
     def _bias(self, name: str, value: Any) -> NDArray[np.float64]:
-        b = np.asarray(value, dtype=float)
+        try:
+            raw = np.asarray(value)
+        except ValueError:  # ragged nested sequences
+            raw = np.asarray(None)
+        b = raw.astype(np.float64) if raw.dtype.kind in "iuf" else np.full(1, np.nan)  # bool/complex/str refused
         if b.shape not in ((3,), (self.n, 3)) or not np.all(np.isfinite(b)):
-            raise ValueError(f"{name} must be 3 finite numbers or ({self.n}, 3), got {value!r}")
+            raise ValueError(f"{name} must be 3 finite real numbers or ({self.n}, 3), got {value!r}")
         return np.broadcast_to(b, (self.n, 3)).copy()
 
     def set_noise_rng(self, rng: np.random.Generator) -> None:
@@ -233,9 +277,9 @@ class BatchSensorModel:
             raise ValueError(f"need one generator per reset row: {rows.size} rows, {len(rngs)} generators")
         sg, sa = self.spec.gyro_bias_sigma, self.spec.accel_bias_sigma
         for row, rng in zip(rows.tolist(), rngs, strict=True):  # reset path only (not per step)
-            self.gyro_bias[row] = rng.normal(0.0, sg, 3) if sg else 0.0
-            self.accel_bias[row] = rng.normal(0.0, sa, 3) if sa else 0.0
-        self.count[rows] = 0
+            self._state[row, 15:18] = rng.normal(0.0, sg, 3) if sg else 0.0
+            self._state[row, 18:21] = rng.normal(0.0, sa, 3) if sa else 0.0
+        self._count[rows] = 0
 
     def measure(self, t: NDArray[np.float64], position: NDArray[np.float64], velocity: NDArray[np.float64],
                 rotation: NDArray[np.float64], angular_velocity: NDArray[np.float64],
@@ -251,7 +295,7 @@ class BatchSensorModel:
         numbers of ``rng.standard_normal((N, 21))``, drawn into one array that the next call overwrites); the zeros
         :attr:`no_noise` (nothing drawn) for exact sensors.  What :meth:`measure` draws: the env draws it and runs the
         kernel in its own step kernel (:func:`fawtgym.envs.step_kernels.observe_rows`)."""
-        return self.rng.standard_normal(out=self._z) if self.noisy else self.no_noise
+        return self.rng.standard_normal(out=self._z) if self.noisy else self._no_noise
 
     def measure_rows(self, rows: NDArray[np.intp], rngs: list[np.random.Generator], t: NDArray[np.float64],
                      position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],
@@ -284,8 +328,8 @@ class BatchSensorModel:
                              f"rotation (N, 3, 3) with N = {n}; got {position.shape}, {velocity.shape}, "
                              f"{angular_velocity.shape}, {acceleration.shape}, {rotation.shape}")
         pose_every = self.pose_every if self.noisy else 1  # exact measurements every step (no hold without noise)
-        state = self.state if every else self.state[rows]  # the rows' copy, written back below
-        count = self.count if every else self.count[rows]
+        state = self._state if every else self._state[rows]  # the rows' copy, written back below
+        count = self._count if every else self._count[rows]
         e = np.empty
         out = {M.POSITION: e((n, 3)), M.VELOCITY: e((n, 3)), M.ATTITUDE: e((n, 3, 3)), M.ANGULAR_VELOCITY: e((n, 3)),
                M.SPECIFIC_FORCE: e((n, 3)), M.GYRO: e((n, 3)), M.MAGNETOMETER: e((n, 3)),
@@ -296,6 +340,6 @@ class BatchSensorModel:
                         out[M.SPECIFIC_FORCE], out[M.GYRO], out[M.MAGNETOMETER]) >= 0:
             raise ValueError(SENSOR_NOT_FINITE)
         if rows is not None:
-            self.count[rows] = count
-            self.state[rows] = state
+            self._count[rows] = count
+            self._state[rows] = state
         return out

@@ -87,7 +87,7 @@ class VehiclePreset:
         if self.omega_min >= self.omega_max:
             raise ValueError(f"vehicle field 'omega_min' ({self.omega_min}) must be below "
                              f"'omega_max' ({self.omega_max})")
-        inertia = np.asarray(self.inertia, dtype=float)
+        inertia = _real_vector("inertia", self.inertia)
         if inertia.shape not in ((3,), (9,), (3, 3)):
             raise ValueError(f"vehicle field 'inertia' must have 3 (diagonal) or 9 entries, got shape {inertia.shape}")
         j = np.diag(inertia) if inertia.shape == (3,) else inertia.reshape(3, 3)
@@ -101,7 +101,7 @@ class VehiclePreset:
                              f"{eig.tolist()}")
         object.__setattr__(self, "inertia", tuple(float(x) for x in j.reshape(-1)))
         for field in ("body_drag", "cop_offset"):
-            vec = np.asarray(getattr(self, field), dtype=float)
+            vec = _real_vector(field, getattr(self, field))
             if vec.shape != (3,) or not np.all(np.isfinite(vec)):
                 raise ValueError(f"vehicle field {field!r} must be 3 finite numbers, got {getattr(self, field)!r}")
             if field == "body_drag" and np.any(vec < 0):
@@ -144,6 +144,18 @@ class VehiclePreset:
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
+
+
+def _real_vector(field: str, value: Any) -> NDArray[np.float64]:
+    """A vector field's entries as float64 if all are real numbers (int, float, numpy reals); bool, complex, str,
+    None and ragged nestings are refused with a ValueError naming the field (as the scalar fields are)."""
+    try:
+        raw = np.asarray(value)
+    except ValueError:  # ragged nested sequences
+        raw = np.asarray(None)
+    if raw.dtype.kind not in "iuf":
+        raise ValueError(f"vehicle field {field!r} must be real numbers (not bool, complex or str), got {value!r}")
+    return raw.astype(np.float64)
 
 
 def _s500() -> VehiclePreset:
@@ -292,4 +304,5 @@ def make_vehicle(spec: str | VehiclePreset | Mapping[str, Any] | Path) -> Vehicl
             return vehicle_from_mapping(yaml.safe_load(text))
         raise ValueError(f"unknown vehicle {str(spec)!r}; valid presets: {list(VEHICLE_NAMES)} "
                          "(or a VehiclePreset, a mapping, or a .yaml/.json file)")
-    raise TypeError(f"vehicle must be a name, VehiclePreset, mapping or path, got {type(spec).__name__}")
+    raise ValueError(f"vehicle must be a preset name, a VehiclePreset, a mapping or a .yaml/.json path, got {spec!r} "
+                     f"({type(spec).__name__})")

@@ -131,6 +131,6 @@ def test_external_wrench_attributes_assign_through_the_checked_setter() -> None:
     env.external_torque = np.array([[0.1, 0.0, 0.0], [0.0, 0.2, 0.0]])
     np.testing.assert_array_equal(env.external_force, [[1.0, 2.0, 3.0]] * 2)
     np.testing.assert_array_equal(env.external_torque, [[0.1, 0.0, 0.0], [0.0, 0.2, 0.0]])
-    with pytest.raises(ValueError, match="external wrench must be finite"):
+    with pytest.raises(ValueError, match=r"external wrench must be two \(3,\) or \(2, 3\) arrays of finite real"):
         env.external_force = [np.nan, 0.0, 0.0]
     np.testing.assert_array_equal(env.external_force, [[1.0, 2.0, 3.0]] * 2)  # unchanged by the refused value

@@ -90,11 +90,18 @@ def test_aero_assignment_acts_from_the_next_step():
     ("k_d", "x", r"AeroModel.k_d must be a finite number >= 0, got 'x'")])
 @pytest.mark.parametrize("n", [1, 3])
 def test_bad_aero_values_raise_and_change_nothing(attr, value, match, n):
-    env = HoverBatchEnv(n)
-    before = env._params.copy()
+    env, ref = HoverBatchEnv(n, wind="fawt-50"), HoverBatchEnv(n, wind="fawt-50")
+    before = env.aero.coefficients.copy()
     with pytest.raises(ValueError, match=match):
         setattr(env.aero, attr, value)
-    assert np.array_equal(env._params, before)
+    assert np.array_equal(env.aero.coefficients, before)
+    # what the step uses is unchanged too: the aero force of a windy flight equals an untouched env's, bitwise
+    env.reset(seed=2)
+    ref.reset(seed=2)
+    for _ in range(5):
+        got, want = env.step(env.hover_action())[4], ref.step(ref.hover_action())[4]
+        assert got["truth"]["force"].tobytes() == want["truth"]["force"].tobytes()
+        assert got["truth"]["torque"].tobytes() == want["truth"]["torque"].tobytes()
 
 
 def test_rotor_positions_are_read_only():
@@ -135,7 +142,7 @@ def test_max_steps_and_box_of_hover_env_take_effect():
     env = HoverEnv(init_noise=0.0)
     env.reset(seed=0)
     env.max_steps = 3
-    assert env.max_steps == 3 and env._batch.max_steps == 3
+    assert env.max_steps == 3
     flags = [env.step(env.hover_action())[2:4] for _ in range(3)]
     assert flags == [(False, False), (False, False), (False, True)]
     env.reset(seed=0)

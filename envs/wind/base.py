@@ -143,7 +143,7 @@ def make_wind(spec: str | WindModel | Mapping[str, Any] | None) -> WindModel:
         if spec not in _WIND_REGISTRY:
             raise ValueError(f"unknown wind {spec!r}; valid names: {wind_names()}")
         return _WIND_REGISTRY[spec]()
-    raise TypeError(f"wind must be a name, a WindModel or a mapping, got {type(spec).__name__}")
+    raise ValueError(f"wind must be a name, a WindModel or a mapping, got {spec!r} ({type(spec).__name__})")
 
 
 @njit(cache=True)

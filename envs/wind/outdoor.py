@@ -145,9 +145,9 @@ class DrydenWind(GustWind):
         self.params = params
         self.intensity = intensity
         self.altitude = float(altitude)
-        if mean_wind is True:
-            speed = log_profile_speed(intensity, altitude)
-        elif mean_wind is False or mean_wind is None:
+        if isinstance(mean_wind, (bool, np.bool_)):  # numpy booleans too, as check_flag accepts them
+            speed = log_profile_speed(intensity, altitude) if mean_wind else 0.0
+        elif mean_wind is None:
             speed = 0.0
         elif is_real(mean_wind) and mean_wind >= 0:
             speed = float(mean_wind)

@@ -17,3 +17,11 @@ def as_f64(value: Any, name: str) -> NDArray[np.float64]:
     if raw.dtype.kind not in "fiu":
         raise ValueError(f"{name} must be an array of real numbers, got dtype {raw.dtype}")
     return raw.astype(np.float64, copy=False)
+
+
+def read_only(a: NDArray[Any]) -> NDArray[Any]:
+    """A read-only view of ``a`` (kernel state handed out: in-place writes raise numpy's ValueError; ``a`` itself
+    stays writeable for its owner)."""
+    view = a.view()
+    view.flags.writeable = False
+    return view
