@@ -91,7 +91,7 @@ def test_interleaved_physics_call_leaves_the_closed_loop_trajectory_unchanged(mo
     closed, physics = jobs["interleaved"][0]()
     assert closed > 0 and physics > 0
     assert len(seen) == len(plain) == 10
-    for a, b in zip(plain, seen):
+    for a, b in zip(plain, seen, strict=True):
         np.testing.assert_array_equal(a, b)
 
 
