@@ -28,6 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import check_positive
 from fawtgym.core.kernel_types import TYPED_DISPATCH, compile_only
 from fawtgym.core.measurement import ATTITUDE, TRAILING_SHAPES, batch_measurement
 from fawtgym.core.rows import check_row_mask
@@ -144,16 +145,15 @@ class Observer:
             getattr(cls, hook) is getattr(owner, hook) for hook in ("_update", "_check_estimate", "_commit"))
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665) -> None:
-        if not (np.isfinite(mass) and mass > 0):
-            raise ValueError(f"mass must be a finite positive number, got {mass!r}")
-        j = np.asarray(inertia, dtype=float)
-        j = np.diag(j) if j.shape == (3,) else j
-        if j.shape != (3, 3) or not np.all(np.isfinite(j)) or np.linalg.eigvalsh((j + j.T) / 2).min() <= 0:
-            raise ValueError(f"inertia must be a positive-definite 3x3 matrix or 3 diagonal entries, got {inertia!r}")
-        self.mass = float(mass)
+        """``mass`` [kg] and ``gravity`` [m/s^2]: real, finite, > 0 (``gravity`` at most :data:`MAX_GRAVITY`);
+        ``inertia`` [kg m^2]: a symmetric-part positive-definite 3x3 matrix of real numbers, or its 3 diagonal
+        entries.  Else one-line ValueError naming the argument and what is allowed."""
+        who = self.name or type(self).__name__
+        self.mass = check_positive(mass, f"{who}: mass", note="kg")
+        self.gravity = check_positive(gravity, f"{who}: gravity", maximum=MAX_GRAVITY, note="m/s^2")
+        j = _inertia_matrix(inertia, who)
         self.inertia = j
         self.inertia_inv = np.linalg.inv(j)
-        self.gravity = float(gravity)
         self._j_max = float(np.linalg.eigvalsh((j + j.T) / 2).max())
         #: rows N of the state, set by the last full reset (None before it)
         self._n_rows: int | None = None
@@ -392,6 +392,30 @@ def fast_inputs(measurement: object, shapes: tuple[tuple[str, tuple[int, ...], i
 
 
 _REAL_KINDS = "iuf"    # numpy dtype kinds accepted as real numbers (bool "b" and complex "c" are refused)
+
+#: the largest gravitational acceleration an observer accepts [m/s^2] (ten times Jupiter's 24.8): a larger one is a
+#: typo, and the divergence bound MAX_FORCE_WEIGHTS m g would grow with it
+MAX_GRAVITY = 250.0
+
+
+def _inertia_matrix(inertia: object, who: str) -> NDArray[np.float64]:
+    """``inertia`` as a float64 (3, 3) (3 entries: the diagonal); ValueError naming it unless it holds real
+    numbers (bool, complex, str refused), has one of those shapes, is finite and its symmetric part is positive
+    definite."""
+    allowed = "a 3x3 matrix or 3 diagonal entries of finite real numbers [kg m^2], positive definite"
+    try:
+        j = np.asarray(inertia)
+    except (ValueError, TypeError):          # ragged nested sequences
+        j = np.asarray(None, dtype=object)
+    if j.dtype.kind not in _REAL_KINDS:
+        raise ValueError(f"{who}: inertia must be {allowed}, got {inertia!r} (dtype {j.dtype})")
+    j = j.astype(np.float64)
+    j = np.diag(j) if j.shape == (3,) else j
+    if j.shape != (3, 3) or not np.all(np.isfinite(j)):
+        raise ValueError(f"{who}: inertia must be {allowed}, got {inertia!r}")
+    if np.linalg.eigvalsh((j + j.T) / 2).min() <= 0:
+        raise ValueError(f"{who}: inertia must be {allowed}, got {inertia!r} (not positive definite)")
+    return j
 
 
 def check_dt(dt: object, max_dt: float, who: str) -> float:

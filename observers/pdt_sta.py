@@ -24,6 +24,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import check_number, check_positive
 from fawtgym.core.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FORCE, batch_measurement
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import mat_mul_row, quat_to_rot_row
@@ -171,6 +172,9 @@ class PdtStaAttitudeObserver(Observer):
                  mode: str = "predefined", weights: tuple[float, float] = (1.0, 1.0),
                  magnetic_field: ArrayLike = EARTH_FIELD_NED, reanchor: float = 1.0) -> None:
         super().__init__(mass, inertia, gravity)
+        kappa1 = check_positive(kappa1, "pdt_sta: gain kappa1", note="(kappa1 > 0, eqs. 16-22)")
+        noise_bound = check_number(noise_bound, "pdt_sta: noise_bound", minimum=0.0, inclusive_minimum=True,
+                                   note="(ell of eq. 42)")
         t_switch = early_switch_time(t_c, eta, noise_bound) if noise_bound > 0 else None
         if kappa2 is None:
             kappa2 = 6.0 * float(np.linalg.eigvalsh(self.inertia).min())
@@ -183,9 +187,7 @@ class PdtStaAttitudeObserver(Observer):
         if m.shape != (3,) or not np.all(np.isfinite(m)) or np.linalg.norm(np.cross(m, [0, 0, 1.0])) < 1e-6:
             raise ValueError("magnetic_field must be a finite 3-vector not parallel to gravity, "
                              f"got {magnetic_field!r}")
-        if not (np.isfinite(reanchor) and 0 < reanchor <= 10):
-            raise ValueError(f"reanchor must lie in (0, 10] (a Gibbs-vector norm), got {reanchor!r}")
-        self.reanchor = float(reanchor)
+        self.reanchor = check_positive(reanchor, "pdt_sta: reanchor", maximum=10.0, note="(a Gibbs-vector norm)")
         self.references = np.stack([np.array([0.0, 0.0, -self.gravity]), m])  # specific force at rest, field
         self._ref_unit = np.ascontiguousarray(self.references / np.linalg.norm(self.references, axis=1)[:, None])
         self._min_field = 0.1 * float(np.linalg.norm(m))
