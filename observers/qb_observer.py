@@ -239,6 +239,8 @@ class QBObserver(Observer):
     #: Rbar = (R_prev + R) / 2, which is second-order accurate only while the vehicle turns little over dt:
     #: 0.1 s at 1 rad/s is 0.1 rad (the paper's simulation is continuous-time)
     max_dt = 0.1
+    #: the collective thrust [N] of the accelerometer term of y at reset: a number or one per row
+    reset_options = {"thrust": ()}
 
     def __init__(self, mass: float, inertia: ArrayLike, gain_file: str | os.PathLike[str] | None = None,
                  gravity: float = 9.80665) -> None:
@@ -276,32 +278,21 @@ class QBObserver(Observer):
     def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
                rows: NDArray[np.bool_] | None, **options: Any) -> int:
         """State: ``_x`` (N, n_x), the previous output ``_y`` (N, 9) and attitude ``_R`` (N, 3, 3)."""
-        thrust = options.pop("thrust", None)
-        if options:
-            raise TypeError(f"qb: unknown reset options {sorted(options)}; allowed: thrust")
-        if rows is not None and thrust is not None and np.shape(thrust) == rows.shape:
-            thrust = np.asarray(thrust, dtype=float)[rows]
+        thrust = options.get("thrust")      # checked by Observer.reset: None, a number or one per row of measurement
         meas = M.batch_measurement(measurement)
         R = meas[M.ATTITUDE]
         n_b = R.shape[0]
-        try:
-            f = np.broadcast_to(np.asarray(self.mass * self.gravity if thrust is None else thrust, dtype=float),
-                                (n_b,)).copy()
-        except ValueError:
-            raise ValueError(f"qb: reset thrust must be a number or one per row ({n_b},), got shape "
-                             f"{np.shape(thrust)}") from None
-        if not np.isfinite(f).all():
-            raise ValueError(f"qb: reset thrust must be finite, got {thrust!r}")
+        f = np.broadcast_to(self.mass * self.gravity if thrust is None else thrust, (n_b,)).copy()
         y = momentum_output(self.mass, self._J, R, meas[M.VELOCITY], meas[M.ANGULAR_VELOCITY],
                             meas[M.SPECIFIC_FORCE], f)
         x = np.zeros((n_b, self.gain.A.shape[0]))
         x[:, :9] = y
-        if force is not None:
-            x[:, 6:9] = np.broadcast_to(np.asarray(force, dtype=float), (n_b, 3))
+        if force is not None:       # checked by Observer.reset: (3,) or one per row, finite
+            x[:, 6:9] = np.broadcast_to(force, (n_b, 3))
         if torque is not None:
-            x[:, 9:12] = np.einsum("nij,nj->ni", R, np.broadcast_to(np.asarray(torque, dtype=float), (n_b, 3)))
+            x[:, 9:12] = np.einsum("nij,nj->ni", R, np.broadcast_to(torque, (n_b, 3)))
         if not np.all(np.isfinite(x)):
-            raise ValueError("qb: reset: non-finite initial force/torque")
+            raise ValueError("qb: reset: the initial state is not finite (check the measurement and the guesses)")
         self._x, self._y, self._R = write_rows((self._x, self._y, self._R), (x, y, np.ascontiguousarray(R)), rows)
         return n_b
 

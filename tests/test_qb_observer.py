@@ -295,8 +295,8 @@ def test_reset_thrust_of_the_wrong_shape_is_a_clear_error(n):
         warnings.simplefilter("ignore")
         obs = make_observer("qb", 1.5, [0.03, 0.03, 0.05])
     meas = hover_measurement(n, np.random.default_rng(0))
-    with pytest.raises(ValueError, match=rf"^qb: reset thrust must be a number or one per row \({n},\), got shape "
-                                         rf"\({n + 1},\)$"):
+    with pytest.raises(ValueError, match=rf"^qb: reset thrust must be a finite real number \(every row\) or shape "
+                                         rf"\(N,\) with N = {n} \(one per row\), got shape \({n + 1},\)$"):
         obs.reset(meas, thrust=np.ones(n + 1))
     with pytest.raises(TypeError, match="unknown reset options"):
         obs.reset(meas, thrust_typo=1.0)
