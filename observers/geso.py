@@ -48,6 +48,7 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.core import measurement as M
 from fawtgym.core.checks import check_positive
 from fawtgym.core.rows import write_rows
+from fawtgym.core.so3_kernels import cross_row
 
 from ._obs_common import MAX_RATE_GAIN
 from .base import BufferStates, Observer, ObserverEstimate, register_observer
@@ -295,9 +296,7 @@ def geso_signals_row(is_force: bool, mass: float, inertia: NDArray[np.float64], 
     else:
         for j in range(3):
             y[j] = inertia[j, 0] * rate[0] + inertia[j, 1] * rate[1] + inertia[j, 2] * rate[2]
-        aux[0] = y[1] * rate[2] - y[2] * rate[1]
-        aux[1] = y[2] * rate[0] - y[0] * rate[2]
-        aux[2] = y[0] * rate[1] - y[1] * rate[0]
+        cross_row(y, rate, aux)
 
 
 @njit(cache=True)

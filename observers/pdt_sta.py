@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.core.checks import check_number, check_positive
 from fawtgym.core.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FORCE, batch_measurement
 from fawtgym.core.rows import write_rows
-from fawtgym.core.so3_kernels import mat_mul_row, quat_to_rot_row
+from fawtgym.core.so3_kernels import cross_row, mat_mul_row, quat_to_rot_row
 
 from .base import BufferStates, Observer, ObserverEstimate, register_observer
 from .gibbs import gibbs_to_rot_row, omega_row, rot_to_gibbs_row
@@ -49,10 +49,8 @@ def measured_attitude_row(sf, mag, ref, weights, gravity, min_field, body, q, g,
     parallel; these are QUEST's preconditions, so :func:`quest_row` runs without further checks."""
     na = math.sqrt(sf[0] * sf[0] + sf[1] * sf[1] + sf[2] * sf[2])
     nm = math.sqrt(mag[0] * mag[0] + mag[1] * mag[1] + mag[2] * mag[2])
-    c0 = sf[1] * mag[2] - sf[2] * mag[1]
-    c1 = sf[2] * mag[0] - sf[0] * mag[2]
-    c2 = sf[0] * mag[1] - sf[1] * mag[0]
-    sin = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / max(na * nm, 1e-300)
+    cross_row(sf, mag, g)                  # sf x mag (g is scratch: quest_row overwrites it below)
+    sin = math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) / max(na * nm, 1e-300)
     if not (na > 0.2 * gravity and nm > min_field and sin > 0.0175):
         return False
     for k in range(3):
