@@ -200,22 +200,31 @@ _STATES = {"velocity": (6, 9, (3,)), "angular_velocity": (9, 12, (3,)), "disturb
 def _qb_rows(x, y_prev, R_prev, R, velocity, rate, specific_force, thrust, torque, mass, gravity, J, J_inv,
              stacked, x_out, y_out, out):
     """One update of every row: u_k (eq. 52) with Rbar = (R_prev + R) / 2, y_{k+1} (eq. 54), then
-    x_{k+1} = Phi x_k + Gu u_k + Gy0 y_k + Gy1 (y_{k+1} - y_k) as one product [x, u, y_prev, y] @ ``stacked``
-    (:func:`discretize`), and the estimate into ``out`` (:func:`_estimate_rows`)."""
+    x_{k+1} = Phi x_k + Gu u_k + Gy0 y_k + Gy1 (y_{k+1} - y_k) as the product z @ ``stacked`` of the row
+    z = [x, u, y_prev, y] (:func:`discretize`), and the estimate into ``out`` (:func:`_estimate_rows`).
+
+    The product is a loop of its own per row, summed in one fixed order, so a row's result does not depend on the
+    other rows (a BLAS product of the whole batch, z (N, k) @ stacked, picks its kernel and blocking by N: row i
+    of an N = 5 batch then differed from the same vehicle at N = 1 at rounding level)."""
     n, nx = x.shape
-    z = np.empty((n, nx + 24))
+    nz = stacked.shape[0]
+    z = np.empty(nz)
     Rbar = np.empty((3, 3))
     for i in range(n):
-        zi = z[i]
-        zi[:nx] = x[i]
+        z[:nx] = x[i]
         for j in range(3):
             for k in range(3):
                 Rbar[j, k] = 0.5 * (R_prev[i, j, k] + R[i, j, k])
-        momentum_input_row(mass, gravity, Rbar, thrust[i], torque[i], zi[nx:nx + 6])
-        zi[nx + 6:nx + 15] = y_prev[i]
+        momentum_input_row(mass, gravity, Rbar, thrust[i], torque[i], z[nx:nx + 6])
+        z[nx + 6:nx + 15] = y_prev[i]
         momentum_output_row(mass, J, R[i], velocity[i], rate[i], specific_force[i], thrust[i], y_out[i])
-        zi[nx + 15:] = y_out[i]
-    x_out[:, :] = np.dot(z, stacked)
+        z[nx + 15:] = y_out[i]
+        xi = x_out[i]
+        xi[:] = 0.0
+        for k in range(nz):          # x_{k+1} = sum_k z_k stacked[k, :], k in order (eq. 3 discretized)
+            zk = z[k]
+            for j in range(nx):
+                xi[j] += zk * stacked[k, j]
     _estimate_rows(x_out, R, mass, J_inv, out)
 
 
@@ -239,6 +248,9 @@ class QBObserver(Observer):
     #: Rbar = (R_prev + R) / 2, which is second-order accurate only while the vehicle turns little over dt:
     #: 0.1 s at 1 rad/s is 0.1 rad (the paper's simulation is continuous-time)
     max_dt = 0.1
+    #: the shortest update step [s]: the first-order hold of y is integrated with y's rate (y_{k+1} - y_k) / dt
+    #: (:func:`discretize`), which overflows for a subnormal dt; no env or log steps faster than a microsecond
+    min_dt = 1e-9
     #: the collective thrust [N] of the accelerometer term of y at reset: a number or one per row
     reset_options = {"thrust": ()}
 
@@ -313,9 +325,16 @@ class QBObserver(Observer):
         self._x, self._y, self._R = state
 
     def _stacked(self, dt: float) -> NDArray[np.float64]:
-        """The discrete step for ``dt`` as one matrix (cached for the last few distinct dt)."""
+        """The discrete step for ``dt`` as one matrix (cached for the last few distinct dt).
+
+        ValueError (the one-line dt message, with :attr:`min_dt` as the lower bound) for a ``dt`` below
+        :attr:`min_dt`: :func:`discretize` divides by dt (a subnormal dt overflows to inf)."""
         stacked = self._disc.get(dt)
         if stacked is None:
+            if not dt >= self.min_dt:
+                raise ValueError(f"qb: dt must be a finite number of seconds in [{self.min_dt:g}, {self.max_dt:g}] "
+                                 "(min_dt: the first-order hold divides by dt; max_dt, the bound of its "
+                                 f"discretisation), got {dt!r}")
             phi, gu, gy0, gy1 = discretize(self.gain, dt)
             # x+ = Phi x + Gu u + Gy0 y_prev + Gy1 (y - y_prev), as one product with [x, u, y_prev, y]
             stacked = np.ascontiguousarray(np.vstack([phi.T, gu.T, (gy0 - gy1).T, gy1.T]))
