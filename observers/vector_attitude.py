@@ -17,7 +17,7 @@ vehicle's own acceleration is small compared with g), the Earth field, and their
 
 The batch functions of eqs. 21-28 here are the paper's definitions, used by the tests and the reproduction; the
 HC-ESO's kernel evaluates s_L, w_L, z_L and H(s_L) w_L in closed form per row
-(:func:`fawtgym.observers.hc_eso_so3.hc_eso_rates_row`), and tests/test_hc_eso_observer.py checks its
+(:func:`fawtgym.observers.hc_eso.hc_eso_rates_row`), and tests/test_hc_eso_observer.py checks its
 rates against these definitions through the error dynamics of eq. 31.
 """
 

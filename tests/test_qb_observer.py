@@ -19,7 +19,7 @@ from fawtgym.envs.vehicles import GRAVITY
 from fawtgym.eval.reproduce import qb_observer as rq
 from fawtgym.observers import make_observer, observer_names
 from fawtgym.observers import qb_design as qd
-from fawtgym.observers.qb_observer import GAIN_DIR, QBObserver, load_gain
+from fawtgym.observers.qb import GAIN_DIR, QBObserver, load_gain
 from fawtgym.observers.qb_uav_model import HUMMINGBIRD_INERTIA, HUMMINGBIRD_MASS, scaled_q2, uav_model
 
 M_H, J_H = HUMMINGBIRD_MASS, np.diag(HUMMINGBIRD_INERTIA)
