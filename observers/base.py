@@ -225,11 +225,14 @@ class Observer:
         self._reset(sub, force_rows, torque_rows, mask, **option_rows)
 
     def _rows_of(self, measurement: Mapping[str, ArrayLike]) -> int:
-        """The batch size of a full reset's measurement: the rows of its first required key (1 if unbatched or
-        absent: :func:`check_measurement` then names the problem)."""
-        key = self.required_keys[0]
-        if not isinstance(measurement, Mapping) or key not in measurement:
+        """The batch size of a full reset's measurement: the rows of its first required key (of its first known key
+        if the observer states none; 1 if unbatched or absent: :func:`check_measurement` then names the problem)."""
+        if not isinstance(measurement, Mapping):
             return 1
+        keys = self.required_keys or tuple(k for k in measurement if k in TRAILING_SHAPES)
+        if not keys or keys[0] not in measurement:
+            return 1
+        key = keys[0]
         shape = np.shape(measurement[key])
         return int(shape[0]) if len(shape) > len(TRAILING_SHAPES[key]) else 1
 
