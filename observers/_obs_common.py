@@ -33,6 +33,18 @@ def batch_vec(x: ArrayLike | None, n: int, label: str, who: str) -> NDArray[np.f
 MAX_RATE_GAIN = 1e6
 
 
+def real_vector(value: object, size: int) -> NDArray[np.float64] | None:
+    """``value`` as a finite float64 vector (``size``,) if it holds real numbers (bool, complex, str refused), else
+    None (the caller words the error, naming its argument)."""
+    try:
+        a = np.asarray(value)
+    except (ValueError, TypeError):          # ragged nested sequences
+        return None
+    if a.dtype.kind not in "iuf" or a.shape != (size,) or not np.all(np.isfinite(a)):
+        return None
+    return a.astype(np.float64)
+
+
 def positive(who: str, maximum: float = math.inf, **values: float) -> tuple[float, ...]:
     """The ``values`` as floats; ValueError naming the first that is not a real, finite number in (0, ``maximum``]
     (:func:`fawtgym.core.checks.check_positive`)."""

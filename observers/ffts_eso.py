@@ -75,7 +75,7 @@ from fawtgym.core.so3_kernels import (
 from fawtgym.observers._checks import (
     ROTATION_TOL,
 )
-from fawtgym.observers._obs_common import MAX_RATE_GAIN, batch_vec
+from fawtgym.observers._obs_common import MAX_RATE_GAIN, batch_vec, real_vector
 from fawtgym.observers.base import (
     BufferStates,
     Observer,
@@ -179,23 +179,11 @@ def validate_gains(p: float, kt1: float, kt2: float, kt3: float, kappa_t: float,
         out.append(check_positive(k3, f"ffts_eso: gain k{half}3", maximum=MAX_RATE_GAIN, note="(k3 > 0 in Theorem 1)"))
         out.append(check_number(kappa, f"ffts_eso: gain kappa_{half}", minimum=0.5, maximum=MAX_RATE_GAIN,
                                 note=f"(kappa > 1/2, Wang et al. (2024) eq. {50 if half == 't' else 69})"))
-    kk = _real_vector(morse_k, 3)
+    kk = real_vector(morse_k, 3)
     if kk is None or not (kk[0] > kk[1] > kk[2] >= 1.0) or not kk[0] <= MAX_RATE_GAIN:
         raise ValueError(f"ffts_eso: Morse gains morse_k = (K1, K2, K3) must be 3 finite real numbers with "
                          f"{MAX_RATE_GAIN:g} >= K1 > K2 > K3 >= 1 (Lemma 5, eq. 41), got {morse_k!r}")
     return tuple(out)
-
-
-def _real_vector(value: object, size: int) -> NDArray[np.float64] | None:
-    """``value`` as a finite float64 vector (``size``,) if it holds real numbers (not bool, complex, str), else
-    None."""
-    try:
-        a = np.asarray(value)
-    except (ValueError, TypeError):
-        return None
-    if a.dtype.kind not in "iuf" or a.shape != (size,) or not np.all(np.isfinite(a)):
-        return None
-    return a.astype(np.float64)
 
 
 @register_observer("ffts_eso")

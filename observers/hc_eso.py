@@ -44,7 +44,7 @@ from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import exp_so3_row, mat_mul_row
 
 from . import vector_attitude as va
-from ._obs_common import MAX_RATE_GAIN
+from ._obs_common import MAX_RATE_GAIN, real_vector
 from .base import BufferStates, Observer, ObserverEstimate, register_observer
 from .vector_attitude import _S2_FLOOR, imu_body_vectors_row
 
@@ -320,7 +320,11 @@ class HcEsoSO3(Observer):
         max_step = check_number(max_step, "hc_eso: max_step", minimum=self.max_dt / MAX_SUBSTEPS,
                                 inclusive_minimum=True, note=f"s (>= max_dt / {MAX_SUBSTEPS})")
         self.vectors, self.rate_key, self.max_step = vectors, rate_key, max_step
-        self.field_ned = np.asarray(field_ned, float)
+        field = real_vector(field_ned, 3)
+        if field is None:
+            raise ValueError(f"hc_eso: field_ned must be 3 finite real numbers (the Earth field, NED), got "
+                             f"{field_ned!r}")
+        self.field_ned = field
         self._e = np.eye(3) if vectors == "attitude" else va.imu_inertial_vectors(self.field_ned)
         self._w = va.wahba_weight(self._e, self.morse_gains)
         self._ew = np.ascontiguousarray(self._e @ self._w)

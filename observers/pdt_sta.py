@@ -29,6 +29,7 @@ from fawtgym.core.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FOR
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import cross_row, mat_mul_row, quat_to_rot_row
 
+from ._obs_common import real_vector
 from .base import BufferStates, Observer, ObserverEstimate, register_observer
 from .gibbs import gibbs_to_rot_row, omega_row, rot_to_gibbs_row
 from .predefined_sta import early_switch_time
@@ -177,13 +178,14 @@ class PdtStaAttitudeObserver(Observer):
         if kappa2 is None:
             kappa2 = 6.0 * float(np.linalg.eigvalsh(self.inertia).min())
         self.core = GibbsSTSMO(self.inertia, t_c, eta, kappa1, kappa2, mode, t_switch)
-        w = np.asarray(weights, dtype=float)
-        if w.shape != (2,) or not np.all(np.isfinite(w)) or np.any(w <= 0):
-            raise ValueError(f"weights must be two positive numbers (accelerometer, magnetometer), got {weights!r}")
+        w = real_vector(weights, 2)
+        if w is None or np.any(w <= 0):
+            raise ValueError(f"pdt_sta: weights must be two finite real numbers > 0 (accelerometer, magnetometer), "
+                             f"got {weights!r}")
         self.weights = w
-        m = np.asarray(magnetic_field, dtype=float)
-        if m.shape != (3,) or not np.all(np.isfinite(m)) or np.linalg.norm(np.cross(m, [0, 0, 1.0])) < 1e-6:
-            raise ValueError("magnetic_field must be a finite 3-vector not parallel to gravity, "
+        m = real_vector(magnetic_field, 3)
+        if m is None or np.linalg.norm(np.cross(m, [0, 0, 1.0])) < 1e-6:
+            raise ValueError("pdt_sta: magnetic_field must be 3 finite real numbers (NED) not parallel to gravity, "
                              f"got {magnetic_field!r}")
         self.reanchor = check_positive(reanchor, "pdt_sta: reanchor", maximum=10.0, note="(a Gibbs-vector norm)")
         self.references = np.stack([np.array([0.0, 0.0, -self.gravity]), m])  # specific force at rest, field

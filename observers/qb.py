@@ -110,6 +110,9 @@ def resolve_gain_path(gain_file: str | os.PathLike[str] | None) -> Path:
     """A path, or a shipped gain's name (``"qb_gain_hummingbird_mu0p2"``), or None for the default."""
     if gain_file is None:
         gain_file = DEFAULT_GAIN
+    if not isinstance(gain_file, (str, os.PathLike)):
+        raise ValueError(f"gain_file must be None (the shipped gain for the vehicle), a path or a shipped gain's name, "
+                         f"got {gain_file!r} ({type(gain_file).__name__})")
     p = Path(gain_file)
     if p.suffix == "" and not p.exists():
         p = GAIN_DIR / (p.name + ".npz")

@@ -107,6 +107,16 @@ GAIN_CASES = [
     ("pdt_sta", {"kappa1": None}, "pdt_sta: gain kappa1 must be a finite real number > 0 (kappa1 > 0, eqs. 16-22), "
                                   "got None (NoneType)"),
     ("pdt_sta", {"t_c": True}, "t_c must be a finite real number, got True (bool)"),
+    ("pdt_sta", {"weights": (True, True)}, "pdt_sta: weights must be two finite real numbers > 0 (accelerometer, "
+                                           "magnetometer), got (True, True)"),
+    ("pdt_sta", {"magnetic_field": "abc"}, "pdt_sta: magnetic_field must be 3 finite real numbers (NED) not "
+                                           "parallel to gravity, got 'abc'"),
+    ("hc_eso", {"field_ned": (1j, 0, 0)}, "hc_eso: field_ned must be 3 finite real numbers (the Earth field, NED), "
+                                          "got (1j, 0, 0)"),
+    ("hc_eso", {"morse_gains": "abc"}, "K = diag(k1, k2, k3) needs real numbers k1 > k2 > k3 >= 1 (Lemma 1), got "
+                                       "'abc'"),
+    ("qb", {"gain_file": 5}, "gain_file must be None (the shipped gain for the vehicle), a path or a shipped gain's "
+                             "name, got 5 (int)"),
     ("pdt_sta", {"reanchor": "a"}, "pdt_sta: reanchor must be a finite real number in (0, 10] (a Gibbs-vector "
                                    "norm), got 'a' (str)"),
 ]
