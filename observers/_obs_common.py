@@ -12,6 +12,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import check_positive
+
 
 def batch_vec(x: ArrayLike | None, n: int, label: str, who: str) -> NDArray[np.float64]:
     """(3,) or (N, 3) or None -> (N, 3) float array (zeros for None); ValueError on wrong shape."""
@@ -25,11 +27,28 @@ def batch_vec(x: ArrayLike | None, n: int, label: str, who: str) -> NDArray[np.f
     return np.array(a)
 
 
-def positive(who: str, **values: float) -> None:
-    """ValueError unless every value is a finite positive number."""
-    for k, v in values.items():
-        if not (np.isfinite(v) and v > 0):
-            raise ValueError(f"{who}: gain {k} must be a finite positive number, got {v!r}")
+#: the largest rate gain [rad/s] (a bandwidth, a pole) an observer accepts: its Euler step needs dt below about
+#: 1 / gain, under a microsecond beyond it (no env or flight log steps that fast), and the gains' powers of the
+#: bandwidth rules (omega^3, omega^(n+1)) overflow float64 long before 1e300
+MAX_RATE_GAIN = 1e6
+
+
+def real_vector(value: object, size: int) -> NDArray[np.float64] | None:
+    """``value`` as a finite float64 vector (``size``,) if it holds real numbers (bool, complex, str refused), else
+    None (the caller words the error, naming its argument)."""
+    try:
+        a = np.asarray(value)
+    except (ValueError, TypeError):          # ragged nested sequences
+        return None
+    if a.dtype.kind not in "iuf" or a.shape != (size,) or not np.all(np.isfinite(a)):
+        return None
+    return a.astype(np.float64)
+
+
+def positive(who: str, maximum: float = math.inf, **values: float) -> tuple[float, ...]:
+    """The ``values`` as floats; ValueError naming the first that is not a real, finite number in (0, ``maximum``]
+    (:func:`fawtgym.core.checks.check_positive`)."""
+    return tuple(check_positive(v, f"{who}: gain {k}", maximum=maximum) for k, v in values.items())
 
 
 @njit(cache=True)

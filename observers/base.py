@@ -28,6 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import check_positive
 from fawtgym.core.kernel_types import TYPED_DISPATCH, compile_only
 from fawtgym.core.measurement import ATTITUDE, TRAILING_SHAPES, batch_measurement
 from fawtgym.core.rows import check_row_mask
@@ -129,6 +130,9 @@ class Observer:
     #: an estimated torque component above this angular acceleration [rad/s^2] times the largest principal
     #: inertia counts as divergence
     MAX_ANGULAR_ACCELERATION: ClassVar[float] = 1e5
+    #: reset options besides the guesses ``force`` / ``torque`` and ``rows``: name -> trailing shape of one row's
+    #: value (a number or one per row, checked by :meth:`reset` as the guesses are; the QB observer's ``thrust``)
+    reset_options: ClassVar[Mapping[str, tuple[int, ...]]] = {}
     #: whether :meth:`update` may take :meth:`_update_checked` (set per class by :meth:`__init_subclass__`)
     _checked_path: ClassVar[bool] = False
     #: (:attr:`required_keys`, their check kernel, the kernel's argument order): :func:`_input_checks` of the keys,
@@ -145,16 +149,15 @@ class Observer:
             getattr(cls, hook) is getattr(owner, hook) for hook in ("_update", "_check_estimate", "_commit"))
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665) -> None:
-        if not (np.isfinite(mass) and mass > 0):
-            raise ValueError(f"mass must be a finite positive number, got {mass!r}")
-        j = np.asarray(inertia, dtype=float)
-        j = np.diag(j) if j.shape == (3,) else j
-        if j.shape != (3, 3) or not np.all(np.isfinite(j)) or np.linalg.eigvalsh((j + j.T) / 2).min() <= 0:
-            raise ValueError(f"inertia must be a positive-definite 3x3 matrix or 3 diagonal entries, got {inertia!r}")
-        self.mass = float(mass)
+        """``mass`` [kg] and ``gravity`` [m/s^2]: real, finite, > 0 (``gravity`` at most :data:`MAX_GRAVITY`);
+        ``inertia`` [kg m^2]: a symmetric-part positive-definite 3x3 matrix of real numbers, or its 3 diagonal
+        entries.  Else one-line ValueError naming the argument and what is allowed."""
+        who = self.name or type(self).__name__
+        self.mass = check_positive(mass, f"{who}: mass", note="kg")
+        self.gravity = check_positive(gravity, f"{who}: gravity", maximum=MAX_GRAVITY, note="m/s^2")
+        j = _inertia_matrix(inertia, who)
         self.inertia = j
         self.inertia_inv = np.linalg.inv(j)
-        self.gravity = float(gravity)
         self._j_max = float(np.linalg.eigvalsh((j + j.T) / 2).max())
         #: rows N of the state, set by the last full reset (None before it)
         self._n_rows: int | None = None
@@ -175,16 +178,27 @@ class Observer:
         other rows' may be anything, e.g. non-finite -- and the rows where it is False keep their state
         bitwise.  An all-False mask changes nothing; an all-True mask is a full reset.
 
-        Raises ValueError (one line; the same text at every N apart from the sizes it names) when
-        ``rows`` is given before any full reset, is not a bool array of shape (N,), or ``measurement``
-        (or a guess) does not hold N rows; the state is then unchanged.  ``options`` are observer-specific
-        reset options (e.g. ``thrust`` of the QB observer).
+        Raises ValueError (one line; the same text at every N apart from the sizes it names, and for every
+        observer) when ``rows`` is given before any full reset, is not a bool array of shape (N,), or
+        ``measurement`` does not hold N rows, or a guess is not real numbers (bool, complex, str refused) of
+        shape (3,) or (N, 3), all finite (:func:`check_guess`); the state is then unchanged.  ``options`` are
+        the observer-specific reset options of :attr:`reset_options` (e.g. ``thrust`` of the QB observer:
+        a number or one per row, checked the same way); any other keyword -> TypeError naming it and the
+        allowed ones, the same text for every observer.
         """
         who = self.name or type(self).__name__
+        allowed = self.reset_options
+        if options and not allowed.keys() >= options.keys():
+            raise TypeError(f"{who}: unknown reset options {sorted(set(options) - set(allowed))}; allowed: "
+                            f"{', '.join(('force', 'torque', 'rows', *allowed))}")
         if rows is None:
             meas = measurement
+            n = self._rows_of(measurement)
             if self.required_keys:
-                meas = check_measurement(measurement, self.required_keys, self._rows_of(measurement), who)
+                meas = check_measurement(measurement, self.required_keys, n, who)
+            force = check_guess(force, n, "force guess", (3,), who)
+            torque = check_guess(torque, n, "torque guess", (3,), who)
+            options = {k: check_guess(v, n, k, allowed[k], who) for k, v in options.items()}
             self._n_rows = self._reset(meas, force, torque, None, **options)
             return
         if self._n_rows is None:
@@ -197,8 +211,10 @@ class Observer:
             if key in TRAILING_SHAPES and value.shape[0] != n:
                 raise ValueError(f"{who}: reset(rows=mask) needs the measurement of all {n} rows of the batch (the "
                                  f"mask selects among them); measurement[{key!r}] has {value.shape[0]} rows")
-        force_rows = _guess_rows(force, n, mask, "force", who)
-        torque_rows = _guess_rows(torque, n, mask, "torque", who)
+        force_rows = _masked(check_guess(force, n, "force guess", (3,), who), mask, 1)
+        torque_rows = _masked(check_guess(torque, n, "torque guess", (3,), who), mask, 1)
+        option_rows = {k: _masked(check_guess(v, n, k, allowed[k], who), mask, len(allowed[k]))
+                       for k, v in options.items()}
         if not mask.any():
             return
         if mask.all():
@@ -207,14 +223,17 @@ class Observer:
         sub = {k: (v[mask] if k in TRAILING_SHAPES else v) for k, v in meas.items()}
         if self.required_keys:
             sub = check_measurement(sub, self.required_keys, int(mask.sum()), who)
-        self._reset(sub, force_rows, torque_rows, mask, **options)
+        self._reset(sub, force_rows, torque_rows, mask, **option_rows)
 
     def _rows_of(self, measurement: Mapping[str, ArrayLike]) -> int:
-        """The batch size of a full reset's measurement: the rows of its first required key (1 if unbatched or
-        absent: :func:`check_measurement` then names the problem)."""
-        key = self.required_keys[0]
-        if not isinstance(measurement, Mapping) or key not in measurement:
+        """The batch size of a full reset's measurement: the rows of its first required key (of its first known key
+        if the observer states none; 1 if unbatched or absent: :func:`check_measurement` then names the problem)."""
+        if not isinstance(measurement, Mapping):
             return 1
+        keys = self.required_keys or tuple(k for k in measurement if k in TRAILING_SHAPES)
+        if not keys or keys[0] not in measurement:
+            return 1
+        key = keys[0]
         shape = np.shape(measurement[key])
         return int(shape[0]) if len(shape) > len(TRAILING_SHAPES[key]) else 1
 
@@ -396,6 +415,30 @@ def fast_inputs(measurement: object, shapes: tuple[tuple[str, tuple[int, ...], i
 
 _REAL_KINDS = "iuf"    # numpy dtype kinds accepted as real numbers (bool "b" and complex "c" are refused)
 
+#: the largest gravitational acceleration an observer accepts [m/s^2] (ten times Jupiter's 24.8): a larger one is a
+#: typo, and the divergence bound MAX_FORCE_WEIGHTS m g would grow with it
+MAX_GRAVITY = 250.0
+
+
+def _inertia_matrix(inertia: object, who: str) -> NDArray[np.float64]:
+    """``inertia`` as a float64 (3, 3) (3 entries: the diagonal); ValueError naming it unless it holds real
+    numbers (bool, complex, str refused), has one of those shapes, is finite and its symmetric part is positive
+    definite."""
+    allowed = "a 3x3 matrix or 3 diagonal entries of finite real numbers [kg m^2], positive definite"
+    try:
+        j = np.asarray(inertia)
+    except (ValueError, TypeError):          # ragged nested sequences
+        j = np.asarray(None, dtype=object)
+    if j.dtype.kind not in _REAL_KINDS:
+        raise ValueError(f"{who}: inertia must be {allowed}, got {inertia!r} (dtype {j.dtype})")
+    j = j.astype(np.float64)
+    j = np.diag(j) if j.shape == (3,) else j
+    if j.shape != (3, 3) or not np.all(np.isfinite(j)):
+        raise ValueError(f"{who}: inertia must be {allowed}, got {inertia!r}")
+    if np.linalg.eigvalsh((j + j.T) / 2).min() <= 0:
+        raise ValueError(f"{who}: inertia must be {allowed}, got {inertia!r} (not positive definite)")
+    return j
+
 
 def check_dt(dt: object, max_dt: float, who: str) -> float:
     """``dt`` as a float in (0, ``max_dt``]: TypeError unless a real number (bool, str, None, complex refused),
@@ -527,16 +570,39 @@ def check_inputs(thrust: ArrayLike, torque: ArrayLike, n: int,
     return f, tau
 
 
-def _guess_rows(guess: ArrayLike | None, n: int, rows: NDArray[np.bool_], label: str,
+def check_guess(guess: ArrayLike | None, n: int, label: str, trailing: tuple[int, ...],
                 who: str) -> NDArray[np.float64] | None:
-    """An initial guess of a per-row reset: None, (3,) as is, or (n, 3) -> its masked rows."""
+    """A reset's initial guess (``force``, ``torque``: trailing (3,); an option such as qb's ``thrust``: ()) as a
+    float64 array of shape ``trailing`` (every row) or (n, *trailing) (one per row); None stays None.
+
+    One-line ValueError, the same text for every observer and N (sizes named as ``N = <n>``), naming the argument
+    and the allowed shapes unless it holds real numbers (bool, complex, str refused) of one of those shapes, all
+    finite."""
     if guess is None:
         return None
-    g = np.asarray(guess, dtype=float)
-    if g.shape not in ((3,), (n, 3)) or not np.all(np.isfinite(g)):
-        raise ValueError(f"{who}: initial {label} guess must be finite with shape (3,) (every row) or ({n}, 3) (one "
-                         f"per row of the batch), got shape {g.shape}")
-    return g if g.ndim == 1 else g[rows]
+    rows = f"({', '.join(('N', *map(str, trailing)))}{',' if not trailing else ''}) with N = {n} (one per row)"
+    allowed = (f"a finite real number (every row) or shape {rows}" if not trailing
+               else f"finite real numbers of shape {trailing} (every row) or {rows}")
+    try:
+        g = np.asarray(guess)
+    except (ValueError, TypeError):          # ragged nested sequences
+        g = np.asarray(None, dtype=object)
+    if g.dtype.kind not in _REAL_KINDS:
+        raise ValueError(f"{who}: reset {label} must be {allowed}, got {type(guess).__name__} of dtype "
+                         f"{g.dtype}")
+    if g.shape != trailing and g.shape != (n, *trailing):
+        raise ValueError(f"{who}: reset {label} must be {allowed}, got shape {g.shape}")
+    g = g.astype(np.float64)
+    if not np.all(np.isfinite(g)):
+        raise ValueError(f"{who}: reset {label} must be {allowed}, got a non-finite entry: "
+                         f"{float(g.reshape(-1)[~np.isfinite(g.reshape(-1))][0])!r}")
+    return g
+
+
+def _masked(guess: NDArray[np.float64] | None, rows: NDArray[np.bool_], ndim: int) -> NDArray[np.float64] | None:
+    """A checked guess of a per-row reset: None or one for every row (``ndim`` dimensions) as is, else its masked
+    rows."""
+    return guess if guess is None or guess.ndim == ndim else guess[rows]
 
 
 _INPUT_CHECKS: dict[tuple[str, ...], tuple[Any, Any]] = {}

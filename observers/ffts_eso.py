@@ -59,6 +59,7 @@ import numpy as np
 from numba import float64, int64, njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import check_number, check_positive
 from fawtgym.core.kernel_types import ROTATIONS, ROWS, TYPED_DISPATCH, VALUES, compile_only
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3 import project_so3
@@ -74,7 +75,7 @@ from fawtgym.core.so3_kernels import (
 from fawtgym.observers._checks import (
     ROTATION_TOL,
 )
-from fawtgym.observers._obs_common import batch_vec
+from fawtgym.observers._obs_common import MAX_RATE_GAIN, batch_vec, real_vector
 from fawtgym.observers.base import (
     BufferStates,
     Observer,
@@ -90,12 +91,14 @@ from fawtgym.observers.hc_ffts import (
     euler_stable_eps,
     frac_power_power,
     frac_power_row,
-    hurwitz_matrix,
     phi_power,
     phi_row,
 )
 
 _KEYS = ("position", "velocity", "attitude", "angular_velocity")
+#: the largest floor eps of e^T e accepted [m^2 or rad^2 scale]: the regularised g(e) is linear inside |e| <
+#: sqrt(eps) (:mod:`fawtgym.observers.hc_ffts`), so eps = 1 already makes the law linear for errors below 1 m
+MAX_EPS = 1.0
 #: the gains array the kernel reads, in this order
 GAIN_NAMES = ("mass", "gravity", "p", "kt1", "kt2", "kt3", "kappa_t", "ka1", "ka2", "ka3", "kappa_a", "K1", "K2", "K3",
               "J (9, row-major)", "J^-1 (9, row-major)")
@@ -161,21 +164,26 @@ def morse(r: ArrayLike, k: ArrayLike) -> NDArray[np.float64]:
 
 
 def validate_gains(p: float, kt1: float, kt2: float, kt3: float, kappa_t: float, ka1: float, ka2: float,
-                   ka3: float, kappa_a: float, morse_k: Sequence[float]) -> None:
-    """Check the conditions of Theorem 1 and Propositions 1-2 / Lemma 5; ValueError explains which fails."""
-    check_p(p)
-    for name, val in (("kappa_t", kappa_t), ("kappa_a", kappa_a)):
-        if not (np.isfinite(val) and val > 0.5):
-            raise ValueError(f"{name} must be > 1/2 (Wang et al. (2024) eqs. 50/69), got {name}={val!r}")
-    hurwitz_matrix(kt1, kt2, "A_t (eq. 48)")
-    hurwitz_matrix(ka1, ka2, "A_a (eq. 67)")
-    for name, val in (("kt3", kt3), ("ka3", ka3)):
-        if not (np.isfinite(val) and val > 0):
-            raise ValueError(f"{name} must be a finite positive number (k3 > 0 in Theorem 1), got {name}={val!r}")
-    kk = np.asarray(morse_k, dtype=float)
-    if kk.shape != (3,) or not np.all(np.isfinite(kk)) or not (kk[0] > kk[1] > kk[2] >= 1.0):
-        raise ValueError(f"Morse gains K = diag(K1, K2, K3) must satisfy K1 > K2 > K3 >= 1 (Lemma 5, eq. 41), "
-                         f"got K={np.asarray(morse_k).tolist()}")
+                   ka3: float, kappa_a: float, morse_k: Sequence[float]) -> tuple[float, ...]:
+    """Check the conditions of Theorem 1 and Propositions 1-2 / Lemma 5; ValueError explains which fails.
+
+    Every gain a real, finite number at most :data:`~fawtgym.observers._obs_common.MAX_RATE_GAIN` (bool, complex,
+    str refused; the max_dt of :class:`FFTSESO` is 1 / (k1 k3 + ...)); A_t / A_a = [[-k1, 1], [-k2, 0]] (eqs. 48, 67)
+    are Hurwitz iff k1 > 0 and k2 > 0.  Returns (p, kt1, kt2, kt3, kappa_t, ka1, ka2, ka3, kappa_a) as floats."""
+    p = check_p(p)
+    out = [p]
+    for half, eq, k1, k2, k3, kappa in (("t", 48, kt1, kt2, kt3, kappa_t), ("a", 67, ka1, ka2, ka3, kappa_a)):
+        hurwitz = f"(A_{half} = [[-k{half}1, 1], [-k{half}2, 0]] of eq. {eq} is Hurwitz iff k{half}1, k{half}2 > 0)"
+        out.append(check_positive(k1, f"ffts_eso: gain k{half}1", maximum=MAX_RATE_GAIN, note=hurwitz))
+        out.append(check_positive(k2, f"ffts_eso: gain k{half}2", maximum=MAX_RATE_GAIN, note=hurwitz))
+        out.append(check_positive(k3, f"ffts_eso: gain k{half}3", maximum=MAX_RATE_GAIN, note="(k3 > 0 in Theorem 1)"))
+        out.append(check_number(kappa, f"ffts_eso: gain kappa_{half}", minimum=0.5, maximum=MAX_RATE_GAIN,
+                                note=f"(kappa > 1/2, Wang et al. (2024) eq. {50 if half == 't' else 69})"))
+    kk = real_vector(morse_k, 3)
+    if kk is None or not (kk[0] > kk[1] > kk[2] >= 1.0) or not kk[0] <= MAX_RATE_GAIN:
+        raise ValueError(f"ffts_eso: Morse gains morse_k = (K1, K2, K3) must be 3 finite real numbers with "
+                         f"{MAX_RATE_GAIN:g} >= K1 > K2 > K3 >= 1 (Lemma 5, eq. 41), got {morse_k!r}")
+    return tuple(out)
 
 
 @register_observer("ffts_eso")
@@ -195,14 +203,12 @@ class FFTSESO(Observer):
                  ka1: float = 3.0, ka2: float = 2.0, ka3: float = 4.0, kappa_a: float = 0.6,
                  morse_k: Sequence[float] = (1.2, 1.1, 1.0), eps: float = DEFAULT_EPS) -> None:
         super().__init__(mass, inertia, gravity)
-        validate_gains(p, kt1, kt2, kt3, kappa_t, ka1, ka2, ka3, kappa_a, morse_k)
-        if not (np.isfinite(eps) and eps > 0):
-            raise ValueError(f"eps must be a small positive number, got {eps!r}")
-        self.p, self.kappa_t, self.kappa_a = float(p), float(kappa_t), float(kappa_a)
-        self.kt1, self.kt2, self.kt3 = float(kt1), float(kt2), float(kt3)
-        self.ka1, self.ka2, self.ka3 = float(ka1), float(ka2), float(ka3)
+        (self.p, self.kt1, self.kt2, self.kt3, self.kappa_t, self.ka1, self.ka2, self.ka3,
+         self.kappa_a) = validate_gains(p, kt1, kt2, kt3, kappa_t, ka1, ka2, ka3, kappa_a, morse_k)
+        self.eps = check_positive(eps, "ffts_eso: eps", maximum=MAX_EPS, note="(the floor of e^T e, eq. 50)")
         self.morse_k = np.asarray(morse_k, dtype=float)
-        self.eps = float(eps)
+        p, kt1, kt2, kt3, kappa_t = self.p, self.kt1, self.kt2, self.kt3, self.kappa_t
+        ka1, ka2, ka3, kappa_a = self.ka1, self.ka2, self.ka3, self.kappa_a
         self._state: NDArray[np.float64] = np.empty((0, 0))      # (N, k) after reset
         self._gains = np.array([self.mass, self.gravity, p, kt1, kt2, kt3, kappa_t, ka1, ka2, ka3, kappa_a,
                                 *self.morse_k, *self.inertia.ravel(), *self.inertia_inv.ravel()], dtype=float)

@@ -26,8 +26,10 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import check_number
 from fawtgym.core.rows import write_rows
 from fawtgym.observers._obs_common import (
+    MAX_RATE_GAIN,
     batch_vec,
     known_acceleration_row,
     known_angular_acceleration_row,
@@ -41,6 +43,9 @@ V_PREV, W_PREV, D_T, D_A = 0, 3, 6, 9
 _KEYS = ("velocity", "attitude", "angular_velocity")
 #: the largest disturbance-acceleration error [m/s^2 or rad/s^2] the Euler step must keep stable (10 g)
 LARGE_ERROR = 10.0 * 9.80665
+#: the largest exponent a2 accepted: max_dt = 2 / (k2 a2 LARGE_ERROR^(a2 - 1)) is 1.2 us at a2 = 3.5 and k2 = 5,
+#: 6e-12 s at k2 = MAX_RATE_GAIN (at a2 = 1e300 it overflows); fixed-time designs use a2 in (1, 2]
+MAX_A2 = 3.5
 
 
 @register_observer("fxtsdo")
@@ -58,10 +63,11 @@ class FxTSDO(Observer):
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, k1: float = 5.0,
                  k2: float = 5.0, a1: float = 0.5, a2: float = 1.5) -> None:
         super().__init__(mass, inertia, gravity)
-        positive("fxtsdo", k1=k1, k2=k2)
-        if not (0.0 < a1 < 1.0 < a2):
-            raise ValueError(f"fxtsdo: fixed-time exponents need 0 < a1 < 1 < a2, got a1={a1!r}, a2={a2!r}")
-        self.k1, self.k2, self.a1, self.a2 = float(k1), float(k2), float(a1), float(a2)
+        self.k1, self.k2 = positive("fxtsdo", MAX_RATE_GAIN, k1=k1, k2=k2)
+        # fixed time needs 0 < a1 < 1 < a2; a2 is bounded so that max_dt (below) stays a representable step
+        self.a1 = check_number(a1, "fxtsdo: exponent a1", minimum=0.0, maximum=1.0,
+                               inclusive_maximum=False)
+        self.a2 = check_number(a2, "fxtsdo: exponent a2", minimum=1.0, maximum=MAX_A2)
         self._state: NDArray[np.float64] = np.empty((0, 0))      # (N, k) after reset
         self._gains = np.array([self.mass, self.gravity, self.k1, self.k2, self.a1, self.a2,
                                 *self.inertia.ravel(), *self.inertia_inv.ravel()])

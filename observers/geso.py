@@ -46,8 +46,11 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
+from fawtgym.core.checks import check_positive
 from fawtgym.core.rows import write_rows
+from fawtgym.core.so3_kernels import cross_row
 
+from ._obs_common import MAX_RATE_GAIN
 from .base import BufferStates, Observer, ObserverEstimate, register_observer
 
 #: orders the module supports (eqs. 18-23 for n = 1..4)
@@ -67,13 +70,9 @@ def _check_order(order: object) -> int:
 
 
 def _check_bandwidth(bandwidth: object) -> float:
-    try:
-        wb = float(bandwidth)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        wb = float("nan")
-    if not (math.isfinite(wb) and wb > 0):
-        raise ValueError(f"GESO bandwidth must be a finite positive number [rad/s], got {bandwidth!r}")
-    return wb
+    """A real, finite bandwidth in (0, :data:`~fawtgym.observers._obs_common.MAX_RATE_GAIN`] rad/s (bool, complex,
+    str refused): the gains l_i = C(n+1, i+1) w_b^(i+1) stay far inside float64 and max_dt = 1 / w_b above 1 us."""
+    return check_positive(bandwidth, "GESO bandwidth", maximum=MAX_RATE_GAIN, note="rad/s")
 
 
 def geso_gains(order: int, bandwidth: float) -> NDArray[np.float64]:
@@ -87,7 +86,13 @@ def geso_gains(order: int, bandwidth: float) -> NDArray[np.float64]:
 
 
 def _check_gains(gains: ArrayLike) -> NDArray[np.float64]:
-    l = np.asarray(gains, dtype=float)
+    try:
+        l = np.asarray(gains)
+    except (ValueError, TypeError):          # ragged nested sequences
+        l = np.asarray(None, dtype=object)
+    if l.dtype.kind not in "iuf":
+        raise ValueError(f"GESO gains must be a vector [l_0..l_n] of real numbers, got {gains!r} (dtype {l.dtype})")
+    l = l.astype(np.float64)
     if l.ndim != 1 or l.size - 1 not in ORDERS:
         raise ValueError(f"GESO gains must be a vector [l_0..l_n] with n in {ORDERS}, got shape {l.shape}")
     if not np.all(np.isfinite(l)):
@@ -291,9 +296,7 @@ def geso_signals_row(is_force: bool, mass: float, inertia: NDArray[np.float64], 
     else:
         for j in range(3):
             y[j] = inertia[j, 0] * rate[0] + inertia[j, 1] * rate[1] + inertia[j, 2] * rate[2]
-        aux[0] = y[1] * rate[2] - y[2] * rate[1]
-        aux[1] = y[2] * rate[0] - y[0] * rate[2]
-        aux[2] = y[0] * rate[1] - y[1] * rate[0]
+        cross_row(y, rate, aux)
 
 
 @njit(cache=True)

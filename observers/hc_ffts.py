@@ -34,15 +34,16 @@ import scipy.linalg
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import check_number
+
 #: floor on e^T e in the *derivative* terms (frac_power_rate, phi1_jacobian); see module docstring
 DEFAULT_EPS = 1e-12
 
 
 def check_p(p: float) -> float:
-    """Validate the Hölder exponent parameter p in ]1, 2[ (Theorem 1)."""
-    if not (np.isfinite(p) and 1.0 < p < 2.0):
-        raise ValueError(f"p must lie in the open interval (1, 2) (Wang et al. (2024) Theorem 1), got p={p!r}")
-    return float(p)
+    """Validate the Hölder exponent parameter p in ]1, 2[ (Theorem 1): a real number (bool, complex, str refused)."""
+    return check_number(p, "p", minimum=1.0, maximum=2.0, inclusive_maximum=False,
+                        note="(the open interval of Wang et al. (2024) Theorem 1)")
 
 
 def _sq(e: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -266,7 +267,7 @@ def lyapunov_p(k1: float, k2: float, q: ArrayLike | None = None) -> NDArray[np.f
 
 def hurwitz_matrix(k1: float, k2: float, label: str = "A*") -> NDArray[np.float64]:
     """A = [[-k1, 1], [-k2, 0]] (eqs. 10, 48, 67); raises ValueError unless it is Hurwitz."""
-    a = np.array([[-float(k1), 1.0], [-float(k2), 0.0]])
+    a = np.array([[-check_number(k1, "k1"), 1.0], [-check_number(k2, "k2"), 0.0]])
     eig = np.linalg.eigvals(a)
     if not (np.all(np.isfinite(a)) and np.all(eig.real < 0)):
         raise ValueError(f"{label} = [[-k1, 1], [-k2, 0]] must be Hurwitz (needs k1 > 0 and k2 > 0); "

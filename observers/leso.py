@@ -36,7 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.core.frames import rot_to_euler
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import rot_to_euler_row
-from fawtgym.observers._obs_common import batch_vec, positive
+from fawtgym.observers._obs_common import MAX_RATE_GAIN, batch_vec, positive
 from fawtgym.observers.base import BufferStates, Observer, ObserverEstimate, register_observer
 
 _KEYS = ("position", "velocity", "attitude", "angular_velocity")
@@ -61,9 +61,9 @@ class LESO(Observer):
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, omega_t: float = 10.0,
                  omega_a: float = 10.0) -> None:
         super().__init__(mass, inertia, gravity)
-        positive("leso", omega_t=omega_t, omega_a=omega_a)
-        self.beta_t = bandwidth_gains(float(omega_t))
-        self.beta_a = bandwidth_gains(float(omega_a))
+        omega_t, omega_a = positive("leso", MAX_RATE_GAIN, omega_t=omega_t, omega_a=omega_a)
+        self.beta_t = bandwidth_gains(omega_t)
+        self.beta_a = bandwidth_gains(omega_a)
         self.jd = np.diag(self.inertia).copy()
         self._gains = np.array([self.mass, self.gravity, *self.beta_t, *self.beta_a, *self.jd])
         self._state: NDArray[np.float64] = np.empty((0, 0))      # (N, k) after reset

@@ -24,10 +24,12 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import check_number, check_positive
 from fawtgym.core.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FORCE, batch_measurement
 from fawtgym.core.rows import write_rows
-from fawtgym.core.so3_kernels import mat_mul_row, quat_to_rot_row
+from fawtgym.core.so3_kernels import cross_row, mat_mul_row, quat_to_rot_row
 
+from ._obs_common import real_vector
 from .base import BufferStates, Observer, ObserverEstimate, register_observer
 from .gibbs import gibbs_to_rot_row, omega_row, rot_to_gibbs_row
 from .predefined_sta import early_switch_time
@@ -48,10 +50,8 @@ def measured_attitude_row(sf, mag, ref, weights, gravity, min_field, body, q, g,
     parallel; these are QUEST's preconditions, so :func:`quest_row` runs without further checks."""
     na = math.sqrt(sf[0] * sf[0] + sf[1] * sf[1] + sf[2] * sf[2])
     nm = math.sqrt(mag[0] * mag[0] + mag[1] * mag[1] + mag[2] * mag[2])
-    c0 = sf[1] * mag[2] - sf[2] * mag[1]
-    c1 = sf[2] * mag[0] - sf[0] * mag[2]
-    c2 = sf[0] * mag[1] - sf[1] * mag[0]
-    sin = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) / max(na * nm, 1e-300)
+    cross_row(sf, mag, g)                  # sf x mag (g is scratch: quest_row overwrites it below)
+    sin = math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) / max(na * nm, 1e-300)
     if not (na > 0.2 * gravity and nm > min_field and sin > 0.0175):
         return False
     for k in range(3):
@@ -171,21 +171,23 @@ class PdtStaAttitudeObserver(Observer):
                  mode: str = "predefined", weights: tuple[float, float] = (1.0, 1.0),
                  magnetic_field: ArrayLike = EARTH_FIELD_NED, reanchor: float = 1.0) -> None:
         super().__init__(mass, inertia, gravity)
+        kappa1 = check_positive(kappa1, "pdt_sta: gain kappa1", note="(kappa1 > 0, eqs. 16-22)")
+        noise_bound = check_number(noise_bound, "pdt_sta: noise_bound", minimum=0.0, inclusive_minimum=True,
+                                   note="(ell of eq. 42)")
         t_switch = early_switch_time(t_c, eta, noise_bound) if noise_bound > 0 else None
         if kappa2 is None:
             kappa2 = 6.0 * float(np.linalg.eigvalsh(self.inertia).min())
         self.core = GibbsSTSMO(self.inertia, t_c, eta, kappa1, kappa2, mode, t_switch)
-        w = np.asarray(weights, dtype=float)
-        if w.shape != (2,) or not np.all(np.isfinite(w)) or np.any(w <= 0):
-            raise ValueError(f"weights must be two positive numbers (accelerometer, magnetometer), got {weights!r}")
+        w = real_vector(weights, 2)
+        if w is None or np.any(w <= 0):
+            raise ValueError(f"pdt_sta: weights must be two finite real numbers > 0 (accelerometer, magnetometer), "
+                             f"got {weights!r}")
         self.weights = w
-        m = np.asarray(magnetic_field, dtype=float)
-        if m.shape != (3,) or not np.all(np.isfinite(m)) or np.linalg.norm(np.cross(m, [0, 0, 1.0])) < 1e-6:
-            raise ValueError("magnetic_field must be a finite 3-vector not parallel to gravity, "
+        m = real_vector(magnetic_field, 3)
+        if m is None or np.linalg.norm(np.cross(m, [0, 0, 1.0])) < 1e-6:
+            raise ValueError("pdt_sta: magnetic_field must be 3 finite real numbers (NED) not parallel to gravity, "
                              f"got {magnetic_field!r}")
-        if not (np.isfinite(reanchor) and 0 < reanchor <= 10):
-            raise ValueError(f"reanchor must lie in (0, 10] (a Gibbs-vector norm), got {reanchor!r}")
-        self.reanchor = float(reanchor)
+        self.reanchor = check_positive(reanchor, "pdt_sta: reanchor", maximum=10.0, note="(a Gibbs-vector norm)")
         self.references = np.stack([np.array([0.0, 0.0, -self.gravity]), m])  # specific force at rest, field
         self._ref_unit = np.ascontiguousarray(self.references / np.linalg.norm(self.references, axis=1)[:, None])
         self._min_field = 0.1 * float(np.linalg.norm(m))

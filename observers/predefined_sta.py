@@ -46,15 +46,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
+from fawtgym.core.checks import check_number
+
 
 # --------------------------------------------------------------------------------------------------
 # parameter checks
 # --------------------------------------------------------------------------------------------------
 def _finite(name: str, value: float) -> float:
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    return v
+    """``value`` as a float if a real, finite number (bool, complex, str, None refused), else ValueError naming it."""
+    return check_number(value, name)
 
 
 def check_params(t_c: float, eta: float, kappa2: float | None = None, kappa1: float | None = None,
@@ -352,8 +352,7 @@ def tune_algorithm1(x0: tuple[float, float], t_c: float, eta: float = 3.0, kappa
 def early_switch_time(t_c: float, eta: float, noise_bound: float, t0: float = 0.0) -> float:
     """Eq. 43: t_e = t_c - eta * ell, the instant where eta/(t_c - t) * ell = 1 (eq. 42)."""
     check_params(t_c, eta, t0=t0)
-    if not (math.isfinite(noise_bound) and noise_bound >= 0):
-        raise ValueError(f"noise_bound (ell) must be finite and >= 0, got {noise_bound!r}")
+    noise_bound = check_number(noise_bound, "noise_bound (ell)", minimum=0.0, inclusive_minimum=True)
     t_e = t_c - eta * noise_bound
     if t_e <= t0:
         raise ValueError(f"t_e = t_c - eta*ell = {t_e:.6g} is not after t0 = {t0}: reduce eta or ell, or raise t_c")

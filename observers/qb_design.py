@@ -20,7 +20,7 @@ the volume is scalarized by the normalized objective ``J_mu`` (eqs. 21-23) and m
 search over ``alpha`` (eq. 25).
 
 cvxpy (optional extra ``fawtgym[design]``) is imported only inside :func:`solve_qb_lmi`, so the
-runtime observer (:mod:`fawtgym.observers.qb_observer`) never needs it.
+runtime observer (:mod:`fawtgym.observers.qb`) never needs it.
 """
 
 from __future__ import annotations

@@ -46,6 +46,9 @@ from fawtgym.observers.base import BufferStates, Observer, ObserverEstimate, reg
 #: columns of the state (N, 12): v_hat, Omega_hat, d_t_hat [m/s^2], d_a_hat [rad/s^2]
 V, W, D_T, D_A = 0, 3, 6, 9
 _KEYS = ("velocity", "attitude", "angular_velocity")
+#: the largest Lipschitz bound L of the disturbance [m/s^3 or rad/s^3] accepted: the estimate moves by 1.1 L dt per
+#: step, 1e3 m/s^2 per millisecond step at this bound (far beyond any quadrotor's disturbance)
+MAX_DISTURBANCE_RATE = 1e6
 
 
 def levant_gains(bound: float) -> tuple[float, float]:
@@ -69,9 +72,9 @@ class SuperTwistingObserver(Observer):
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, bound_t: float = 5.0,
                  bound_a: float = 5.0) -> None:
         super().__init__(mass, inertia, gravity)
-        positive("sto", bound_t=bound_t, bound_a=bound_a)
-        self.lam_t, self.alpha_t = levant_gains(float(bound_t))
-        self.lam_a, self.alpha_a = levant_gains(float(bound_a))
+        bound_t, bound_a = positive("sto", MAX_DISTURBANCE_RATE, bound_t=bound_t, bound_a=bound_a)
+        self.lam_t, self.alpha_t = levant_gains(bound_t)
+        self.lam_a, self.alpha_a = levant_gains(bound_a)
         self._state: NDArray[np.float64] = np.empty((0, 0))      # (N, k) after reset
         self._gains = np.array([self.mass, self.gravity, self.lam_t, self.alpha_t, self.lam_a, self.alpha_a,
                                 *self.inertia.ravel(), *self.inertia_inv.ravel()])

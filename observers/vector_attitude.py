@@ -17,7 +17,7 @@ vehicle's own acceleration is small compared with g), the Earth field, and their
 
 The batch functions of eqs. 21-28 here are the paper's definitions, used by the tests and the reproduction; the
 HC-ESO's kernel evaluates s_L, w_L, z_L and H(s_L) w_L in closed form per row
-(:func:`fawtgym.observers.hc_eso_so3.hc_eso_rates_row`), and tests/test_hc_eso_observer.py checks its
+(:func:`fawtgym.observers.hc_eso.hc_eso_rates_row`), and tests/test_hc_eso_observer.py checks its
 rates against these definitions through the error dynamics of eq. 31.
 """
 
@@ -52,8 +52,16 @@ def check_vector_set(e: ArrayLike) -> NDArray[np.float64]:
 
 
 def check_morse_gains(k: ArrayLike) -> NDArray[np.float64]:
-    """Validate K = diag(k1, k2, k3) with k1 > k2 > k3 >= 1 (Lemma 1); returns the diagonal (3,)."""
-    k = np.asarray(k, dtype=float)
+    """Validate K = diag(k1, k2, k3) with k1 > k2 > k3 >= 1 (Lemma 1), real numbers (bool, complex, str refused);
+    returns the diagonal (3,)."""
+    given = k
+    try:
+        k = np.asarray(k)
+    except (ValueError, TypeError):          # ragged nested sequences
+        k = np.asarray(None, dtype=object)
+    if k.dtype.kind not in "iuf":
+        raise ValueError(f"K = diag(k1, k2, k3) needs real numbers k1 > k2 > k3 >= 1 (Lemma 1), got {given!r}")
+    k = k.astype(np.float64)
     if k.shape == (3, 3):
         if np.any(k != np.diag(np.diag(k))):
             raise ValueError(f"K must be diagonal, got {k}")

@@ -177,8 +177,10 @@ def test_ffts_eso_zero_error_update_is_exact_and_quiet():
 
 
 @pytest.mark.parametrize("kwargs,match", [
-    ({"p": 1.0}, "open interval"), ({"p": 2.5}, "open interval"), ({"kappa_t": 0.5}, "kappa_t must be > 1/2"),
-    ({"kappa_a": 0.2}, "kappa_a must be > 1/2"), ({"kt1": -3.0}, "A_t"), ({"ka2": 0.0}, "A_a"),
+    ({"p": 1.0}, "open interval"), ({"p": 2.5}, "open interval"),
+    ({"kappa_t": 0.5}, r"kappa_t must be a finite real number in \(0.5, "),
+    ({"kappa_a": 0.2}, r"kappa_a must be a finite real number in \(0.5, "),
+    ({"kt1": -3.0}, "A_t"), ({"ka2": 0.0}, "A_a"),
     ({"kt3": 0.0}, "kt3"), ({"morse_k": (1.0, 1.0, 1.0)}, "K1 > K2 > K3 >= 1"),
     ({"morse_k": (1.2, 1.1, 0.9)}, "K1 > K2 > K3 >= 1"),
 ])

@@ -10,7 +10,7 @@ from fawtgym.core.measurement import EARTH_FIELD_NED
 from fawtgym.core.so3 import cross, exp_so3, hat, log_so3, orthogonality_error
 from fawtgym.observers import make_observer
 from fawtgym.observers import vector_attitude as va
-from fawtgym.observers.hc_eso_so3 import HcEsoGains, hc_eso_rates, hc_eso_step
+from fawtgym.observers.hc_eso import HcEsoGains, hc_eso_rates, hc_eso_step
 
 G = 9.80665
 K = np.array([3.0, 2.0, 1.0])

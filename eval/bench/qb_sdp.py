@@ -2,7 +2,7 @@
 
 The SDP is the Sec. 4 design (r = 3: n = 24, LMI (7) of size 39, log-det over 6x6), timed from
 problem construction to solution (cvxpy compilation + solver), best of ``--rounds``.  The runtime
-:class:`~fawtgym.observers.qb_observer.QBObserver` update is timed at N = 1 and N = 1024 in the
+:class:`~fawtgym.observers.qb.QBObserver` update is timed at N = 1 and N = 1024 in the
 same run; the ratio (time per vehicle at N = 1024) / (time at N = 1) shows what batching buys,
 and (SDP time) / (one update) the offline/online split.  Best round kept (least disturbed by load).
 """
@@ -19,8 +19,8 @@ import numpy as np
 from fawtgym.cli_parser import ArgumentParser, positive_float, positive_int
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.so3 import exp_so3
+from fawtgym.observers.qb import QBObserver
 from fawtgym.observers.qb_design import lmi_residuals, solve_qb_lmi
-from fawtgym.observers.qb_observer import QBObserver
 from fawtgym.observers.qb_uav_model import HUMMINGBIRD_INERTIA, HUMMINGBIRD_MASS, uav_model
 
 

@@ -14,7 +14,7 @@ Not stated in the paper, chosen here (and printed in the report): the four inert
 
 The true motion is integrated with scipy's DOP853 (tight tolerances; it does not depend on the
 observer because the control uses the true attitude); the ESO with the geometric Lie-Euler
-scheme of :mod:`fawtgym.observers.hc_eso_so3`.  Output: ``hc_eso_errors.csv`` (time series),
+scheme of :mod:`fawtgym.observers.hc_eso`.  Output: ``hc_eso_errors.csv`` (time series),
 ``hc_eso_summary.md`` (neighbourhood size), ``hc_eso_fig{1,2,3}.png``.
 """
 
@@ -35,7 +35,7 @@ from fawtgym.core.so3 import exp_so3, log_so3, project_so3, vee
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce.progress import Progress, add_flag, bar, tick
 from fawtgym.observers import vector_attitude as va
-from fawtgym.observers.hc_eso_so3 import HcEsoGains, hc_eso_step
+from fawtgym.observers.hc_eso import HcEsoGains, hc_eso_step
 
 J = np.diag([4.0, 4.0, 10.0])
 K_C = np.diag([0.1, 0.2, 0.3])

@@ -7,7 +7,7 @@
 * Fig. 6: the optimal alpha and volume as functions of mu (same interpolation); for mu = 0.2 and
   0.95 the line search of eq. 25 is also run with real SDP solves and both are reported.
 * Fig. 7: estimation of the Fig. 3 disturbance (world-x force: steps 5-15 s, triangle 20-30 s,
-  quadratic 35-45 s) by the runtime observer :class:`fawtgym.observers.qb_observer.QBObserver`
+  quadratic 35-45 s) by the runtime observer :class:`fawtgym.observers.qb.QBObserver`
   for mu = 0.2 and 0.95, with measurement noise inside the ellipsoid of eq. 58, and without noise.
 
 Not given by the paper, chosen here and written to the report: the amplitudes of the Fig. 3
@@ -42,6 +42,7 @@ from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
 from fawtgym.core.constants import GRAVITY
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce.progress import Progress, add_flag, bar
+from fawtgym.observers.qb import QBGain, QBObserver, design_uav_gain
 from fawtgym.observers.qb_design import (
     AlphaSweep,
     ParetoAnchors,
@@ -50,7 +51,6 @@ from fawtgym.observers.qb_design import (
     lmi_residuals,
     sweep_alpha,
 )
-from fawtgym.observers.qb_observer import QBGain, QBObserver, design_uav_gain
 from fawtgym.observers.qb_uav_model import HUMMINGBIRD_INERTIA, HUMMINGBIRD_MASS, paper_q2, uav_model
 
 FULL_GRID = np.concatenate([np.geomspace(0.02, 1.0, 14), np.linspace(1.5, 20.0, 20)])

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+import numbers
 from typing import Any
 
 import numpy as np
@@ -16,3 +18,41 @@ def check_flag(value: Any, name: str) -> bool:
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
     raise ValueError(f"{name} must be True or False, got {value!r} ({type(value).__name__})")
+
+
+def check_number(value: Any, name: str, *, minimum: float = -math.inf, maximum: float = math.inf,
+                 inclusive_minimum: bool = False, inclusive_maximum: bool = True, note: str = "") -> float:
+    """A real number as a float: int, float or a numpy real scalar (bool, complex, str, None refused), finite, above
+    ``minimum`` (``>=`` with ``inclusive_minimum``) and at most ``maximum``.
+
+    Else one-line ValueError naming ``name``, the allowed range and the value, e.g.
+    ``"omega_t must be a finite real number in (0, 1e+06] rad/s, got 1e+300 (float)"``.
+    """
+    ok = isinstance(value, (numbers.Real, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    try:
+        v = float(value) if ok else math.nan
+    except OverflowError:       # an int beyond float range
+        v = math.inf
+    if (ok and math.isfinite(v) and (v >= minimum if inclusive_minimum else v > minimum)
+            and (v <= maximum if inclusive_maximum else v < maximum)):
+        return v
+    bounds = _range_text(minimum, maximum, inclusive_minimum, inclusive_maximum)
+    raise ValueError(f"{name} must be a finite real number{bounds}"
+                     f"{' ' + note if note else ''}, got {value!r} ({type(value).__name__})")
+
+
+def check_positive(value: Any, name: str, *, maximum: float = math.inf, note: str = "") -> float:
+    """:func:`check_number` with the range (0, ``maximum``]: a real, finite, positive number."""
+    return check_number(value, name, minimum=0.0, maximum=maximum, note=note)
+
+
+def _range_text(minimum: float, maximum: float, inclusive_minimum: bool, inclusive_maximum: bool) -> str:
+    """" > 0", " >= 0", " <= 5", " < 5", " in (0, 10]", " in [1, 2)" or "" (no bound)."""
+    has_min, has_max = minimum > -math.inf, maximum < math.inf
+    if has_min and has_max:
+        return f" in {'[' if inclusive_minimum else '('}{minimum:g}, {maximum:g}{']' if inclusive_maximum else ')'}"
+    if has_min:
+        return f" {'>=' if inclusive_minimum else '>'} {minimum:g}"
+    if has_max:
+        return f" {'<=' if inclusive_maximum else '<'} {maximum:g}"
+    return ""

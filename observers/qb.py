@@ -110,6 +110,9 @@ def resolve_gain_path(gain_file: str | os.PathLike[str] | None) -> Path:
     """A path, or a shipped gain's name (``"qb_gain_hummingbird_mu0p2"``), or None for the default."""
     if gain_file is None:
         gain_file = DEFAULT_GAIN
+    if not isinstance(gain_file, (str, os.PathLike)):
+        raise ValueError(f"gain_file must be None (the shipped gain for the vehicle), a path or a shipped gain's name, "
+                         f"got {gain_file!r} ({type(gain_file).__name__})")
     p = Path(gain_file)
     if p.suffix == "" and not p.exists():
         p = GAIN_DIR / (p.name + ".npz")
@@ -200,22 +203,31 @@ _STATES = {"velocity": (6, 9, (3,)), "angular_velocity": (9, 12, (3,)), "disturb
 def _qb_rows(x, y_prev, R_prev, R, velocity, rate, specific_force, thrust, torque, mass, gravity, J, J_inv,
              stacked, x_out, y_out, out):
     """One update of every row: u_k (eq. 52) with Rbar = (R_prev + R) / 2, y_{k+1} (eq. 54), then
-    x_{k+1} = Phi x_k + Gu u_k + Gy0 y_k + Gy1 (y_{k+1} - y_k) as one product [x, u, y_prev, y] @ ``stacked``
-    (:func:`discretize`), and the estimate into ``out`` (:func:`_estimate_rows`)."""
+    x_{k+1} = Phi x_k + Gu u_k + Gy0 y_k + Gy1 (y_{k+1} - y_k) as the product z @ ``stacked`` of the row
+    z = [x, u, y_prev, y] (:func:`discretize`), and the estimate into ``out`` (:func:`_estimate_rows`).
+
+    The product is a loop of its own per row, summed in one fixed order, so a row's result does not depend on the
+    other rows (a BLAS product of the whole batch, z (N, k) @ stacked, picks its kernel and blocking by N: row i
+    of an N = 5 batch then differed from the same vehicle at N = 1 at rounding level)."""
     n, nx = x.shape
-    z = np.empty((n, nx + 24))
+    nz = stacked.shape[0]
+    z = np.empty(nz)
     Rbar = np.empty((3, 3))
     for i in range(n):
-        zi = z[i]
-        zi[:nx] = x[i]
+        z[:nx] = x[i]
         for j in range(3):
             for k in range(3):
                 Rbar[j, k] = 0.5 * (R_prev[i, j, k] + R[i, j, k])
-        momentum_input_row(mass, gravity, Rbar, thrust[i], torque[i], zi[nx:nx + 6])
-        zi[nx + 6:nx + 15] = y_prev[i]
+        momentum_input_row(mass, gravity, Rbar, thrust[i], torque[i], z[nx:nx + 6])
+        z[nx + 6:nx + 15] = y_prev[i]
         momentum_output_row(mass, J, R[i], velocity[i], rate[i], specific_force[i], thrust[i], y_out[i])
-        zi[nx + 15:] = y_out[i]
-    x_out[:, :] = np.dot(z, stacked)
+        z[nx + 15:] = y_out[i]
+        xi = x_out[i]
+        xi[:] = 0.0
+        for k in range(nz):          # x_{k+1} = sum_k z_k stacked[k, :], k in order (eq. 3 discretized)
+            zk = z[k]
+            for j in range(nx):
+                xi[j] += zk * stacked[k, j]
     _estimate_rows(x_out, R, mass, J_inv, out)
 
 
@@ -239,6 +251,11 @@ class QBObserver(Observer):
     #: Rbar = (R_prev + R) / 2, which is second-order accurate only while the vehicle turns little over dt:
     #: 0.1 s at 1 rad/s is 0.1 rad (the paper's simulation is continuous-time)
     max_dt = 0.1
+    #: the shortest update step [s]: the first-order hold of y is integrated with y's rate (y_{k+1} - y_k) / dt
+    #: (:func:`discretize`), which overflows for a subnormal dt; no env or log steps faster than a microsecond
+    min_dt = 1e-9
+    #: the collective thrust [N] of the accelerometer term of y at reset: a number or one per row
+    reset_options = {"thrust": ()}
 
     def __init__(self, mass: float, inertia: ArrayLike, gain_file: str | os.PathLike[str] | None = None,
                  gravity: float = 9.80665) -> None:
@@ -276,32 +293,21 @@ class QBObserver(Observer):
     def _reset(self, measurement: Mapping[str, ArrayLike], force: ArrayLike | None, torque: ArrayLike | None,
                rows: NDArray[np.bool_] | None, **options: Any) -> int:
         """State: ``_x`` (N, n_x), the previous output ``_y`` (N, 9) and attitude ``_R`` (N, 3, 3)."""
-        thrust = options.pop("thrust", None)
-        if options:
-            raise TypeError(f"qb: unknown reset options {sorted(options)}; allowed: thrust")
-        if rows is not None and thrust is not None and np.shape(thrust) == rows.shape:
-            thrust = np.asarray(thrust, dtype=float)[rows]
+        thrust = options.get("thrust")      # checked by Observer.reset: None, a number or one per row of measurement
         meas = M.batch_measurement(measurement)
         R = meas[M.ATTITUDE]
         n_b = R.shape[0]
-        try:
-            f = np.broadcast_to(np.asarray(self.mass * self.gravity if thrust is None else thrust, dtype=float),
-                                (n_b,)).copy()
-        except ValueError:
-            raise ValueError(f"qb: reset thrust must be a number or one per row ({n_b},), got shape "
-                             f"{np.shape(thrust)}") from None
-        if not np.isfinite(f).all():
-            raise ValueError(f"qb: reset thrust must be finite, got {thrust!r}")
+        f = np.broadcast_to(self.mass * self.gravity if thrust is None else thrust, (n_b,)).copy()
         y = momentum_output(self.mass, self._J, R, meas[M.VELOCITY], meas[M.ANGULAR_VELOCITY],
                             meas[M.SPECIFIC_FORCE], f)
         x = np.zeros((n_b, self.gain.A.shape[0]))
         x[:, :9] = y
-        if force is not None:
-            x[:, 6:9] = np.broadcast_to(np.asarray(force, dtype=float), (n_b, 3))
+        if force is not None:       # checked by Observer.reset: (3,) or one per row, finite
+            x[:, 6:9] = np.broadcast_to(force, (n_b, 3))
         if torque is not None:
-            x[:, 9:12] = np.einsum("nij,nj->ni", R, np.broadcast_to(np.asarray(torque, dtype=float), (n_b, 3)))
+            x[:, 9:12] = np.einsum("nij,nj->ni", R, np.broadcast_to(torque, (n_b, 3)))
         if not np.all(np.isfinite(x)):
-            raise ValueError("qb: reset: non-finite initial force/torque")
+            raise ValueError("qb: reset: the initial state is not finite (check the measurement and the guesses)")
         self._x, self._y, self._R = write_rows((self._x, self._y, self._R), (x, y, np.ascontiguousarray(R)), rows)
         return n_b
 
@@ -322,9 +328,16 @@ class QBObserver(Observer):
         self._x, self._y, self._R = state
 
     def _stacked(self, dt: float) -> NDArray[np.float64]:
-        """The discrete step for ``dt`` as one matrix (cached for the last few distinct dt)."""
+        """The discrete step for ``dt`` as one matrix (cached for the last few distinct dt).
+
+        ValueError (the one-line dt message, with :attr:`min_dt` as the lower bound) for a ``dt`` below
+        :attr:`min_dt`: :func:`discretize` divides by dt (a subnormal dt overflows to inf)."""
         stacked = self._disc.get(dt)
         if stacked is None:
+            if not dt >= self.min_dt:
+                raise ValueError(f"qb: dt must be a finite number of seconds in [{self.min_dt:g}, {self.max_dt:g}] "
+                                 "(min_dt: the first-order hold divides by dt; max_dt, the bound of its "
+                                 f"discretisation), got {dt!r}")
             phi, gu, gy0, gy1 = discretize(self.gain, dt)
             # x+ = Phi x + Gu u + Gy0 y_prev + Gy1 (y - y_prev), as one product with [x, u, y_prev, y]
             stacked = np.ascontiguousarray(np.vstack([phi.T, gu.T, (gy0 - gy1).T, gy1.T]))

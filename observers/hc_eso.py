@@ -39,10 +39,12 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
+from fawtgym.core.checks import check_number, check_positive
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import exp_so3_row, mat_mul_row
 
 from . import vector_attitude as va
+from ._obs_common import MAX_RATE_GAIN, real_vector
 from .base import BufferStates, Observer, ObserverEstimate, register_observer
 from .vector_attitude import _S2_FLOOR, imu_body_vectors_row
 
@@ -72,9 +74,7 @@ class HcEsoGains:
             raise ValueError(f"gamma - 3 alpha + 1 must be >= 0 (Prop. 3), got gamma={self.gamma}, "
                              f"alpha={self.alpha}")
         for name in ("kappa", "k_sigma", "k_psi"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, number) and math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a finite positive number, got {v!r}")
+            check_positive(getattr(self, name), f"hc_eso: gain {name}", maximum=MAX_RATE_GAIN)
 
     @functools.cached_property
     def constants(self) -> NDArray[np.float64]:
@@ -317,12 +317,14 @@ class HcEsoSO3(Observer):
             raise ValueError(f"vectors must be one of {VECTOR_SOURCES}, got {vectors!r}")
         if rate_key not in (M.ANGULAR_VELOCITY, M.GYRO):
             raise ValueError(f"rate_key must be {M.ANGULAR_VELOCITY!r} or {M.GYRO!r}, got {rate_key!r}")
-        if (isinstance(max_step, bool) or not isinstance(max_step, (int, float)) or not math.isfinite(max_step)
-                or not self.max_dt / MAX_SUBSTEPS <= max_step):
-            raise ValueError(f"max_step must be a finite number of seconds >= max_dt / {MAX_SUBSTEPS} = "
-                             f"{self.max_dt / MAX_SUBSTEPS:g}, got {max_step!r}")
-        self.vectors, self.rate_key, self.max_step = vectors, rate_key, float(max_step)
-        self.field_ned = np.asarray(field_ned, float)
+        max_step = check_number(max_step, "hc_eso: max_step", minimum=self.max_dt / MAX_SUBSTEPS,
+                                inclusive_minimum=True, note=f"s (>= max_dt / {MAX_SUBSTEPS})")
+        self.vectors, self.rate_key, self.max_step = vectors, rate_key, max_step
+        field = real_vector(field_ned, 3)
+        if field is None:
+            raise ValueError(f"hc_eso: field_ned must be 3 finite real numbers (the Earth field, NED), got "
+                             f"{field_ned!r}")
+        self.field_ned = field
         self._e = np.eye(3) if vectors == "attitude" else va.imu_inertial_vectors(self.field_ned)
         self._w = va.wahba_weight(self._e, self.morse_gains)
         self._ew = np.ascontiguousarray(self._e @ self._w)
