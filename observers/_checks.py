@@ -26,13 +26,7 @@ from numba import boolean, int64, njit
 from numpy.typing import NDArray
 
 from fawtgym.core.kernel_types import ROTATIONS, ROWS, VALUES
-from fawtgym.core.so3_kernels import first_non_rotation
-
-#: a measured attitude R is a rotation if max |(R^T R - I)_ij| <= ROTATION_TOL and det R > 0
-#: (:func:`fawtgym.core.so3_kernels.first_non_rotation`).  Rotations built from a unit quaternion in float64 are
-#: orthonormal to ~1e-15, from float32 entries to ~1e-7 (a flight log); a 1.001-scaled rotation is off by 2e-3,
-#: a reflection has det -1.
-ROTATION_TOL = 1e-6
+from fawtgym.core.so3_kernels import ROTATION_TOL, first_non_rotation  # the one tolerance (re-exported here)
 
 
 @njit(cache=True)

@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.checks import check_positive
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.kernel_types import TYPED_DISPATCH, compile_only
 from fawtgym.core.measurement import ATTITUDE, TRAILING_SHAPES, batch_measurement
 from fawtgym.core.rows import check_row_mask
@@ -148,7 +149,7 @@ class Observer:
         cls._checked_path = owner is not Observer and all(
             getattr(cls, hook) is getattr(owner, hook) for hook in ("_update", "_check_estimate", "_commit"))
 
-    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665) -> None:
+    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = GRAVITY) -> None:
         """``mass`` [kg] and ``gravity`` [m/s^2]: real, finite, > 0 (``gravity`` at most :data:`MAX_GRAVITY`);
         ``inertia`` [kg m^2]: a symmetric-part positive-definite 3x3 matrix of real numbers, or its 3 diagonal
         entries.  Else one-line ValueError naming the argument and what is allowed."""

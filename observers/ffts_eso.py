@@ -60,6 +60,7 @@ from numba import float64, int64, njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.checks import check_number, check_positive
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.kernel_types import ROTATIONS, ROWS, TYPED_DISPATCH, VALUES, compile_only
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3 import project_so3
@@ -198,7 +199,7 @@ class FFTSESO(Observer):
 
     required_keys = _KEYS
 
-    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, p: float = 1.2,
+    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = GRAVITY, *, p: float = 1.2,
                  kt1: float = 3.0, kt2: float = 2.0, kt3: float = 6.0, kappa_t: float = 0.8,
                  ka1: float = 3.0, ka2: float = 2.0, ka3: float = 4.0, kappa_a: float = 0.6,
                  morse_k: Sequence[float] = (1.2, 1.1, 1.0), eps: float = DEFAULT_EPS) -> None:

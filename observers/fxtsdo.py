@@ -27,6 +27,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.checks import check_number
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import write_rows
 from fawtgym.observers._obs_common import (
     MAX_RATE_GAIN,
@@ -42,7 +43,7 @@ from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
 V_PREV, W_PREV, D_T, D_A = 0, 3, 6, 9
 _KEYS = ("velocity", "attitude", "angular_velocity")
 #: the largest disturbance-acceleration error [m/s^2 or rad/s^2] the Euler step must keep stable (10 g)
-LARGE_ERROR = 10.0 * 9.80665
+LARGE_ERROR = 10.0 * GRAVITY
 #: the largest exponent a2 accepted: max_dt = 2 / (k2 a2 LARGE_ERROR^(a2 - 1)) is 1.2 us at a2 = 3.5 and k2 = 5,
 #: 6e-12 s at k2 = MAX_RATE_GAIN (at a2 = 1e300 it overflows); fixed-time designs use a2 in (1, 2]
 MAX_A2 = 3.5
@@ -60,7 +61,7 @@ class FxTSDO(Observer):
 
     required_keys = _KEYS
 
-    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, k1: float = 5.0,
+    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = GRAVITY, *, k1: float = 5.0,
                  k2: float = 5.0, a1: float = 0.5, a2: float = 1.5) -> None:
         super().__init__(mass, inertia, gravity)
         self.k1, self.k2 = positive("fxtsdo", MAX_RATE_GAIN, k1=k1, k2=k2)

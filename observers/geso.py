@@ -47,6 +47,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
 from fawtgym.core.checks import check_positive
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import cross_row
 
@@ -405,7 +406,7 @@ class GESO(Observer):
     torque channel.
     """
 
-    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *,
+    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = GRAVITY, *,
                  order: int | Mapping[str, int] = 3, bandwidth: float | Mapping[str, float] = 20.0,
                  channels: str | Iterable[str] = CHANNELS, hold: str = "foh",
                  rate_key: str = M.ANGULAR_VELOCITY) -> None:

@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
 from fawtgym.core.checks import check_number, check_positive
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import exp_so3_row, mat_mul_row
 
@@ -305,7 +306,7 @@ class HcEsoSO3(Observer):
     #: synthetic run of tests/test_hc_eso_observer.py, 6 s)
     max_dt = 0.1
 
-    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, alpha: float = 0.85,
+    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = GRAVITY, *, alpha: float = 0.85,
                  gamma: int = 2, kappa: float = 0.15, k_sigma: float = 5.0, k_psi: float = 5.0,
                  morse_gains: ArrayLike = DEFAULT_MORSE_GAINS, vectors: str = "imu",
                  rate_key: str = M.ANGULAR_VELOCITY, max_step: float = 0.005,

@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.frames import rot_to_euler
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import rot_to_euler_row
@@ -58,7 +59,7 @@ class LESO(Observer):
     """
     required_keys = _KEYS
 
-    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, omega_t: float = 10.0,
+    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = GRAVITY, *, omega_t: float = 10.0,
                  omega_a: float = 10.0) -> None:
         super().__init__(mass, inertia, gravity)
         omega_t, omega_a = positive("leso", MAX_RATE_GAIN, omega_t=omega_t, omega_a=omega_a)

@@ -25,6 +25,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.checks import check_number, check_positive
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FORCE, batch_measurement
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import cross_row, mat_mul_row, quat_to_rot_row
@@ -166,7 +167,7 @@ class PdtStaAttitudeObserver(Observer):
     #: signal) and 0.31 at 50 ms (worse than omega_hat = 0); 20 ms (50 Hz) is the bound
     max_dt = 0.02
 
-    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, t_c: float = 1.5,
+    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = GRAVITY, t_c: float = 1.5,
                  eta: float = 5.0, kappa1: float = 2.5, kappa2: float | None = None, noise_bound: float = 0.0,
                  mode: str = "predefined", weights: tuple[float, float] = (1.0, 1.0),
                  magnetic_field: ArrayLike = EARTH_FIELD_NED, reanchor: float = 1.0) -> None:

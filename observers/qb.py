@@ -52,6 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import expm
 
 from fawtgym.core import measurement as M
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import write_rows
 
 from .base import BufferStates, Observer, ObserverEstimate, register_observer
@@ -258,7 +259,7 @@ class QBObserver(Observer):
     reset_options = {"thrust": ()}
 
     def __init__(self, mass: float, inertia: ArrayLike, gain_file: str | os.PathLike[str] | None = None,
-                 gravity: float = 9.80665) -> None:
+                 gravity: float = GRAVITY) -> None:
         super().__init__(mass, inertia, gravity)
         if gain_file is None:
             gain_file = shipped_gain_for(self.mass, self.inertia)

@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import write_rows
 from fawtgym.observers._obs_common import (
     batch_vec,
@@ -69,7 +70,7 @@ class SuperTwistingObserver(Observer):
     required_keys = _KEYS
     max_dt = 0.05
 
-    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = 9.80665, *, bound_t: float = 5.0,
+    def __init__(self, mass: float, inertia: ArrayLike, gravity: float = GRAVITY, *, bound_t: float = 5.0,
                  bound_a: float = 5.0) -> None:
         super().__init__(mass, inertia, gravity)
         bound_t, bound_a = positive("sto", MAX_DISTURBANCE_RATE, bound_t=bound_t, bound_a=bound_a)

@@ -16,11 +16,8 @@ from fawtgym.envs import vehicles
 ROOT = Path(__file__).resolve().parents[1]
 #: the package's source folders (the package-dir mapping of pyproject.toml)
 SOURCES = ("fawtgym", "envs", "observers", "agents", "train", "eval")
-#: files still typing g as a default argument (the observers' owner moves them to the core constant; an entry may
-#: go, none may be added)
-PENDING = {"observers/base.py", "observers/ffts_eso.py", "observers/fxtsdo.py", "observers/geso.py",
-           "observers/hc_eso_so3.py", "observers/hc_eso.py", "observers/leso.py", "observers/pdt_sta.py",
-           "observers/qb_observer.py", "observers/qb.py", "observers/sto.py"}
+#: files allowed to type g (none: the observers' defaults use the core constant too)
+PENDING: set[str] = set()
 
 
 def test_gravity_is_standard_gravity_and_one_object() -> None:
