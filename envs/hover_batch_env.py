@@ -134,7 +134,7 @@ from mujoco import rollout
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.arrays import as_f64, read_only
+from fawtgym.core.arrays import REAL_KINDS, ReadOnlyState, as_array, as_f64, read_only
 from fawtgym.core.frames import SIGN_MJ_NED, rot_ned_to_quat_mj
 from fawtgym.core.so3 import exp_so3
 
@@ -183,8 +183,8 @@ _STATE_SPEC = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 _CONTROL_SPEC = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED)
 _SIGN = SIGN_MJ_NED
 #: the error of assigning kernel state (the compiled kernels read and write it by index: a wrong shape corrupts memory)
-_KERNEL_STATE = "HoverBatchEnv.{} is kernel state (read-only): {}"
-_USE_RANDOMIZER = ("set {} per row with a randomizer (HoverBatchEnv(..., randomizer=...)), applied at each episode "
+_KERNEL_STATE = "HoverBatchEnv.{name} is kernel state (read-only): "
+_USE_RANDOMIZER = ("set {name} per row with a randomizer (HoverBatchEnv(..., randomizer=...)), applied at each episode "
                    "start")
 #: the autoreset modes of HoverBatchEnv (module docstring)
 AUTORESET_MODES = {"next_step": AutoresetMode.NEXT_STEP, "same_step": AutoresetMode.SAME_STEP}
@@ -370,52 +370,16 @@ class HoverBatchEnv(VectorEnv):
         self.aero._share(self._params[start:start + 8])
 
     # ---- kernel state, read-only (the compiled kernels trust these arrays' shapes: never assigned from outside) ----
-    @property
-    def rotor_speeds(self) -> NDArray[np.float64]:
-        """Rotor speeds [rad/s] at the end of the last step (N, 4): a read-only view."""
-        return read_only(self._rotor_speeds)
-
-    @rotor_speeds.setter
-    def rotor_speeds(self, value: object) -> None:
-        raise AttributeError(_KERNEL_STATE.format("rotor_speeds", "they follow the actions (step) and reset"))
-
-    @property
-    def time(self) -> NDArray[np.float64]:
-        """Episode time of each row [s] (N,): a read-only view."""
-        return read_only(self._time)
-
-    @time.setter
-    def time(self, value: object) -> None:
-        raise AttributeError(_KERNEL_STATE.format("time", "it advances with step and restarts at reset"))
-
-    @property
-    def mass_scale(self) -> NDArray[np.float64]:
-        """Each row's body mass over the nominal one (N,) (module docstring, Domain randomization): a read-only
-        view."""
-        return read_only(self._mass_scale)
-
-    @mass_scale.setter
-    def mass_scale(self, value: object) -> None:
-        raise AttributeError(_KERNEL_STATE.format("mass_scale", _USE_RANDOMIZER.format("mass_scale")))
-
-    @property
-    def inertia_scale(self) -> NDArray[np.float64]:
-        """Each row's body inertia over the nominal one (N,) (module docstring, Domain randomization): a read-only
-        view."""
-        return read_only(self._inertia_scale)
-
-    @inertia_scale.setter
-    def inertia_scale(self, value: object) -> None:
-        raise AttributeError(_KERNEL_STATE.format("inertia_scale", _USE_RANDOMIZER.format("inertia_scale")))
-
-    @property
-    def drag_scale(self) -> NDArray[np.float64]:
-        """Each row's aerodynamic wrench scale (N,) (module docstring, Domain randomization): a read-only view."""
-        return read_only(self._drag_scale)
-
-    @drag_scale.setter
-    def drag_scale(self, value: object) -> None:
-        raise AttributeError(_KERNEL_STATE.format("drag_scale", _USE_RANDOMIZER.format("drag_scale")))
+    rotor_speeds = ReadOnlyState("Rotor speeds [rad/s] at the end of the last step (N, 4): a read-only view.",
+                                 _KERNEL_STATE + "they follow the actions (step) and reset")
+    time = ReadOnlyState("Episode time of each row [s] (N,): a read-only view.",
+                         _KERNEL_STATE + "it advances with step and restarts at reset")
+    mass_scale = ReadOnlyState("Each row's body mass over the nominal one (N,) (module docstring, Domain "
+                               "randomization): a read-only view.", _KERNEL_STATE + _USE_RANDOMIZER)
+    inertia_scale = ReadOnlyState("Each row's body inertia over the nominal one (N,) (module docstring, Domain "
+                                  "randomization): a read-only view.", _KERNEL_STATE + _USE_RANDOMIZER)
+    drag_scale = ReadOnlyState("Each row's aerodynamic wrench scale (N,) (module docstring, Domain randomization): a "
+                               "read-only view.", _KERNEL_STATE + _USE_RANDOMIZER)
 
     @property
     def _force(self) -> NDArray[np.float64]:
@@ -620,11 +584,8 @@ class HoverBatchEnv(VectorEnv):
                                      ("gyro_bias", (k, 3), "finite", None), ("accel_bias", (k, 3), "finite", None)):
             if key in draws:
                 raw = draws[key]
-                try:
-                    v = np.asarray(raw)
-                except ValueError:  # ragged nested sequences
-                    v = np.asarray(None)
-                if v.dtype.kind not in "iuf":  # bool, complex, str, objects: no silent conversion
+                v = as_array(raw)
+                if v.dtype.kind not in REAL_KINDS:  # bool, complex, str, objects: no silent conversion
                     raise ValueError(f"randomizer draw {key!r} must be {need} with shape {shape} (one per starting "
                                      f"row) of real numbers, got {raw!r:.80} ({type(raw).__name__}, dtype {v.dtype})")
                 v = v.astype(np.float64)

@@ -27,7 +27,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.arrays import as_f64, read_only
+from fawtgym.core.arrays import ReadOnlyState, as_f64, read_only
 from fawtgym.core.so3_kernels import exp_so3_row, mat_mul_row
 
 from .sensors import SensorSpec, make_sensor_spec, pose_rate_error
@@ -56,7 +56,7 @@ class _SigmaEntry:
 
 
 #: the error of assigning kernel state (the compiled kernels trust its shape and dtype)
-_KERNEL_STATE = ("BatchSensorModel.{} is the sensor kernel's state (read-only): set the turn-on biases through "
+_KERNEL_STATE = ("BatchSensorModel.{name} is the sensor kernel's state (read-only): set the turn-on biases through "
                  "gyro_bias / accel_bias (or a randomizer's gyro_bias / accel_bias draws); the rest follows from reset")
 #: the error of assigning a sensor setting fixed at construction
 _FIXED = ("BatchSensorModel.{} is fixed at construction (derived from the sensor spec, copied into the env's step "
@@ -184,34 +184,14 @@ class BatchSensorModel:
     def sigma(self, value: object) -> None:
         raise AttributeError(_FIXED.format("sigma"))
 
-    @property
-    def state(self) -> NDArray[np.float64]:
-        """Per row the held pose sample (position 3, velocity 3, attitude 9) and the turn-on biases (gyro 3,
-        accelerometer 3), (N, 21): a read-only view of the kernel's state (set the biases through
-        :attr:`gyro_bias` / :attr:`accel_bias`; the pose hold is the kernel's)."""
-        return read_only(self._state)
-
-    @state.setter
-    def state(self, value: object) -> None:
-        raise AttributeError(_KERNEL_STATE.format("state"))
-
-    @property
-    def count(self) -> NDArray[np.int64]:
-        """Steps since each row's episode start (N,) (the pose hold's clock): a read-only view."""
-        return read_only(self._count)
-
-    @count.setter
-    def count(self, value: object) -> None:
-        raise AttributeError(_KERNEL_STATE.format("count"))
-
-    @property
-    def no_noise(self) -> NDArray[np.float64]:
-        """The zero normals (N, 21) the kernel reads for exact sensors: a read-only view."""
-        return read_only(self._no_noise)
-
-    @no_noise.setter
-    def no_noise(self, value: object) -> None:
-        raise AttributeError(_KERNEL_STATE.format("no_noise"))
+    state = ReadOnlyState("Per row the held pose sample (position 3, velocity 3, attitude 9) and the turn-on biases "
+                          "(gyro 3, accelerometer 3), (N, 21): a read-only view of the kernel's state (set the biases "
+                          "through :attr:`gyro_bias` / :attr:`accel_bias`; the pose hold is the kernel's).",
+                          _KERNEL_STATE)
+    count = ReadOnlyState("Steps since each row's episode start (N,) (the pose hold's clock): a read-only view.",
+                          _KERNEL_STATE)
+    no_noise = ReadOnlyState("The zero normals (N, 21) the kernel reads for exact sensors: a read-only view.",
+                             _KERNEL_STATE)
 
     @property
     def pose_pos(self) -> NDArray[np.float64]:

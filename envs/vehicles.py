@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from fawtgym.core.arrays import REAL_KINDS, as_array
 from fawtgym.core.constants import GRAVITY  # defined in core; importable from here too (compatibility)
 
 AIR_DENSITY = 1.225  #: ISA sea-level air density [kg/m^3]
@@ -149,11 +150,8 @@ class VehiclePreset:
 def _real_vector(field: str, value: Any) -> NDArray[np.float64]:
     """A vector field's entries as float64 if all are real numbers (int, float, numpy reals); bool, complex, str,
     None and ragged nestings are refused with a ValueError naming the field (as the scalar fields are)."""
-    try:
-        raw = np.asarray(value)
-    except ValueError:  # ragged nested sequences
-        raw = np.asarray(None)
-    if raw.dtype.kind not in "iuf":
+    raw = as_array(value)
+    if raw.dtype.kind not in REAL_KINDS:
         raise ValueError(f"vehicle field {field!r} must be real numbers (not bool, complex or str), got {value!r}")
     return raw.astype(np.float64)
 

@@ -12,6 +12,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.arrays import REAL_KINDS, as_array
 from fawtgym.core.checks import check_positive
 
 
@@ -36,11 +37,8 @@ MAX_RATE_GAIN = 1e6
 def real_vector(value: object, size: int) -> NDArray[np.float64] | None:
     """``value`` as a finite float64 vector (``size``,) if it holds real numbers (bool, complex, str refused), else
     None (the caller words the error, naming its argument)."""
-    try:
-        a = np.asarray(value)
-    except (ValueError, TypeError):          # ragged nested sequences
-        return None
-    if a.dtype.kind not in "iuf" or a.shape != (size,) or not np.all(np.isfinite(a)):
+    a = as_array(value)
+    if a.dtype.kind not in REAL_KINDS or a.shape != (size,) or not np.all(np.isfinite(a)):
         return None
     return a.astype(np.float64)
 

@@ -28,6 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.arrays import REAL_KINDS, as_array
 from fawtgym.core.checks import check_positive
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.kernel_types import TYPED_DISPATCH, compile_only
@@ -414,7 +415,6 @@ def fast_inputs(measurement: object, shapes: tuple[tuple[str, tuple[int, ...], i
     return out
 
 
-_REAL_KINDS = "iuf"    # numpy dtype kinds accepted as real numbers (bool "b" and complex "c" are refused)
 
 #: the largest gravitational acceleration an observer accepts [m/s^2] (ten times Jupiter's 24.8): a larger one is a
 #: typo, and the divergence bound MAX_FORCE_WEIGHTS m g would grow with it
@@ -426,11 +426,8 @@ def _inertia_matrix(inertia: object, who: str) -> NDArray[np.float64]:
     numbers (bool, complex, str refused), has one of those shapes, is finite and its symmetric part is positive
     definite."""
     allowed = "a 3x3 matrix or 3 diagonal entries of finite real numbers [kg m^2], positive definite"
-    try:
-        j = np.asarray(inertia)
-    except (ValueError, TypeError):          # ragged nested sequences
-        j = np.asarray(None, dtype=object)
-    if j.dtype.kind not in _REAL_KINDS:
+    j = as_array(inertia)
+    if j.dtype.kind not in REAL_KINDS:
         raise ValueError(f"{who}: inertia must be {allowed}, got {inertia!r} (dtype {j.dtype})")
     j = j.astype(np.float64)
     j = np.diag(j) if j.shape == (3,) else j
@@ -446,7 +443,7 @@ def check_dt(dt: object, max_dt: float, who: str) -> float:
     ValueError naming it if not finite, <= 0 or above ``max_dt``."""
     if type(dt) is not float:
         real = isinstance(dt, (int, float, np.integer, np.floating)) and not isinstance(dt, (bool, np.bool_))
-        if not real and isinstance(dt, np.ndarray) and dt.ndim == 0 and dt.dtype.kind in _REAL_KINDS:
+        if not real and isinstance(dt, np.ndarray) and dt.ndim == 0 and dt.dtype.kind in REAL_KINDS:
             real = True
         if not real:
             raise TypeError(f"{who}: dt must be a real number of seconds, got {dt!r} ({type(dt).__name__})")
@@ -459,11 +456,8 @@ def check_dt(dt: object, max_dt: float, who: str) -> float:
 
 def _real_array(value: object, label: str, who: str) -> NDArray[np.float64]:
     """``value`` as a float64 array; TypeError naming ``label`` unless it holds real numbers (not bool, complex)."""
-    try:
-        a = value if type(value) is np.ndarray else np.asarray(value)
-    except (ValueError, TypeError):          # ragged nested sequences
-        a = np.asarray(value, dtype=object)
-    if a.dtype.kind not in _REAL_KINDS:
+    a = as_array(value)
+    if a.dtype.kind not in REAL_KINDS:
         raise TypeError(f"{who}: {label} must hold real numbers, got {type(value).__name__} of dtype {a.dtype}")
     return a if a.dtype == np.float64 else a.astype(np.float64)
 
@@ -584,11 +578,8 @@ def check_guess(guess: ArrayLike | None, n: int, label: str, trailing: tuple[int
     rows = f"({', '.join(('N', *map(str, trailing)))}{',' if not trailing else ''}) with N = {n} (one per row)"
     allowed = (f"a finite real number (every row) or shape {rows}" if not trailing
                else f"finite real numbers of shape {trailing} (every row) or {rows}")
-    try:
-        g = np.asarray(guess)
-    except (ValueError, TypeError):          # ragged nested sequences
-        g = np.asarray(None, dtype=object)
-    if g.dtype.kind not in _REAL_KINDS:
+    g = as_array(guess)
+    if g.dtype.kind not in REAL_KINDS:
         raise ValueError(f"{who}: reset {label} must be {allowed}, got {type(guess).__name__} of dtype "
                          f"{g.dtype}")
     if g.shape != trailing and g.shape != (n, *trailing):

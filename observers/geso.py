@@ -46,6 +46,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
+from fawtgym.core.arrays import REAL_KINDS, as_array
 from fawtgym.core.checks import check_positive
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import write_rows
@@ -87,11 +88,8 @@ def geso_gains(order: int, bandwidth: float) -> NDArray[np.float64]:
 
 
 def _check_gains(gains: ArrayLike) -> NDArray[np.float64]:
-    try:
-        l = np.asarray(gains)
-    except (ValueError, TypeError):          # ragged nested sequences
-        l = np.asarray(None, dtype=object)
-    if l.dtype.kind not in "iuf":
+    l = as_array(gains)
+    if l.dtype.kind not in REAL_KINDS:
         raise ValueError(f"GESO gains must be a vector [l_0..l_n] of real numbers, got {gains!r} (dtype {l.dtype})")
     l = l.astype(np.float64)
     if l.ndim != 1 or l.size - 1 not in ORDERS:

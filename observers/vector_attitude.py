@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.arrays import REAL_KINDS, as_array
 from fawtgym.core.measurement import EARTH_FIELD_NED
 from fawtgym.core.so3 import hat, vee
 
@@ -55,11 +56,8 @@ def check_morse_gains(k: ArrayLike) -> NDArray[np.float64]:
     """Validate K = diag(k1, k2, k3) with k1 > k2 > k3 >= 1 (Lemma 1), real numbers (bool, complex, str refused);
     returns the diagonal (3,)."""
     given = k
-    try:
-        k = np.asarray(k)
-    except (ValueError, TypeError):          # ragged nested sequences
-        k = np.asarray(None, dtype=object)
-    if k.dtype.kind not in "iuf":
+    k = as_array(k)
+    if k.dtype.kind not in REAL_KINDS:
         raise ValueError(f"K = diag(k1, k2, k3) needs real numbers k1 > k2 > k3 >= 1 (Lemma 1), got {given!r}")
     k = k.astype(np.float64)
     if k.shape == (3, 3):
