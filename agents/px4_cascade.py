@@ -168,7 +168,7 @@ def _tick(s: np.ndarray, loop: int, period: float, dt: float) -> float:
     return elapsed if math.isfinite(elapsed) else period
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.ndarray, specific_force: np.ndarray,
                  has_specific_force: bool, setpoint: np.ndarray, yaw: float, force_hat: np.ndarray, use_force: bool,
                  torque_hat: np.ndarray, use_torque: bool, dt: float, constants: np.ndarray, state: np.ndarray,

@@ -468,7 +468,7 @@ def _block(buf: NDArray[np.float64], start: int, width: int, n: int) -> NDArray[
     return buf[start * n:(start + width) * n].reshape((n, width))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def act_rows(a: NDArray[np.float64], params: NDArray[np.float64], stepping: NDArray[np.bool_], motors: bool,
              decay_up: NDArray[np.float64], decay_down: NDArray[np.float64], speeds: NDArray[np.float64],
              wrench: NDArray[np.float64], clipped: NDArray[np.float64], flagged: NDArray[np.bool_],
@@ -486,7 +486,7 @@ def act_rows(a: NDArray[np.float64], params: NDArray[np.float64], stepping: NDAr
     return -1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def observe_rows(params: NDArray[np.float64], z: NDArray[np.float64], measure: bool, pos: NDArray[np.float64],
                  vel: NDArray[np.float64], rot: NDArray[np.float64], omega: NDArray[np.float64],
                  accel: NDArray[np.float64], time: NDArray[np.float64], setpoint: NDArray[np.float64],
@@ -546,7 +546,7 @@ def observe_rows(params: NDArray[np.float64], z: NDArray[np.float64], measure: b
                               params[_P_REWARD_W:_P_REWARD_W + 6], failure, obs, reward, terms)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def step_rows(params: NDArray[np.float64], states: NDArray[np.float64], stepping: NDArray[np.bool_],
               diverged_before: NDArray[np.bool_], mj_state: NDArray[np.float64], pos: NDArray[np.float64],
               vel: NDArray[np.float64], rot: NDArray[np.float64], omega: NDArray[np.float64],
@@ -577,7 +577,7 @@ def step_rows(params: NDArray[np.float64], states: NDArray[np.float64], stepping
     return ended, status
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def disturbance_rows(params: NDArray[np.float64], rot: NDArray[np.float64], vel: NDArray[np.float64],
                      omega: NDArray[np.float64], speeds: NDArray[np.float64], wind: NDArray[np.float64],
                      drag_scale: NDArray[np.float64], keep: NDArray[np.bool_], wrench: NDArray[np.float64],

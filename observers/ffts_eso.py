@@ -548,7 +548,7 @@ UPDATE_SIGNATURE = int64(ROWS, ROWS, ROWS, ROTATIONS, ROWS, VALUES, ROWS, float6
                          float64, ROTATIONS)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def ffts_eso_update(x: NDArray[np.float64], pos: NDArray[np.float64], vel: NDArray[np.float64],
                     att: NDArray[np.float64], omega: NDArray[np.float64], thrust: NDArray[np.float64],
                     torque: NDArray[np.float64], dt: float, eps_t: float, eps_a: float, gains: NDArray[np.float64],

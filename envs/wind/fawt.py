@@ -192,7 +192,7 @@ def fawt_profile(p_fawt: NDArray[np.float64], x_ref: float = HOTWIRE_X) -> tuple
     return factor.reshape(p.shape[:-1]), weight.reshape(p.shape[:-1])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def fawt_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], scale: float, ti: float,
                    turbulent: bool, rates: bool, dt: float, x: NDArray[np.float64], noise: NDArray[np.float64],
                    cursor: NDArray[np.int64], table: NDArray[np.float64], k0: int, out: NDArray[np.float64]) -> int:
