@@ -25,7 +25,7 @@ divergence) and truncation.  What is batched:
 
 * physics: one ``mujoco.rollout`` call per control step on the env's own one-vehicle model, on the
   calling thread below :data:`THREADED_ROWS` rows, else on one thread per core, each with its own ``MjData``
-  (:func:`physics_threads`): state spec ``mjSTATE_FULLPHYSICS`` (time, qpos,
+  (:func:`default_physics_threads`): state spec ``mjSTATE_FULLPHYSICS`` (time, qpos,
   qvel; 14 numbers, round-trips this model's state exactly: no actuator activations, contacts
   disabled so no warm start matters), control spec ``mjSTATE_CTRL | mjSTATE_QFRC_APPLIED`` with the
   whole (N, n_substeps, 10) array (rotor thrusts per substep, held world force and body torque as the
@@ -200,12 +200,26 @@ THREADED_ROWS = 64
 PHYSICS_CHUNK_ROWS = 64
 
 
-def physics_threads(n: int) -> int:
+def default_physics_threads(n: int) -> int:
     """Threads of the env's ``mujoco.rollout`` for ``n`` rows, each with its own ``MjData``: one per core this
     process may use (at most one per :data:`THREADED_ROWS` rows), or 0 (the calling thread) if that is one."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     threads = min(cores, n // THREADED_ROWS)
     return threads if threads > 1 else 0
+
+
+#: the most rollout threads ``HoverBatchEnv(physics_threads=...)`` takes
+MAX_PHYSICS_THREADS = 256
+
+
+def _check_physics_threads(threads: Any) -> int | None:
+    """The ``physics_threads`` option: None (:func:`default_physics_threads`: one per core) or an int in
+    [0, :data:`MAX_PHYSICS_THREADS`]."""
+    if threads is None or (isinstance(threads, (int, np.integer)) and not isinstance(threads, (bool, np.bool_))
+                           and 0 <= threads <= MAX_PHYSICS_THREADS):
+        return None if threads is None else int(threads)
+    raise ValueError(f"physics_threads must be None (one per core) or an int in [0, {MAX_PHYSICS_THREADS}] "
+                     f"(0: on the calling thread), got {threads!r}")
 
 
 def _check_seeds(seed: Any, n: int) -> list[int | None]:
@@ -244,6 +258,10 @@ class HoverBatchEnv(VectorEnv):
             integrator); ``render_mode`` must be None.
         autoreset_mode: ``"next_step"`` (default) or ``"same_step"`` (or the ``AutoresetMode``); module docstring.
         randomizer: None, or a callable ``(rows, rngs) -> draws`` run at every episode start (module docstring).
+        physics_threads: threads of the env's ``mujoco.rollout``, each with its own ``MjData``: None (default) for
+            :func:`default_physics_threads` (one per core from :data:`THREADED_ROWS` rows on), 0 for the calling
+            thread.  0 lets one thread per core each fly its own env of N / cores rows with its own agent (the
+            ``sharded`` loop of ``fawtgym bench closed-loop``: the fastest closed loop on a 2-core machine).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -254,8 +272,8 @@ class HoverBatchEnv(VectorEnv):
                  reward_weights: Mapping[str, float] | None = None, max_position_error: float = 2.0,
                  integrator: str = "Euler", render_mode: str | None = None, render_width: int = 480,
                  render_height: int = 480, autoreset_mode: str | AutoresetMode = "next_step",
-                 randomizer: Callable[[NDArray[np.intp], list[np.random.Generator]], Mapping[str, Any]] | None = None
-                 ) -> None:
+                 randomizer: Callable[[NDArray[np.intp], list[np.random.Generator]], Mapping[str, Any]] | None = None,
+                 physics_threads: int | None = None) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
         modes: dict[str | AutoresetMode, AutoresetMode] = {k: v for k, v in AUTORESET_MODES.items()}
@@ -265,6 +283,7 @@ class HoverBatchEnv(VectorEnv):
         if randomizer is not None and not callable(randomizer):
             raise ValueError(f"randomizer must be None or a callable (rows, rngs) -> draws, got "
                              f"{type(randomizer).__name__}")
+        threads = _check_physics_threads(physics_threads)
         if render_mode is not None:
             raise ValueError(f"HoverBatchEnv does not render; render_mode must be None, got {render_mode!r} "
                              "(render a single fawtgym/Hover-v0 instead)")
@@ -298,7 +317,7 @@ class HoverBatchEnv(VectorEnv):
         self._setpoint = np.tile(opts.setpoint, (n, 1))
         self.model = mujoco.MjModel.from_xml_string(vehicle_mjcf(opts.preset, opts.physics_dt, opts.integrator,
                                                                  opts.render_width, opts.render_height))
-        self._nthread = physics_threads(n)
+        self._nthread = default_physics_threads(n) if threads is None else threads
         self._datas = [mujoco.MjData(self.model) for _ in range(max(self._nthread, 1))]
         self._data = self._datas[0]
         self._rollout = rollout.Rollout(nthread=self._nthread)
@@ -684,6 +703,12 @@ class HoverBatchEnv(VectorEnv):
     def step(self, actions: ArrayLike) -> tuple[NDArray[np.float32], NDArray[np.float64], NDArray[np.bool_],
                                                  NDArray[np.bool_], dict[str, Any]]:
         return self._step(self._checked_actions(actions, "step"))
+
+    @property
+    def physics_threads(self) -> int:
+        """Threads of the env's ``mujoco.rollout`` (0: the calling thread); the ``physics_threads`` option, or
+        :func:`default_physics_threads` of N."""
+        return self._nthread
 
     def step_async(self, actions: ArrayLike) -> None:
         """:meth:`step` started on a worker thread; returns at once, :meth:`step_wait` returns the step's result.

@@ -198,18 +198,16 @@ def test_gymnasium_vector_wrappers_work():
     assert episodes == N
 
 
-def test_threaded_physics_gives_the_rows_of_the_calling_thread(monkeypatch):
+def test_threaded_physics_gives_the_rows_of_the_calling_thread():
     """Physics on one thread per core (one MjData each) from THREADED_ROWS rows on: the rows are independent, so
-    the threaded rollout reproduces the single-thread one bitwise."""
+    the threaded rollout reproduces the single-thread one bitwise (``physics_threads``: the default, or set)."""
     from fawtgym.envs import hover_batch_env
 
     n = 2 * hover_batch_env.THREADED_ROWS
-    assert hover_batch_env.physics_threads(1) == 0
-    assert hover_batch_env.physics_threads(n) in (0, 2)  # 0 on a one-core machine
-    monkeypatch.setattr(hover_batch_env, "physics_threads", lambda n: 2)
-    threaded = HoverBatchEnv(n, wind="fawt-50", sensors="mocap_imu")
-    monkeypatch.setattr(hover_batch_env, "physics_threads", lambda n: 0)
-    single = HoverBatchEnv(n, wind="fawt-50", sensors="mocap_imu")
+    assert hover_batch_env.default_physics_threads(1) == 0
+    assert hover_batch_env.default_physics_threads(n) in (0, 2)  # 0 on a one-core machine
+    threaded = HoverBatchEnv(n, wind="fawt-50", sensors="mocap_imu", physics_threads=2)
+    single = HoverBatchEnv(n, wind="fawt-50", sensors="mocap_imu", physics_threads=0)
     rng = np.random.default_rng(0)
     for env in (threaded, single):
         env.reset(seed=5)
@@ -218,3 +216,23 @@ def test_threaded_physics_gives_the_rows_of_the_calling_thread(monkeypatch):
         out_t, out_s = threaded.step(a), single.step(a)
         np.testing.assert_array_equal(out_t[0], out_s[0])
         np.testing.assert_array_equal(out_t[4]["truth"]["position"], out_s[4]["truth"]["position"])
+
+
+@pytest.mark.parametrize("bad", [-1, 257, 1.5, "2", True, np.bool_(False), [2]])
+def test_physics_threads_refuses_what_is_not_an_int_in_range(bad):
+    with pytest.raises(ValueError) as exc:
+        HoverBatchEnv(4, physics_threads=bad)
+    assert str(exc.value) == ("physics_threads must be None (one per core) or an int in [0, 256] (0: on the calling "
+                              f"thread), got {bad!r}")
+
+
+def test_physics_threads_sets_the_rollout_threads_and_survives_pickling():
+    import pickle
+
+    env = HoverBatchEnv(8, physics_threads=np.int64(3))
+    env.reset(seed=1)
+    copy = pickle.loads(pickle.dumps(env))
+    a = env.hover_action()
+    np.testing.assert_array_equal(env.step(a)[0], copy.step(a)[0])
+    assert env.physics_threads == copy.physics_threads == 3
+    assert HoverBatchEnv(1).physics_threads == 0

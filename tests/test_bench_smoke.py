@@ -66,9 +66,40 @@ def test_batched_bench_pairs_each_rounds_closed_loop_with_its_physics_round():
     b = closed_loop.measure_batched([4], rounds=2, vehicle_steps=20)
     paired = np.array(b[4]["paired"])  # (rounds, [plain loop, pipelined loop])
     assert paired.shape == (2, 2) and np.all(np.isfinite(paired)) and np.all(paired > 0)
-    assert set(b[4]) == {"closed", "pipelined", "physics", "env", "calm", "paired", "interleaved"}
+    assert set(b[4]) == {"closed", "pipelined", "physics", "env", "calm", "paired", "interleaved"}  # 1 core: no shards
     stepwise = np.array(b[4]["interleaved"])  # one closed loop / physics-only ratio per round, paired step by step
     assert stepwise.shape == (2,) and np.all(np.isfinite(stepwise)) and np.all(stepwise > 0)
+    b = closed_loop.measure_batched([4], rounds=2, vehicle_steps=20, shards=2)
+    assert {"sharded", "sharded_paired"} <= set(b[4]) and b[4]["sharded"]["wall"] > 0
+    blocks = np.array(b[4]["sharded_paired"])  # one sharded loop / physics-only ratio per round, paired in blocks
+    assert blocks.shape == (2,) and np.all(np.isfinite(blocks)) and np.all(blocks > 0)
+
+
+@pytest.mark.parametrize("sizes", [(3, 2), (2, 2, 1)])
+def test_sharded_loop_flies_the_plain_loops_vehicles_bit_for_bit(sizes):
+    """The sharded loop (one env per thread, physics on that thread, an agent each) must fly the N-row env's
+    vehicles: shard k's rows are the N-row env's rows offset_k.. (seeded alike), so with exact sensors the stacked
+    observations equal the plain loop's, bit for bit, after every block (rows are independent; with noisy sensors
+    the per-step noise of N > 1 rows is one stream per env, so the shards draw other samples: HoverBatchEnv's
+    seeding)."""
+    from fawtgym.envs.hover_batch_env import HoverBatchEnv
+
+    kw = dict(vehicle="s500", wind="fawt-50", sensors="none", control_rate=200.0, physics_rate=1000.0,
+              episode_seconds=1e6, init_noise=0.5)
+    assert closed_loop.shard_sizes(sum(sizes), len(sizes)) == list(sizes)
+    env = HoverBatchEnv(sum(sizes), **kw)
+    agent = closed_loop._agent(env)
+    shards = [HoverBatchEnv(m, physics_threads=0, **kw) for m in sizes]
+    loop = closed_loop.ShardedLoop(shards, [closed_loop._agent(e) for e in shards])
+    obs, info = env.reset(seed=7)
+    agent.reset(info)
+    loop.reset(seed=7)
+    np.testing.assert_array_equal(loop.observations(), obs)
+    for _ in range(3):
+        for _ in range(4):
+            obs, _, _, _, info = env.step(agent.act(obs, info))
+        loop.step(4)
+        np.testing.assert_array_equal(loop.observations(), obs)
 
 
 def test_interleaved_physics_call_leaves_the_closed_loop_trajectory_unchanged(monkeypatch):

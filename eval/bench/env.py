@@ -103,14 +103,14 @@ def measure_batch(n: int = 1024, steps: int = 20, rounds: int = 5) -> dict[str, 
     and the batched env alone; vehicle-steps per second."""
     from mujoco import rollout
 
-    from fawtgym.envs.hover_batch_env import _CONTROL_SPEC, HoverBatchEnv, physics_threads
+    from fawtgym.envs.hover_batch_env import _CONTROL_SPEC, HoverBatchEnv, default_physics_threads
 
     env = HoverBatchEnv(n, episode_seconds=1e6, init_noise=0.0)
     env.reset(seed=0)
     hover = env.hover_action()
     env.step(hover)
     state, ctrl, out = env._mj_state.copy(), env._ctrl.copy(), env._out.copy()
-    threads = physics_threads(n)
+    threads = default_physics_threads(n)
     pools = {}
     for k in sorted({0, threads}):
         pools[k] = (rollout.Rollout(nthread=k), [mujoco.MjData(env.model) for _ in range(max(k, 1))],
