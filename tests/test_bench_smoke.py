@@ -75,33 +75,6 @@ def test_batched_bench_pairs_each_rounds_closed_loop_with_its_physics_round():
     assert blocks.shape == (2,) and np.all(np.isfinite(blocks)) and np.all(blocks > 0)
 
 
-@pytest.mark.parametrize("sizes", [(3, 2), (2, 2, 1)])
-def test_sharded_loop_flies_the_plain_loops_vehicles_bit_for_bit(sizes):
-    """The sharded loop (one env per thread, physics on that thread, an agent each) must fly the N-row env's
-    vehicles: shard k's rows are the N-row env's rows offset_k.. (seeded alike), so with exact sensors the stacked
-    observations equal the plain loop's, bit for bit, after every block (rows are independent; with noisy sensors
-    the per-step noise of N > 1 rows is one stream per env, so the shards draw other samples: HoverBatchEnv's
-    seeding)."""
-    from fawtgym.envs.hover_batch_env import HoverBatchEnv
-
-    kw = dict(vehicle="s500", wind="fawt-50", sensors="none", control_rate=200.0, physics_rate=1000.0,
-              episode_seconds=1e6, init_noise=0.5)
-    assert closed_loop.shard_sizes(sum(sizes), len(sizes)) == list(sizes)
-    env = HoverBatchEnv(sum(sizes), **kw)
-    agent = closed_loop._agent(env)
-    shards = [HoverBatchEnv(m, physics_threads=0, **kw) for m in sizes]
-    loop = closed_loop.ShardedLoop(shards, [closed_loop._agent(e) for e in shards])
-    obs, info = env.reset(seed=7)
-    agent.reset(info)
-    loop.reset(seed=7)
-    np.testing.assert_array_equal(loop.observations(), obs)
-    for _ in range(3):
-        for _ in range(4):
-            obs, _, _, _, info = env.step(agent.act(obs, info))
-        loop.step(4)
-        np.testing.assert_array_equal(loop.observations(), obs)
-
-
 def test_interleaved_physics_call_leaves_the_closed_loop_trajectory_unchanged(monkeypatch):
     """The step-by-step pairing runs the env's rollout again between steps, on the env's own arrays: the closed
     loop must fly exactly the trajectory it flies without it (else the target would time another loop)."""

@@ -27,8 +27,8 @@ calling thread); the "per CPU s" column counts every thread of the process):
   kernels (serial work) run while the other half's physics does;
 * ``sharded``: the same N vehicles as one env of N / k rows per core (k: the env's physics threads for N),
   each with ``physics_threads=0`` (its physics on its own thread) and its own agent, each shard's closed loop on its
-  own thread (:class:`ShardedLoop`): the hot kernels release the GIL, so both cores run physics, env kernels and
-  agents alike, with no hand-off inside a step;
+  own thread (:class:`~fawtgym.eval.sharded.ShardedLoop`): the hot kernels release the GIL, so both cores run
+  physics, env kernels and agents alike, with no hand-off inside a step;
 * ``env alone``: the same batch env stepped with the hover action;
 * ``physics only``: the ``mujoco.rollout`` call the env makes (same model, N x substeps, same control
   layout, same threads) and nothing else: the ceiling for any env built on this physics;
@@ -156,53 +156,6 @@ def pin_blas_one_thread() -> str:
 SHARD_BLOCK = 10
 
 
-def shard_sizes(n: int, shards: int) -> list[int]:
-    """Rows of each of ``shards`` envs flying N vehicles (as even as can be; rows 0.. in the first)."""
-    return [n // shards + (1 if k < n % shards else 0) for k in range(shards)]
-
-
-class ShardedLoop:
-    """The closed loop of N vehicles as one env of N / k rows per thread (``physics_threads=0``: its physics on that
-    thread), each with its own batch-first agent, each thread stepping its own env in its own loop (the calling thread
-    flies shard 0).  Shard k's rows are rows ``offset_k``.. of the N-row env, seeded alike (``reset(seed=s)`` seeds
-    row i with s + i), so the shards fly the plain loop's vehicles: the same initial states and wind, and with exact
-    sensors the same trajectories bit for bit (rows are independent); noisy sensors draw their per-step noise from
-    one stream per env (HoverBatchEnv's seeding), so the shards fly other samples of the same noise.  The compiled
-    kernels release the GIL, so one shard's kernels and physics run while another's do."""
-
-    def __init__(self, envs: Sequence[Any], agents: Sequence[Any]) -> None:
-        from concurrent.futures import ThreadPoolExecutor
-
-        self.envs, self.agents = list(envs), list(agents)
-        self.offsets = np.cumsum([0] + [e.num_envs for e in self.envs[:-1]]).tolist()
-        self._pool = ThreadPoolExecutor(max(len(self.envs) - 1, 1), thread_name_prefix="ShardedLoop")
-        self._state: list[Any] = [None] * len(self.envs)
-
-    def reset(self, seed: int = 0) -> None:
-        for k, (env, agent) in enumerate(zip(self.envs, self.agents, strict=True)):
-            obs, info = env.reset(seed=seed + self.offsets[k])
-            agent.reset(info)
-            self._state[k] = (obs, info)
-
-    def _fly(self, k: int, steps: int) -> None:
-        env, agent = self.envs[k], self.agents[k]
-        obs, info = self._state[k]
-        for _ in range(steps):
-            obs, _, _, _, info = env.step(agent.act(obs, info))
-        self._state[k] = (obs, info)
-
-    def step(self, steps: int) -> None:
-        """``steps`` control steps of every shard (each on its own thread), returned when all are done."""
-        futures = [self._pool.submit(self._fly, k, steps) for k in range(1, len(self.envs))]
-        self._fly(0, steps)
-        for f in futures:
-            f.result()
-
-    def observations(self) -> NDArray[np.float32]:
-        """The shards' last observations, stacked as the N-row env's."""
-        return np.concatenate([obs for obs, _ in self._state])
-
-
 def _batch_jobs(n: int, control_rate: float, vehicle_steps: int, shards: int | None = None
                 ) -> dict[str, tuple[Any, float]]:
     """Timed jobs for N vehicles: name -> (job() -> (wall, cpu), simulated vehicle-seconds); ``shards``: envs of the
@@ -212,6 +165,7 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int, shards: int | N
     from mujoco import rollout
 
     from fawtgym.envs.hover_batch_env import _CONTROL_SPEC, HoverBatchEnv, default_physics_threads
+    from fawtgym.eval.sharded import ShardedLoop
 
     kw: dict[str, Any] = dict(vehicle="s500", physics_rate=1000.0, episode_seconds=1e6, init_noise=0.0)
     env = HoverBatchEnv(n, wind="fawt-50", sensors="mocap_imu", control_rate=control_rate, **kw)
@@ -221,9 +175,8 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int, shards: int | N
               for m in (n // 2, n - n // 2)] if n >= 2 else []
     half_agents = [_agent(h) for h in halves]
     k = max(default_physics_threads(n), 1) if shards is None else shards
-    sharded_envs = [HoverBatchEnv(m, wind="fawt-50", sensors="mocap_imu", control_rate=control_rate,
-                                  physics_threads=0, **kw) for m in shard_sizes(n, k)] if 2 <= k <= n // 2 else []
-    sharded = ShardedLoop(sharded_envs, [_agent(e) for e in sharded_envs]) if sharded_envs else None
+    sharded = ShardedLoop.build(n, _agent, k, wind="fawt-50", sensors="mocap_imu", control_rate=control_rate,
+                                **kw) if 2 <= k <= n // 2 else None
     steps = max(vehicle_steps // n, 5)
 
     recorded: list[NDArray[np.float64]] = []  # the closed loop's actions (the first run's): the env-alone job's
