@@ -10,6 +10,7 @@ errors).  Under ``NUMBA_DISABLE_JIT=1`` kernels are plain Python functions that 
 
 from __future__ import annotations
 
+import threading
 from typing import Any
 
 from numba import config, float64
@@ -20,10 +21,19 @@ TYPED_DISPATCH: bool = not getattr(config, "DISABLE_JIT", False)
 VALUES, ROWS, ROTATIONS = float64[::1], float64[:, ::1], float64[:, :, ::1]
 
 
+_LOCK = threading.Lock()
+_COMPILED: set[int] = set()  # id() of the dispatchers compile_only has compiled (dispatchers live as long as modules)
+
+
 def compile_only(kernel: Any, signature: Any) -> None:
     """Compile the numba dispatcher ``kernel`` for ``signature`` (loaded from numba's disk cache when it is there) and
     refuse any other argument types from then on (TypeError).  Called on the kernel's first use rather than at import
     (an explicit signature in the decorator would load it whenever its module is imported); only when
-    :data:`TYPED_DISPATCH` (plain Python functions have nothing to compile)."""
-    kernel.compile(signature)
-    kernel.disable_compile()
+    :data:`TYPED_DISPATCH` (plain Python functions have nothing to compile).  Idempotent and thread-safe: agents
+    stepping on several threads (:class:`fawtgym.eval.sharded.ShardedLoop`) may make their first calls at once."""
+    with _LOCK:
+        if id(kernel) in _COMPILED:
+            return
+        kernel.compile(signature)
+        kernel.disable_compile()
+        _COMPILED.add(id(kernel))

@@ -1,0 +1,48 @@
+"""fawtgym.core.kernel_types.compile_only: one signature, then refusal of others; idempotent and thread-safe."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+from numba import njit
+
+from fawtgym.core.kernel_types import TYPED_DISPATCH, VALUES, compile_only
+
+
+def _fresh_kernel():
+    @njit(cache=False)
+    def double(a):
+        return a * 2.0
+
+    return double
+
+
+@pytest.mark.skipif(not TYPED_DISPATCH, reason="NUMBA_DISABLE_JIT=1: kernels are plain Python functions")
+def test_compile_only_twice_and_from_many_threads_at_once():
+    """A second call (another agent's first update) must not fail with numba's 'compilation disabled'."""
+    kernel = _fresh_kernel()
+    compile_only(kernel, (VALUES,))
+    compile_only(kernel, (VALUES,))
+    np.testing.assert_array_equal(kernel(np.ones(2)), [2.0, 2.0])
+    with pytest.raises(TypeError):
+        kernel(np.ones(2, dtype=np.float32))  # another signature: refused
+
+    kernel = _fresh_kernel()
+    barrier, errors = threading.Barrier(4), []
+
+    def first_use():
+        barrier.wait()
+        try:
+            compile_only(kernel, (VALUES,))
+        except Exception as exc:  # noqa: BLE001 - collected for the assertion
+            errors.append(exc)
+
+    threads = [threading.Thread(target=first_use) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert errors == []
+    np.testing.assert_array_equal(kernel(np.ones(3)), [2.0, 2.0, 2.0])
