@@ -36,7 +36,7 @@ def test_compile_only_twice_and_from_many_threads_at_once():
         barrier.wait()
         try:
             compile_only(kernel, (VALUES,))
-        except Exception as exc:  # noqa: BLE001 - collected for the assertion
+        except Exception as exc:  # collected for the assertion
             errors.append(exc)
 
     threads = [threading.Thread(target=first_use) for _ in range(4)]
