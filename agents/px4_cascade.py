@@ -23,9 +23,12 @@ A per-row reset writes a fresh row (:func:`fresh_state`): a masked write.
 
 Status.  The kernel returns ``(code, row)``: ``OK``, ``BAD_MEASUREMENT`` (a non-finite position, velocity, gyro
 or specific force, or an attitude that is not a rotation: :func:`~fawtgym.core.so3_kernels.first_non_rotation`
-within :data:`~fawtgym.core.so3_kernels.ROTATION_TOL`), ``BAD_ESTIMATE`` (a non-finite disturbance estimate), both
-found before any state changes, or ``BAD_ACTION`` (a non-finite motor command); the agent raises (it words a bad
-measurement with the observers' check, :func:`fawtgym.agents.base.refuse_measurement`).
+within :data:`~fawtgym.core.so3_kernels.ROTATION_TOL`), ``BAD_SETPOINT`` (a non-finite position setpoint),
+``BAD_ESTIMATE`` (a non-finite disturbance estimate), all found before any state changes, or ``BAD_ACTION`` (a
+non-finite motor command); the agent raises (it words a bad measurement with the observers' check,
+:func:`fawtgym.agents.base.refuse_measurement`).  :func:`first_bad_input` is the kernel's own check of the
+measurement and the setpoint, callable alone: an agent that changes state before the kernel runs (an observer's
+update, a pose delay line) calls it first, so a refused ``act`` changes nothing.
 """
 
 from __future__ import annotations
@@ -63,7 +66,7 @@ from .px4_rate_control import N_STATE as N_RATE_STATE
 from .px4_rate_control import SAT_NEG, SAT_POS, rate_control_row
 
 #: kernel status codes
-OK, BAD_ESTIMATE, BAD_ACTION, BAD_MEASUREMENT = 0, 1, 2, 3
+OK, BAD_ESTIMATE, BAD_ACTION, BAD_MEASUREMENT, BAD_SETPOINT = 0, 1, 2, 3, 4
 #: |unallocated roll/pitch/yaw|^2 above which the allocation reports saturation to the rate loop
 SAT_EPS = 1e-6
 
@@ -169,6 +172,27 @@ def _tick(s: np.ndarray, loop: int, period: float, dt: float) -> float:
 
 
 @njit(cache=True, nogil=True)
+def first_bad_input(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.ndarray, specific_force: np.ndarray,
+                    setpoint: np.ndarray) -> tuple[int, int]:
+    """``(BAD_MEASUREMENT, row)`` for the first row with a non-finite position, velocity, gyro or specific force or
+    an attitude that is not a rotation, else ``(BAD_SETPOINT, row)`` for the first non-finite setpoint row ((1, 3) or
+    (N, 3)), else ``(OK, -1)``: what :func:`cascade_step` refuses before anything changes."""
+    for i in range(pos.shape[0]):
+        for j in range(3):
+            if not (math.isfinite(pos[i, j]) and math.isfinite(vel[i, j]) and math.isfinite(gyro[i, j])
+                    and math.isfinite(specific_force[i, j])):
+                return BAD_MEASUREMENT, i
+    row = first_non_rotation(att, ROTATION_TOL)  # NaN entries fail it too
+    if row >= 0:
+        return BAD_MEASUREMENT, row
+    for i in range(setpoint.shape[0]):
+        for j in range(3):
+            if not math.isfinite(setpoint[i, j]):
+                return BAD_SETPOINT, i
+    return OK, -1
+
+
+@njit(cache=True, nogil=True)
 def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.ndarray, specific_force: np.ndarray,
                  has_specific_force: bool, setpoint: np.ndarray, yaw: float, force_hat: np.ndarray, use_force: bool,
                  torque_hat: np.ndarray, use_torque: bool, dt: float, constants: np.ndarray, state: np.ndarray,
@@ -177,7 +201,8 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
     """One ``act`` of the cascade for every row (module docstring); writes ``action`` (N, 4) motor commands.
 
     Inputs (N, 3) / (N, 3, 3) are the measurement (pose possibly delayed; checked finite, the attitude a rotation:
-    ``BAD_MEASUREMENT``), the position setpoint ((1, 3): the same for every row) and the disturbance estimates
+    ``BAD_MEASUREMENT``), the position setpoint ((1, 3): the same for every row; checked finite: ``BAD_SETPOINT``)
+    and the disturbance estimates
     (zeros without an observer; C-contiguous or strided, e.g. the columns of an observer's estimate buffer; both
     checked finite, fed forward if ``use_force`` / ``use_torque``); the state arrays are updated in place.
     """
@@ -198,15 +223,10 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
     alloc_scale = constants[K_ALLOC_SCALE:K_ROTOR_MAP]
     rotor_map = constants[K_ROTOR_MAP:N_CONSTANTS]
     n = pos.shape[0]
-    # a bad measurement or a diverging observer stops the step before anything changes
-    for i in range(n):
-        for j in range(3):
-            if not (math.isfinite(pos[i, j]) and math.isfinite(vel[i, j]) and math.isfinite(gyro[i, j])
-                    and math.isfinite(specific_force[i, j])):
-                return BAD_MEASUREMENT, i
-    row = first_non_rotation(att, ROTATION_TOL)  # NaN entries fail it too
-    if row >= 0:
-        return BAD_MEASUREMENT, row
+    # a bad measurement or setpoint or a diverging observer stops the step before anything changes
+    code, row = first_bad_input(pos, vel, att, gyro, specific_force, setpoint)
+    if code != OK:
+        return code, row
     for i in range(n):
         for j in range(3):
             if not (math.isfinite(force_hat[i, j]) and math.isfinite(torque_hat[i, j])):
