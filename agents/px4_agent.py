@@ -97,6 +97,25 @@ def _yaw(value: object) -> float:
 _F64 = np.dtype(np.float64)
 
 
+def _setpoint_rows(sp: Any, n: int, who: str) -> NDArray[np.float64]:
+    """``info["setpoint"]`` as the cascade takes it: a C-contiguous float64 (1, 3) array (one NED point for every row,
+    a view when given as a (3,) float64 array) or (N, 3); ValueError naming it if it is not real or of another shape
+    (its finiteness is the kernel's check: ``BAD_SETPOINT``)."""
+    a = sp
+    if type(a) is not np.ndarray or a.dtype is not _F64:
+        try:
+            a = np.asarray(sp)
+        except (TypeError, ValueError):  # ragged
+            a = None
+        a = a.astype(float) if a is not None and a.dtype.kind in "iuf" else None
+    if a is not None and a.shape == (3,):
+        return np.ascontiguousarray(a[None])
+    if a is not None and a.shape in ((1, 3), (n, 3)):
+        return np.ascontiguousarray(a)
+    raise ValueError(f"{who}: info['setpoint'] must be real NED coordinates [m] of shape (3,), (1, 3) or ({n}, 3), "
+                     f"got {sp!r}")
+
+
 def _rows3(x: ArrayLike, n: int) -> NDArray[np.float64]:
     """``x`` as a C-contiguous float (n, 3) array (a (3,) vector is broadcast; no copy if it already is one)."""
     a = np.asarray(x, dtype=float)
@@ -237,8 +256,21 @@ class PX4Agent(Agent):
         mask = None if rows is None else check_row_mask(rows, n, f"{type(self).__name__}.reset")
         if mask is not None and mask.all():
             mask = None
+        who = type(self).__name__
         sp = info.get("setpoint") if isinstance(info, Mapping) else None
-        new_sp = _rows3(self.setpoint if sp is None else sp, n)
+        new_sp = _rows3(self.setpoint if sp is None else _setpoint_rows(sp, n, who), n)
+        # a refused reset changes nothing: the inputs are checked first (the setpoint, the cascade's measurement of
+        # the rows that start), then the estimator (it checks its own inputs before it changes), then the rest
+        starts = np.ones(n, dtype=bool) if mask is None else mask
+        bad = np.flatnonzero(starts & ~np.isfinite(new_sp).all(axis=1))
+        if bad.size:
+            row = int(bad[0])
+            raise ValueError(f"{who}: info['setpoint'] has a non-finite entry in row {row}: {new_sp[row].tolist()} "
+                             "(allowed: finite NED coordinates [m])")
+        if mask is None or mask.any():
+            starting = meas if mask is None else {k: v[mask] for k, v in meas.items()}
+            refuse_measurement(starting, self._cascade_keys(starting), int(starting["position"].shape[0]), who)
+            self._reset_estimator(meas, seed, mask)
         if mask is None:
             self._n = n
             self._pose_delay.reset(meas)
@@ -252,7 +284,6 @@ class PX4Agent(Agent):
             self._action = np.empty((n, 4))
             self._no_estimate = np.zeros((n, 3))
             self.last_estimate: tuple[NDArray[np.float64] | None, NDArray[np.float64] | None] = (None, None)
-            self._reset_estimator(meas, seed, None)
             return
         if not mask.any():
             return
@@ -266,7 +297,6 @@ class PX4Agent(Agent):
         if not self._setpoint_override:
             self._setpoint = _rows3(self._setpoint, n).copy()
             self._setpoint[mask] = new_sp[mask]
-        self._reset_estimator(meas, seed, mask)
 
     def set_setpoint(self, position: ArrayLike, yaw: float | None = None) -> None:
         """Change the NED position setpoint (and heading) during an episode; overrides ``info["setpoint"]``."""
@@ -315,41 +345,57 @@ class PX4Agent(Agent):
         except KeyError:
             refuse_measurement(meas, self._cascade_keys(meas), n, keys[4])  # names the missing keys
             raise
-        if self._pose_delay.steps:  # the pose enters the delay line checked (the kernel sees it steps later)
-            refuse_measurement(meas, POSE_KEYS, n, keys[4])
-            meas = self._pose_delay(meas)
-            pos, vel, att = meas["position"], meas["velocity"], meas["attitude"]
+        setpoint = self._setpoint
         if not self._setpoint_override:
             sp = info.get("setpoint")
             if sp is not None:  # one NED point (3,) for every row is passed as a (1, 3) view, not copied
-                if type(sp) is not np.ndarray or sp.dtype is not _F64:
-                    sp = np.asarray(sp, dtype=float)
-                self._setpoint = np.ascontiguousarray(sp[None] if sp.shape == (3,) else _rows3(sp, n))
+                setpoint = (sp[None] if type(sp) is np.ndarray and sp.dtype is _F64 and sp.shape == (3,)
+                            and sp.flags.c_contiguous else _setpoint_rows(sp, n, keys[4]))
+        sf = meas.get("specific_force")
+        _c = np.ascontiguousarray
+        pos, vel, att, gyro = _c(pos), _c(vel), _c(att), _c(gyro)
+        sf = self._no_estimate if sf is None else _c(sf)
+        if self._pose_delay.steps or self._updates_first:
+            # state changes before the cascade's kernel runs (the pose enters the delay line, the observer takes its
+            # step): the kernel's own input check first, so that a refused act changes nothing
+            code, row = C.first_bad_input(pos, vel, att, gyro, sf, setpoint)
+            if code:
+                self._raise_status(code, row, meas, setpoint)
+        if self._pose_delay.steps:  # the pose enters the delay line checked (the kernel sees it steps later)
+            meas = self._pose_delay(meas)
+            pos, vel, att = _c(meas["position"]), _c(meas["velocity"]), _c(meas["attitude"])
         force_hat, torque_hat = self._estimate(meas, info, self.dt)
         self.last_estimate = (force_hat, torque_hat)
         raw = self.raw_estimate
         force, torque = (self._no_estimate, self._no_estimate) if raw is None else raw
-        sf = meas.get("specific_force")
-        _c = np.ascontiguousarray
         code, row = C.cascade_step(
-            _c(pos), _c(vel), _c(att), _c(gyro), self._no_estimate if sf is None else _c(sf), sf is not None,
-            self._setpoint, self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt,
+            pos, vel, att, gyro, sf, sf is not self._no_estimate,
+            setpoint, self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt,
             self._constants, self._state, self.position_control.state, self.hover_thrust_estimator.state,
             self.rate_control.state, self._att_sp, self._action)
         if code:
-            self._raise_status(code, row, meas)
+            self._raise_status(code, row, meas, setpoint)
+        self._setpoint = setpoint
         return self._action.copy() if batched else self._action[0].copy()  # unbatched: N = 1 (pos was (3,))
 
-    def _raise_status(self, code: int, row: int, meas: Mapping[str, NDArray[np.float64]]) -> None:
+    #: True for an agent whose ``act`` changes state before the cascade's kernel runs (an observer's update)
+    _updates_first = False
+
+    def _raise_status(self, code: int, row: int, meas: Mapping[str, NDArray[np.float64]],
+                      setpoint: NDArray[np.float64]) -> None:
         """The error of a cascade status code: :data:`~fawtgym.agents.px4_cascade.BAD_MEASUREMENT` -> the
         observers' ValueError (:func:`~fawtgym.agents.base.refuse_measurement`),
+        :data:`~fawtgym.agents.px4_cascade.BAD_SETPOINT` -> ValueError naming the setpoint row,
         :data:`~fawtgym.agents.px4_cascade.BAD_ESTIMATE`, :data:`~fawtgym.agents.px4_cascade.BAD_ACTION` ->
         FloatingPointError."""
         who = type(self).__name__
-        if code == C.BAD_MEASUREMENT:
+        if code == C.BAD_MEASUREMENT:  # a row, or -1: the keys' row counts differ
             refuse_measurement(meas, self._cascade_keys(meas, optional=True), meas["position"].shape[0], who)
-            raise ValueError(f"{who}: measurement row {row} refused by the cascade (not finite, or the attitude "
-                             "is not a rotation)")  # the check above words it; kept should the two ever disagree
+            raise ValueError(f"{who}: measurement row {row} refused by the cascade (not finite, the attitude not a "
+                             "rotation, or rows missing)")  # the check above words it; kept should the two disagree
+        if code == C.BAD_SETPOINT:
+            raise ValueError(f"{who}: info['setpoint'] has a non-finite entry in row {row}: {setpoint[row].tolist()} "
+                             "(allowed: finite NED coordinates [m])")
         if code == C.BAD_ESTIMATE:
             raise FloatingPointError(self._bad_estimate(row))
         if code == C.BAD_ACTION:
@@ -385,6 +431,8 @@ class PX4ObserverAgent(PX4Agent):
     applied thrust/torque over the step just taken.
     """
 
+    _updates_first = True  # the observer takes its step before the cascade's kernel runs
+
     def __init__(self, observer: Any = "ffts_eso", force_ff: bool = True, torque_ff: bool = True,
                  observer_kwargs: Mapping[str, Any] | None = None, **kwargs: Any) -> None:
         force_ff = check_flag(force_ff, "force_ff")
@@ -410,8 +458,8 @@ class PX4ObserverAgent(PX4Agent):
     def _reset_estimator(self, meas: dict[str, NDArray[np.float64]], seed: int | None,
                          rows: NDArray[np.bool_] | None) -> None:
         if rows is None:
-            self.raw_estimate = None
             self.observer.reset(meas)
+            self.raw_estimate = None
         else:
             self.observer.reset(meas, rows=rows)
 

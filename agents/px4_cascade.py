@@ -176,8 +176,12 @@ def first_bad_input(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.
                     setpoint: np.ndarray) -> tuple[int, int]:
     """``(BAD_MEASUREMENT, row)`` for the first row with a non-finite position, velocity, gyro or specific force or
     an attitude that is not a rotation, else ``(BAD_SETPOINT, row)`` for the first non-finite setpoint row ((1, 3) or
-    (N, 3)), else ``(OK, -1)``: what :func:`cascade_step` refuses before anything changes."""
-    for i in range(pos.shape[0]):
+    (N, 3)), else ``(OK, -1)``: what :func:`cascade_step` refuses before anything changes; ``(BAD_MEASUREMENT, -1)``
+    if the measurement's arrays have different numbers of rows."""
+    n = pos.shape[0]
+    if vel.shape[0] != n or att.shape[0] != n or gyro.shape[0] != n or specific_force.shape[0] != n:
+        return BAD_MEASUREMENT, -1
+    for i in range(n):
         for j in range(3):
             if not (math.isfinite(pos[i, j]) and math.isfinite(vel[i, j]) and math.isfinite(gyro[i, j])
                     and math.isfinite(specific_force[i, j])):
