@@ -33,6 +33,7 @@ from concurrent.futures import ThreadPoolExecutor, wait
 from typing import Any
 
 import numpy as np
+from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
 
@@ -74,6 +75,7 @@ class ShardedLoop:
         self._pool: ThreadPoolExecutor | None = (
             ThreadPoolExecutor(len(self.envs) - 1, thread_name_prefix="ShardedLoop") if len(self.envs) > 1 else None)
         self._state: list[tuple[Any, Any] | None] = [None] * len(self.envs)
+        self._ended: list[NDArray[np.bool_] | None] = [None] * len(self.envs)  # rows the env restarts next step
 
     @classmethod
     def build(cls, n: int, make_agent: Callable[[Any], Any], shards: int | None = None,
@@ -99,28 +101,48 @@ class ShardedLoop:
             obs, info = env.reset(seed=int(seed) + self.offsets[k])
             agent.reset(info)
             self._state[k] = (obs, info)
+            self._ended[k] = None
 
     def _fly(self, k: int, steps: int) -> None:
+        """``steps`` control steps of shard k; a row whose episode ended restarts in the env (its autoreset) and in
+        the agent (``agent.reset(info, rows=...)`` with the info of the new episode's first step, as the evaluation
+        runner does)."""
         state = self._state[k]
         assert state is not None  # reset() first (checked in step)
         env, agent = self.envs[k], self.agents[k]
+        same_step = getattr(env, "autoreset_mode", None) is AutoresetMode.SAME_STEP
         obs, info = state
+        ended = self._ended[k]
         for _ in range(steps):
-            obs, _, _, _, info = env.step(agent.act(obs, info))
+            obs, _, terminated, truncated, info = env.step(agent.act(obs, info))
+            if same_step:  # the env restarted the ended rows in this step: info is their new episode's
+                ended = terminated | truncated
+            if ended is not None and ended.any():
+                agent.reset(info, rows=ended)
+            ended = None if same_step else terminated | truncated  # next step: the env restarts these rows
         self._state[k] = (obs, info)
+        self._ended[k] = ended
 
     def step(self, steps: int = 1) -> None:
         """``steps`` control steps of every shard, each on its own thread; returns when all are done, or raises the
         error of the first shard (in shard order) that raised, once every shard has stopped.  Ended episodes restart
-        as the env's autoreset does."""
+        (the env's autoreset, and the agent's per-row reset: :meth:`_fly`)."""
         if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
             raise ValueError(f"steps must be an int >= 0, got {steps!r}")
         if any(s is None for s in self._state):
             raise RuntimeError("ShardedLoop.step() called before reset(): call reset(seed) first")
-        futures = [self._pool.submit(self._fly, k, int(steps)) for k in range(1, len(self.envs))] if self._pool else []
+        self.each(lambda k, env, agent: self._fly(k, int(steps)))
+
+    def each(self, fn: Callable[[int, Any, Any], Any]) -> list[Any]:
+        """``fn(k, env_k, agent_k)`` for every shard k, each on the shard's own thread (shard 0 on the calling
+        thread), at once; returns their results in shard order once all are done, or raises the error of the first
+        shard (in shard order) that raised, once every shard has stopped."""
+        futures = [self._pool.submit(fn, k, self.envs[k], self.agents[k]) for k in range(1, len(self.envs))
+                   ] if self._pool else []
         error: BaseException | None = None
+        first = None
         try:
-            self._fly(0, int(steps))
+            first = fn(0, self.envs[0], self.agents[0])
         except BaseException as exc:  # re-raised once every shard has stopped
             error = exc
         wait(futures)
@@ -128,6 +150,7 @@ class ShardedLoop:
             error = error or f.exception()
         if error is not None:
             raise error
+        return [first, *(f.result() for f in futures)]
 
     def observations(self) -> NDArray[np.float32]:
         """The last observations of the N vehicles, (N, obs size), in row order."""

@@ -71,8 +71,8 @@ def test_batched_bench_pairs_each_rounds_closed_loop_with_its_physics_round():
     assert stepwise.shape == (2,) and np.all(np.isfinite(stepwise)) and np.all(stepwise > 0)
     b = closed_loop.measure_batched([4], rounds=2, vehicle_steps=20, shards=2)
     assert {"sharded", "sharded_paired"} <= set(b[4]) and b[4]["sharded"]["wall"] > 0
-    blocks = np.array(b[4]["sharded_paired"])  # one sharded loop / physics-only ratio per round, paired in blocks
-    assert blocks.shape == (2,) and np.all(np.isfinite(blocks)) and np.all(blocks > 0)
+    blocks = np.array(b[4]["sharded_paired"])  # per round: sharded loop / each physics-only layout, paired in blocks
+    assert blocks.shape == (2, 2) and np.all(np.isfinite(blocks)) and np.all(blocks > 0)
 
 
 def test_interleaved_physics_call_leaves_the_closed_loop_trajectory_unchanged(monkeypatch):

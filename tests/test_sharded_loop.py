@@ -39,6 +39,37 @@ def test_sharded_loop_flies_the_plain_loops_vehicles_bit_for_bit(sizes):
             np.testing.assert_array_equal(loop.info("truth", "position"), info["truth"]["position"])
 
 
+def _plain_loop(env, agent, steps, seed):
+    """The evaluation runner's protocol: a row restarted by the env (next step) is reset in the agent too."""
+    same_step = env.autoreset_mode.value == "SameStep"
+    obs, info = env.reset(seed=seed)
+    agent.reset(info)
+    ended = None
+    for _ in range(steps):
+        obs, _, terminated, truncated, info = env.step(agent.act(obs, info))
+        if same_step:
+            ended = terminated | truncated
+        if ended is not None and ended.any():
+            agent.reset(info, rows=ended)
+        ended = None if same_step else terminated | truncated
+    return obs, info
+
+
+@pytest.mark.parametrize("mode", ["next_step", "same_step"])
+def test_restarted_rows_restart_in_the_agent_too(mode):
+    """Episodes of 0.3 s (60 steps at 200 Hz): every row restarts within 100 steps, in the env and in its agent,
+    as the runner restarts them; the shards fly the plain loop's trajectories bit for bit across the restarts."""
+    kw = dict(KW, episode_seconds=0.3, sensors="none", autoreset_mode=mode)
+    env = HoverBatchEnv(5, **kw)
+    obs, info = _plain_loop(env, _agent(env), 100, seed=11)
+    with ShardedLoop.build(5, _agent, 2, **kw) as loop:
+        loop.reset(seed=11)
+        loop.step(40)
+        loop.step(60)
+        np.testing.assert_array_equal(loop.observations(), obs)
+        np.testing.assert_array_equal(loop.info("truth", "position"), info["truth"]["position"])
+
+
 def test_noisy_sensors_start_the_same_vehicles_in_the_same_wind():
     """With noisy sensors the shards draw other samples of the per-step noise (one stream per env), but the
     vehicles start where the N-row env's do and meet the same wind."""

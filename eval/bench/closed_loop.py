@@ -45,8 +45,10 @@ for seconds at a time): on the 2-vCPU VM of docs/performance.md the rounds of on
 jobs run back to back (also printed, for the plain and the pipelined loop) spread by +-0.1.  The table's column
 (plain loop) divides the best round of each job, which can pair a fast physics round with a slow closed-loop one.
 The sharded loop is paired in blocks (the ``sharded_paired`` job): :data:`SHARD_BLOCK` steps of every shard, then as
-many of the N-row env's own rollout calls (the same physics-only ceiling), each timed; per round the sum of the
-physics-only times over the sum of the sharded blocks'.  The target line reports both loops: the sharded one (the
+many steps of each physics-only layout, each timed: the N-row env's own rollout call (the plain loop's ceiling) and
+the shards' own rollout calls at once on their threads (the sharded loop's own physics); per round the physics-only
+time of each layout over the sharded blocks' time; the target line takes the faster layout's (the higher ceiling).
+The target line reports both loops: the sharded one (the
 fastest way to fly N vehicles here) and the plain one (one env, one agent, one thread orchestrating).
 """
 
@@ -242,16 +244,24 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int, shards: int | N
         sharded.step(steps)
         return time.perf_counter() - t0, time.process_time() - c0
 
-    def sharded_paired() -> tuple[float, float]:
-        """The sharded loop in blocks of :data:`SHARD_BLOCK` steps, each block followed by as many of the N-row env's
-        own rollout calls (its physics-only job, the ceiling), timed apart.  Returns (sharded-loop wall s,
-        physics-only wall s) over the same steps, paired within a block (~0.1 s)."""
+    def sharded_paired() -> tuple[float, float, float]:
+        """The sharded loop in blocks of :data:`SHARD_BLOCK` steps, each block followed by as many steps of both
+        physics-only layouts, each timed: the N-row env's own rollout call (one rollout on its threads, the plain
+        loop's ceiling) and the shards' own rollout calls, each on its shard's thread at once (the sharded loop's
+        own physics, from each shard's state, with its controls, into the output buffer its next step overwrites
+        before reading it: the trajectories are unchanged).  Returns (sharded-loop wall s, the N-row env's
+        physics-only wall s, the shards' physics-only wall s) over the same steps, paired within a block (~0.1 s)."""
         assert sharded is not None
         sharded.reset(seed=0)
         env.reset(seed=0)
         env.step(env.hover_action())
-        loop = physics = 0.0
+        loop = physics_env = physics_shards = 0.0
         clock = time.perf_counter
+
+        def shard_physics(k: int, e: Any, a: Any) -> None:
+            for _ in range(block):
+                e._rollout_rows(e._mj_state, e._ctrl, e._out)
+
         for done in range(0, steps, SHARD_BLOCK):
             block = min(SHARD_BLOCK, steps - done)
             t0 = clock()
@@ -260,9 +270,12 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int, shards: int | N
             for _ in range(block):
                 env._rollout_rows(env._mj_state, env._ctrl, env._out)
             t2 = clock()
+            sharded.each(shard_physics)
+            t3 = clock()
             loop += t1 - t0
-            physics += t2 - t1
-        return loop, physics
+            physics_env += t2 - t1
+            physics_shards += t3 - t2
+        return loop, physics_env, physics_shards
 
     def alone(e: Any, actions: Sequence[NDArray[np.float64]] | None = None) -> tuple[float, float]:
         """The env alone: the closed loop's recorded actions (the same trajectory), or the hover action (calm)."""
@@ -288,7 +301,7 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int, shards: int | N
 
     sim = n * steps / control_rate
     # closed loop and physics only back to back in every round (their paired ratio, :func:`measure_batched`)
-    jobs = {"closed": (closed, sim), "physics": (physics, sim)}
+    jobs: dict[str, tuple[Any, float]] = {"closed": (closed, sim), "physics": (physics, sim)}
     if halves:  # right after the physics-only round too (paired with it)
         jobs["pipelined"] = (pipelined, (halves[0].num_envs * steps + halves[1].num_envs * (steps + 1)) / control_rate)
     if sharded is not None:
@@ -300,7 +313,7 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int, shards: int | N
     return jobs
 
 
-#: jobs that return (loop wall s, physics-only wall s) paired within the job, not (wall, cpu)
+#: jobs that return (loop wall s, physics-only wall s of each ceiling) paired within the job, not (wall, cpu)
 PAIRED_JOBS = ("interleaved", "sharded_paired")
 
 
@@ -319,13 +332,13 @@ def measure_batched(batch_sizes: Sequence[int] = (64, 256, 1024), rounds: int = 
         timed = {k: v for k, v in jobs.items() if k not in PAIRED_JOBS}
         best = {k: [np.inf, np.inf] for k in timed}
         paired: list[list[float]] = []
-        within: dict[str, list[float]] = {k: [] for k in PAIRED_JOBS if k in jobs}
+        within: dict[str, list[Any]] = {k: [] for k in PAIRED_JOBS if k in jobs}
         for _ in range(rounds):
             walls = {}
             for k, (job, _) in jobs.items():
-                if k in PAIRED_JOBS:
-                    loop, physics = job()
-                    within[k].append(physics / loop)
+                if k in PAIRED_JOBS:  # (loop wall s, physics-only wall s of each ceiling measured)
+                    loop, *physics = job()
+                    within[k].append([p / loop for p in physics] if len(physics) > 1 else physics[0] / loop)
                     continue
                 wall, cpu = job()
                 walls[k] = wall
@@ -428,13 +441,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     verdict = f"plain loop (one env and one agent on the calling thread; median of the rounds paired step by step) " \
               f"{plain:.2f}, {'met' if plain >= 0.8 else 'NOT met'}"
     if "sharded_paired" in b[big]:
-        blocks = np.array(b[big]["sharded_paired"])
-        share = float(np.median(blocks))
+        blocks = np.array(b[big]["sharded_paired"])  # (rounds, 2): against the N-row env's physics, the shards'
         k = threads[big]
         print(f"  sharded loop / physics only at N = {big} ({k} envs of ~{big // k} rows, each with its own agent on "
-              f"its own thread, physics_threads=0), paired in blocks of {SHARD_BLOCK} steps: "
-              f"{' '.join(f'{p:.2f}' for p in blocks)} (median {share:.2f})")
-        verdict = (f"sharded loop (median of the rounds paired in blocks) {share:.2f}, "
+              f"its own thread, physics_threads=0), paired in blocks of {SHARD_BLOCK} steps:")
+        for c, ceiling in enumerate(("the N-row env's rollout (the plain loop's ceiling)",
+                                     "the shards' own rollouts at once")):
+            print(f"    against {ceiling}: {' '.join(f'{p:.2f}' for p in blocks[:, c])} "
+                  f"(median {np.median(blocks[:, c]):.2f})")
+        share = float(np.median(blocks.min(axis=1)))
+        verdict = (f"sharded loop (median over the rounds of the ratio to the faster physics-only layout) {share:.2f}, "
                    f"{'met' if share >= 0.8 else 'NOT met'}; {verdict}")
     print(f"  BATCHED target closed loop >= 0.8 of the physics-only ceiling at N = {big}: {verdict}")
     best_n = max(b, key=lambda k: b[k]["closed"]["cpu"])
