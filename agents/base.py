@@ -89,7 +89,7 @@ def measurement_from_info(info: Mapping[str, Any], keys: tuple[str, ...] | None 
         raise ValueError(f"info['measurement'] has no 'position'; keys: {sorted(raw)}")
     pos = raw["position"]
     batched = (pos.ndim if type(pos) is np.ndarray else np.ndim(pos)) == 2
-    return batch_measurement(raw, keys), batched
+    return batch_measurement(raw, keys, who), batched
 
 
 def refuse_measurement(measurement: Mapping[str, Any], keys: tuple[str, ...], n: int, who: str) -> None:
@@ -119,22 +119,40 @@ def applied_from_info(info: Mapping[str, Any], n: int, default_thrust: float) ->
     applied = info.get("applied") if type(info) is dict or isinstance(info, Mapping) else None
     if type(applied) is dict or isinstance(applied, Mapping):
         thrust, torque = applied.get("thrust", _MISSING), applied.get("torque", _MISSING)
-    else:
+    elif applied is None:
         thrust = torque = _MISSING
+    else:
+        raise ValueError(f"info['applied'] must be a mapping with 'thrust' (N,) [N] and 'torque' (N, 3) [N m], got "
+                         f"{applied!r}")
     if thrust is _MISSING or torque is _MISSING:
         return np.full(n, float(default_thrust)), np.zeros((n, 3))
     if n == 1 and type(thrust) is float and type(torque) is np.ndarray and torque.dtype is _F64 \
             and torque.shape == (3,):  # the single env's (the common case): (1,) and a (1, 3) view
         return np.array((thrust,)), torque[None]
-    thrust = np.asarray(thrust, dtype=float)
-    if type(torque) is not np.ndarray or torque.dtype is not _F64:
-        torque = np.asarray(torque, dtype=float)
-    if thrust.shape != (n,):  # a scalar / (1,) of the single env: a view when it already holds n values
-        thrust = thrust.reshape(n) if thrust.size == n else np.broadcast_to(thrust.reshape(-1), (n,)).copy()
-    if torque.shape != (n, 3):
-        torque = (torque.reshape(n, 3) if torque.size == 3 * n
-                  else np.broadcast_to(torque.reshape(-1, 3), (n, 3)).copy())
+    thrust = _applied_array(thrust, "thrust", n, ())
+    if type(torque) is not np.ndarray or torque.dtype is not _F64 or torque.shape != (n, 3):
+        torque = _applied_array(torque, "torque", n, (3,))
     return thrust, torque
+
+
+def _applied_array(value: Any, key: str, n: int, trailing: tuple[int, ...]) -> NDArray[np.float64]:
+    """``info["applied"][key]`` as a float64 (n, *trailing) array: n rows, or one row for every vehicle (a view when
+    it already holds n rows); ValueError / TypeError naming it if it is not real numbers of such a shape."""
+    try:
+        a = np.asarray(value)
+    except ValueError:  # ragged
+        a = np.asarray(None)
+    if a.dtype.kind not in "iuf":
+        raise TypeError(f"info['applied'][{key!r}] must hold real numbers, got {value!r}")
+    a = a.astype(float, copy=False)
+    size = int(np.prod(trailing, dtype=int))
+    if a.size == n * size:
+        return a.reshape((n, *trailing))
+    if a.size == size:
+        return np.broadcast_to(a.reshape(trailing), (n, *trailing)).copy()
+    what = "one value per vehicle (N = {n}) or one for all" if not trailing else \
+        "3 values per vehicle (N = {n}) or 3 for all"
+    raise ValueError(f"info['applied'][{key!r}] must hold {what.format(n=n)}, got shape {a.shape}")
 
 
 def observer_step(observer: Any, meas: Mapping[str, NDArray[np.float64]], info: Mapping[str, Any], dt: float,

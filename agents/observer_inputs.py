@@ -18,7 +18,6 @@ the values the FAWT study uses and their sources.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -26,6 +25,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core import measurement as M
+from fawtgym.core.checks import check_number
 from fawtgym.core.rows import masked
 
 #: the measurement keys the motion-capture link delivers (the rest comes from the onboard IMU)
@@ -34,10 +34,14 @@ POSE_KEYS = (M.POSITION, M.VELOCITY, M.ATTITUDE)
 OBSERVER_INPUTS = ("applied", "commanded")
 
 
+#: the longest pose latency an agent delays its pose by [s]
+MAX_POSE_LATENCY = 1.0
+
+
 def latency_steps(latency: float, control_dt: float) -> int:
     """``latency`` [s] as a whole number of control steps; ValueError naming the value otherwise."""
-    if not (isinstance(latency, (int, float)) and math.isfinite(latency) and latency >= 0.0):
-        raise ValueError(f"pose_latency must be a finite number of seconds >= 0, got {latency!r}")
+    latency = check_number(latency, "pose_latency", minimum=0.0, inclusive_minimum=True, maximum=MAX_POSE_LATENCY,
+                           note="s")
     steps = latency / control_dt
     if abs(steps - round(steps)) > 1e-6:
         raise ValueError(f"pose_latency {latency:g} s must be a multiple of the control period {control_dt:g} s")
@@ -46,9 +50,8 @@ def latency_steps(latency: float, control_dt: float) -> int:
 
 def check_thrust_model_error(error: float) -> float:
     """A relative thrust-model error in (-0.5, 0.5); ValueError naming the value otherwise."""
-    if not (isinstance(error, (int, float)) and math.isfinite(error) and -0.5 < error < 0.5):
-        raise ValueError(f"thrust_model_error must be a relative error in (-0.5, 0.5), got {error!r}")
-    return float(error)
+    return check_number(error, "thrust_model_error", minimum=-0.5, maximum=0.5, inclusive_maximum=False,
+                        note="(a relative error)")
 
 
 class PoseDelay:
@@ -77,7 +80,8 @@ class PoseDelay:
             self._head = 0
 
     def __call__(self, meas: Mapping[str, NDArray[np.float64]]) -> dict[str, NDArray[np.float64]]:
-        """Push this step's pose and return the measurement with the pose of ``steps`` calls ago."""
+        """Push this step's pose and return the measurement with the pose of ``steps`` calls ago (the slot it read
+        now holds this step's pose: :meth:`undo` puts the read pose back)."""
         out = dict(meas)
         if self.steps == 0:
             return out
@@ -89,6 +93,15 @@ class PoseDelay:
             buf[self._head] = meas[key]
         self._head = (self._head + 1) % self.steps
         return out
+
+    def undo(self, delayed: Mapping[str, NDArray[np.float64]]) -> None:
+        """Take back the last push, given what it returned: the slot it wrote gets the pose it held back (a caller
+        whose step was refused after the push leaves the line as it was)."""
+        if self.steps == 0:
+            return
+        self._head = (self._head - 1) % self.steps
+        for key in POSE_KEYS:
+            self._buf[key][self._head] = delayed[key]
 
 
 @njit(cache=True, inline="always")

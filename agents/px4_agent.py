@@ -41,19 +41,18 @@ through its thrust model, off by the relative ``thrust_model_error``), what a re
 
 from __future__ import annotations
 
-import math
-import numbers
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.checks import check_flag
+from fawtgym.core.checks import check_flag, check_number
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED
 from fawtgym.core.rows import check_row_mask
 from fawtgym.envs.motors import allocation_matrix
+from fawtgym.envs.options import MAX_SETPOINT
 from fawtgym.envs.vehicles import VehiclePreset, make_vehicle
 
 from . import px4_cascade as C
@@ -75,26 +74,48 @@ from .px4_position_control import PositionControl
 from .px4_rate_control import RateControl
 from .shared_params import InPlaceArray
 
+#: the control rates an agent takes [Hz] (PX4's slowest multicopter loop runs at tens of Hz, its fastest at kHz)
+MIN_CONTROL_RATE, MAX_CONTROL_RATE = 1.0, 1e5
+
 
 def _rate(name: str, value: float | None, default: float, control_rate: float) -> float:
-    value = default if value is None else value
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and 0 < value <= control_rate * (1 + 1e-9)):
-        raise ValueError(f"{name} must be a frequency in (0, control_rate={control_rate:g}] Hz, got {value!r}")
-    return float(value)
+    """A loop rate [Hz] in (0, control_rate] (None: ``default``); one-line ValueError naming it otherwise."""
+    if value is None:
+        return default
+    v = check_number(value, name, minimum=0.0, maximum=control_rate * (1 + 1e-9), note=f"Hz (control_rate: "
+                     f"{control_rate:g} Hz)")
+    return min(v, control_rate)
 
 
 #: the measurement keys ``gyro_key`` may name: the estimator-grade body rate or the raw gyroscope (both (N, 3) rad/s)
 GYRO_KEYS = ("angular_velocity", "gyro")
 
 
+#: the largest heading setpoint magnitude an agent takes [rad]
+MAX_YAW = 1e3
+
+
 def _yaw(value: object) -> float:
-    """A heading setpoint [rad]: a finite real number (bool, str, complex, NaN refused with one line)."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or not math.isfinite(value):
-        raise ValueError(f"yaw_setpoint must be a finite heading [rad] (a real number), got {value!r}")
-    return float(value)
+    """A heading setpoint [rad]: a finite real number within +-:data:`MAX_YAW` (bool, str, complex, NaN refused with
+    one line)."""
+    return check_number(value, "yaw_setpoint", minimum=-MAX_YAW, inclusive_minimum=True, maximum=MAX_YAW,
+                        note="rad (a heading)")
 
 
 _F64 = np.dtype(np.float64)
+
+
+def _checked_setpoint(value: Any, given: Any) -> NDArray[np.float64]:
+    """An agent's own setpoint option: real NED coordinates [m] of shape (3,) or (N, 3), each within the env's
+    :data:`~fawtgym.envs.options.MAX_SETPOINT`; one-line ValueError naming ``given`` otherwise."""
+    try:
+        a = np.asarray(value)
+    except ValueError:  # ragged
+        a = np.asarray(None)
+    if a.dtype.kind in "iuf" and a.shape[-1:] == (3,) and a.ndim <= 2 and bool(np.all(np.abs(a) <= MAX_SETPOINT)):
+        return a.astype(float)
+    raise ValueError(f"setpoint must be real NED coordinates [m] of shape (3,) or (N, 3), each within "
+                     f"{MAX_SETPOINT:g} m, got {given!r}")
 
 
 def _setpoint_rows(sp: Any, n: int, who: str) -> NDArray[np.float64]:
@@ -155,9 +176,8 @@ class PX4Agent(Agent):
                  thrust_model_error: float = 0.0) -> None:
         self.preset = make_vehicle(vehicle)
         self.params = PX4Params.coerce(params)
-        if not (isinstance(control_rate, (int, float)) and math.isfinite(control_rate) and control_rate > 0):
-            raise ValueError(f"control_rate must be a positive frequency [Hz], got {control_rate!r}")
-        self.control_rate = float(control_rate)
+        self.control_rate = check_number(control_rate, "control_rate", minimum=MIN_CONTROL_RATE, inclusive_minimum=True,
+                                         maximum=MAX_CONTROL_RATE, note="Hz")
         self.dt = 1.0 / self.control_rate
         self.rate_loop_rate = _rate("rate_loop_rate", rate_loop_rate, self.control_rate, self.control_rate)
         self.attitude_rate = _rate("attitude_rate", attitude_rate, self.control_rate, self.control_rate)
@@ -167,18 +187,18 @@ class PX4Agent(Agent):
             raise ValueError(f"observer_inputs must be one of {list(OBSERVER_INPUTS)}, got {observer_inputs!r}")
         self.observer_inputs = observer_inputs
         self.thrust_model_error = check_thrust_model_error(thrust_model_error)
-        self.pose_latency = float(pose_latency) if isinstance(pose_latency, (int, float)) else pose_latency
         self._pose_delay = PoseDelay(latency_steps(pose_latency, self.dt))
+        self.pose_latency = float(pose_latency)
         self._alloc_matrix = allocation_matrix(self.preset)
-        th = self.preset.mass * GRAVITY / self.allocation.thrust_scale if hover_thrust is None else hover_thrust
+        th = (self.preset.mass * GRAVITY / self.allocation.thrust_scale if hover_thrust is None else
+              check_number(hover_thrust, "hover_thrust", minimum=0.0, maximum=1.0, inclusive_maximum=False,
+                           note="(normalized collective thrust)"))
         self.position_control = PositionControl(self.params, hover_thrust=th, px4_version=px4_version)
         self.use_hte = bool(self.params["MPC_USE_HTE"])
         self.hover_thrust_estimator = HoverThrustEstimator(self.params, hover_thrust=th)
         self.attitude_control = AttitudeControl(self.params)
         self.rate_control = RateControl(self.params)
-        self.setpoint = np.array(FAWT_HOVER_POINT_NED if setpoint is None else setpoint, dtype=float)
-        if self.setpoint.shape[-1:] != (3,) or not np.all(np.isfinite(self.setpoint)):
-            raise ValueError(f"setpoint must be a finite NED position (3,) or (N, 3), got {setpoint!r}")
+        self.setpoint = _checked_setpoint(FAWT_HOVER_POINT_NED if setpoint is None else setpoint, setpoint)
         self.yaw_setpoint = _yaw(yaw_setpoint)
         if not (isinstance(gyro_key, str) and gyro_key in GYRO_KEYS):
             raise ValueError(f"gyro_key must be one of {list(GYRO_KEYS)}, got {gyro_key!r}")
@@ -262,11 +282,11 @@ class PX4Agent(Agent):
         # a refused reset changes nothing: the inputs are checked first (the setpoint, the cascade's measurement of
         # the rows that start), then the estimator (it checks its own inputs before it changes), then the rest
         starts = np.ones(n, dtype=bool) if mask is None else mask
-        bad = np.flatnonzero(starts & ~np.isfinite(new_sp).all(axis=1))
+        bad = np.flatnonzero(starts & ~(np.abs(new_sp) <= MAX_SETPOINT).all(axis=1))  # NaN fails too
         if bad.size:
             row = int(bad[0])
-            raise ValueError(f"{who}: info['setpoint'] has a non-finite entry in row {row}: {new_sp[row].tolist()} "
-                             "(allowed: finite NED coordinates [m])")
+            raise ValueError(f"{who}: info['setpoint'] row {row} is not finite NED coordinates [m] within "
+                             f"{MAX_SETPOINT:g} m: {new_sp[row].tolist()}")
         if mask is None or mask.any():
             starting = meas if mask is None else {k: v[mask] for k, v in meas.items()}
             refuse_measurement(starting, self._cascade_keys(starting), int(starting["position"].shape[0]), who)
@@ -300,9 +320,7 @@ class PX4Agent(Agent):
 
     def set_setpoint(self, position: ArrayLike, yaw: float | None = None) -> None:
         """Change the NED position setpoint (and heading) during an episode; overrides ``info["setpoint"]``."""
-        pos = np.asarray(position, dtype=float)
-        if pos.shape[-1:] != (3,) or not np.all(np.isfinite(pos)):
-            raise ValueError(f"setpoint must be a finite NED position (3,) or (N, 3), got {position!r}")
+        pos = _checked_setpoint(position, position)
         heading = self.yaw_setpoint if yaw is None else _yaw(yaw)  # checked before anything changes
         self._setpoint = _rows3(pos, max(self._n, 1)).copy()
         self._setpoint_override = True
@@ -364,15 +382,20 @@ class PX4Agent(Agent):
         if self._pose_delay.steps:  # the pose enters the delay line checked (the kernel sees it steps later)
             meas = self._pose_delay(meas)
             pos, vel, att = _c(meas["position"]), _c(meas["velocity"]), _c(meas["attitude"])
-        force_hat, torque_hat = self._estimate(meas, info, self.dt)
+        try:
+            force_hat, torque_hat = self._estimate(meas, info, self.dt)
+            raw = self.raw_estimate
+            force, torque = (self._no_estimate, self._no_estimate) if raw is None else raw
+            code, row = C.cascade_step(
+                pos, vel, att, gyro, sf, sf is not self._no_estimate,
+                setpoint, self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt,
+                self._constants, self._state, self.position_control.state, self.hover_thrust_estimator.state,
+                self.rate_control.state, self._att_sp, self._action)
+        except BaseException:
+            if self._pose_delay.steps:  # refused after the push (the observer's inputs): the line as it was
+                self._pose_delay.undo(meas)
+            raise
         self.last_estimate = (force_hat, torque_hat)
-        raw = self.raw_estimate
-        force, torque = (self._no_estimate, self._no_estimate) if raw is None else raw
-        code, row = C.cascade_step(
-            pos, vel, att, gyro, sf, sf is not self._no_estimate,
-            setpoint, self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt,
-            self._constants, self._state, self.position_control.state, self.hover_thrust_estimator.state,
-            self.rate_control.state, self._att_sp, self._action)
         if code:
             self._raise_status(code, row, meas, setpoint)
         self._setpoint = setpoint
@@ -394,8 +417,8 @@ class PX4Agent(Agent):
             raise ValueError(f"{who}: measurement row {row} refused by the cascade (not finite, the attitude not a "
                              "rotation, or rows missing)")  # the check above words it; kept should the two disagree
         if code == C.BAD_SETPOINT:
-            raise ValueError(f"{who}: info['setpoint'] has a non-finite entry in row {row}: {setpoint[row].tolist()} "
-                             "(allowed: finite NED coordinates [m])")
+            raise ValueError(f"{who}: info['setpoint'] row {row} is not finite NED coordinates [m] within "
+                             f"{MAX_SETPOINT:g} m: {setpoint[row].tolist()}")
         if code == C.BAD_ESTIMATE:
             raise FloatingPointError(self._bad_estimate(row))
         if code == C.BAD_ACTION:
@@ -440,6 +463,9 @@ class PX4ObserverAgent(PX4Agent):
         super().__init__(**kwargs)
         from fawtgym.observers.base import Observer, make_observer
 
+        if observer_kwargs is not None and not isinstance(observer_kwargs, Mapping):
+            raise ValueError(f"observer_kwargs must be None or a mapping of the observer's options, got "
+                             f"{observer_kwargs!r}")
         if isinstance(observer, str):
             import fawtgym.observers  # noqa: F401  (registers every observer)
 

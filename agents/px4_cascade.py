@@ -23,10 +23,10 @@ A per-row reset writes a fresh row (:func:`fresh_state`): a masked write.
 
 Status.  The kernel returns ``(code, row)``: ``OK``, ``BAD_MEASUREMENT`` (a non-finite position, velocity, gyro
 or specific force, or an attitude that is not a rotation: :func:`~fawtgym.core.so3_kernels.first_non_rotation`
-within :data:`~fawtgym.core.so3_kernels.ROTATION_TOL`), ``BAD_SETPOINT`` (a non-finite position setpoint),
-``BAD_ESTIMATE`` (a non-finite disturbance estimate), all found before any state changes, or ``BAD_ACTION`` (a
-non-finite motor command); the agent raises (it words a bad measurement with the observers' check,
-:func:`fawtgym.agents.base.refuse_measurement`).  :func:`first_bad_input` is the kernel's own check of the
+within :data:`~fawtgym.core.so3_kernels.ROTATION_TOL`), ``BAD_SETPOINT`` (a position setpoint not finite or beyond
+the env's bound), ``BAD_ESTIMATE`` (a non-finite disturbance estimate), all found before any state changes, or
+``BAD_ACTION`` (a non-finite motor command); the agent raises (it words a bad measurement with the observers'
+check, :func:`fawtgym.agents.base.refuse_measurement`).  :func:`first_bad_input` is the kernel's own check of the
 measurement and the setpoint, callable alone: an agent that changes state before the kernel runs (an observer's
 update, a pose delay line) calls it first, so a refused ``act`` changes nothing.
 """
@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.so3_kernels import ROTATION_TOL, first_non_rotation
+from fawtgym.envs.options import MAX_SETPOINT
 
 from .px4_allocation import allocate_row, rotor_command_row
 from .px4_attitude_control import N_PARAMS as N_ATT_PARAMS
@@ -175,9 +176,10 @@ def _tick(s: np.ndarray, loop: int, period: float, dt: float) -> float:
 def first_bad_input(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.ndarray, specific_force: np.ndarray,
                     setpoint: np.ndarray) -> tuple[int, int]:
     """``(BAD_MEASUREMENT, row)`` for the first row with a non-finite position, velocity, gyro or specific force or
-    an attitude that is not a rotation, else ``(BAD_SETPOINT, row)`` for the first non-finite setpoint row ((1, 3) or
-    (N, 3)), else ``(OK, -1)``: what :func:`cascade_step` refuses before anything changes; ``(BAD_MEASUREMENT, -1)``
-    if the measurement's arrays have different numbers of rows."""
+    an attitude that is not a rotation (row -1: the arrays have different numbers of rows), else
+    ``(BAD_SETPOINT, row)`` for the first setpoint row ((1, 3) or (N, 3)) with a coordinate not finite or beyond the
+    env's :data:`~fawtgym.envs.options.MAX_SETPOINT`, else ``(OK, -1)``: what :func:`cascade_step` refuses before
+    anything changes."""
     n = pos.shape[0]
     if vel.shape[0] != n or att.shape[0] != n or gyro.shape[0] != n or specific_force.shape[0] != n:
         return BAD_MEASUREMENT, -1
@@ -191,7 +193,7 @@ def first_bad_input(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.
         return BAD_MEASUREMENT, row
     for i in range(setpoint.shape[0]):
         for j in range(3):
-            if not math.isfinite(setpoint[i, j]):
+            if not abs(setpoint[i, j]) <= MAX_SETPOINT:  # NaN fails too
                 return BAD_SETPOINT, i
     return OK, -1
 

@@ -24,6 +24,8 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 #: MAVLink parameter types used in QGroundControl files.
 _MAV_PARAM_TYPE_INT32 = 6
 _MAV_PARAM_TYPE_REAL32 = 9
@@ -116,6 +118,11 @@ S500_OVERRIDES: dict[str, float] = {
 S500_PARAMS_FILE = Path(__file__).with_name("px4_s500.params")
 
 
+#: the filter cut-offs (0 = off) and the lowest cut-off a filter is designed for [Hz]
+_CUTOFFS = ("IMU_GYRO_CUTOFF", "IMU_DGYRO_CUTOFF")
+MIN_CUTOFF = 0.01
+
+
 def _check_name(name: str) -> str:
     if not isinstance(name, str) or name not in PARAM_SPECS:
         close = difflib.get_close_matches(str(name).upper(), PARAM_SPECS, n=3, cutoff=0.5)
@@ -126,14 +133,21 @@ def _check_name(name: str) -> str:
 
 def _check_value(name: str, value: Any) -> float:
     spec = PARAM_SPECS[name]
+    if isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"PX4 parameter {name} must be a number, got {value!r}")
     try:
         v = float(value)
+    except OverflowError:  # an int beyond float range
+        v = math.inf
     except (TypeError, ValueError):
         raise ValueError(f"PX4 parameter {name} must be a number, got {value!r}") from None
     if not math.isfinite(v):
         raise ValueError(f"PX4 parameter {name} must be finite, got {value!r}")
     if not spec.min <= v <= spec.max:
         raise ValueError(f"PX4 parameter {name}={v:g} is out of range [{spec.min:g}, {spec.max:g}] {spec.unit}")
+    if name in _CUTOFFS and 0.0 < v < MIN_CUTOFF:
+        raise ValueError(f"PX4 parameter {name}={v:g} must be 0 (filter off) or in [{MIN_CUTOFF:g}, {spec.max:g}] "
+                         f"{spec.unit}")
     if spec.integer and v != int(v):
         raise ValueError(f"PX4 parameter {name} must be an integer, got {value!r}")
     return v

@@ -75,8 +75,11 @@ def test_a_bad_setpoint_reads_the_same_at_every_n(n):
     info["setpoint"] = np.array([0.0, np.inf, -1.5])
     with pytest.raises(ValueError) as exc:
         agent.act(None, info)
-    assert str(exc.value) == ("PX4ObserverAgent: info['setpoint'] has a non-finite entry in row 0: [0.0, inf, -1.5] "
-                              "(allowed: finite NED coordinates [m])")
+    assert str(exc.value) == ("PX4ObserverAgent: info['setpoint'] row 0 is not finite NED coordinates [m] within "
+                              "10000 m: [0.0, inf, -1.5]")
+    info["setpoint"] = np.array([0.0, 1e300, -1.5])
+    with pytest.raises(ValueError, match=r"row 0 is not finite NED coordinates \[m\] within 10000 m"):
+        agent.act(None, info)
     for bad in ([1.0, 2.0], "abc", [[1.0, 2.0, 3.0]] * (n + 1), [1j, 0, -1], [[0.0, 0.0], [1.0]]):
         info["setpoint"] = bad
         with pytest.raises(ValueError) as exc:

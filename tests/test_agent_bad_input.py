@@ -172,11 +172,12 @@ def test_the_cascade_and_the_observers_share_the_rotation_tolerance() -> None:
 
 
 # ---- options the cascade reads every step: refused at construction (a NaN heading made every action NaN) ----------
-@pytest.mark.parametrize("value", [float("nan"), float("inf"), "0.5", True, np.bool_(False), 1j, None])
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), "0.5", True, np.bool_(False), 1j, None, 10**400, 1e300])
 def test_yaw_setpoint_is_a_finite_heading(value: object) -> None:
     with pytest.raises(ValueError) as exc:
         PX4Agent(yaw_setpoint=value)
-    assert str(exc.value) == f"yaw_setpoint must be a finite heading [rad] (a real number), got {value!r}"
+    assert str(exc.value) == (f"yaw_setpoint must be a finite real number in [-1000, 1000] rad (a heading), got "
+                              f"{value!r} ({type(value).__name__})")
 
 
 @pytest.mark.parametrize("value", [float("nan"), "0.5", True, 1j])
@@ -185,7 +186,8 @@ def test_set_setpoint_refuses_a_bad_heading_and_changes_nothing(value: object) -
     twin, _ = _agent_and_info(1)
     with pytest.raises(ValueError) as exc:
         agent.set_setpoint([0.0, 0.0, -1.0], yaw=value)
-    assert str(exc.value) == f"yaw_setpoint must be a finite heading [rad] (a real number), got {value!r}"
+    assert str(exc.value) == (f"yaw_setpoint must be a finite real number in [-1000, 1000] rad (a heading), got "
+                              f"{value!r} ({type(value).__name__})")
     assert agent.yaw_setpoint == 0.0
     for _ in range(3):  # neither the position setpoint nor the override took effect: it flies as its twin
         np.testing.assert_array_equal(agent.act(None, info), twin.act(None, info))
@@ -202,3 +204,50 @@ def test_gyro_key_names_a_gyro(value: object) -> None:
     with pytest.raises(ValueError) as exc:
         PX4Agent(gyro_key=value)
     assert str(exc.value) == f"gyro_key must be one of ['angular_velocity', 'gyro'], got {value!r}"
+
+
+# ---- the constructor's numbers: numpy scalars accepted, huge / bool / non-real refused with one line -----------------
+@pytest.mark.parametrize("kwargs", [dict(control_rate=np.float32(100.0)), dict(control_rate=np.int16(250)),
+                                    dict(position_rate=np.float32(50.0)), dict(pose_latency=np.float32(0.004)),
+                                    dict(thrust_model_error=np.float32(0.1)), dict(hover_thrust=np.float64(0.5)),
+                                    dict(setpoint=np.array([0, 0, -1], dtype=np.int8)),
+                                    dict(params={"MPC_XY_P": np.float32(0.9)})])
+def test_numpy_real_scalars_are_taken(kwargs: dict) -> None:
+    PX4Agent(**kwargs)
+
+
+@pytest.mark.parametrize("kwargs, text", [
+    (dict(control_rate=10**400), "control_rate must be a finite real number in [1, 100000] Hz, got 1"),
+    (dict(control_rate=True), "control_rate must be a finite real number in [1, 100000] Hz, got True (bool)"),
+    (dict(control_rate=5e-324), "control_rate must be a finite real number in [1, 100000] Hz, got 5e-324"),
+    (dict(position_rate=10**400), "position_rate must be a finite real number in (0, 250] Hz (control_rate: 250 Hz)"),
+    (dict(pose_latency=1e300), "pose_latency must be a finite real number in [0, 1] s, got 1e+300 (float)"),
+    (dict(pose_latency=10**400), "pose_latency must be a finite real number in [0, 1] s, got 1"),
+    (dict(thrust_model_error=10**400), "thrust_model_error must be a finite real number in (-0.5, 0.5) (a relative"),
+    (dict(hover_thrust="a"), "hover_thrust must be a finite real number in (0, 1) (normalized collective thrust), "
+                             "got 'a' (str)"),
+    (dict(setpoint=[True, False, True]), "setpoint must be real NED coordinates [m] of shape (3,) or (N, 3), each "
+                                         "within 10000 m, got [True, False, True]"),
+    (dict(setpoint=[0, 0, 1e300]), "setpoint must be real NED coordinates [m] of shape (3,) or (N, 3), each within "
+                                   "10000 m, got [0, 0, 1e+300]"),
+    (dict(setpoint=np.array([0, 0, -1.0], dtype=object)), "setpoint must be real NED coordinates [m]"),
+    (dict(params={"MPC_XY_P": 10**400}), "PX4 parameter MPC_XY_P must be finite, got 1"),
+    (dict(params={"MPC_XY_P": True}), "PX4 parameter MPC_XY_P must be a number, got True"),
+    (dict(params={"IMU_GYRO_CUTOFF": 5e-324}), "PX4 parameter IMU_GYRO_CUTOFF=4.94066e-324 must be 0 (filter off) or "
+                                               "in [0.01, 1000] Hz"),
+])
+def test_bad_constructor_numbers_give_one_line(kwargs: dict, text: str | None) -> None:
+    with pytest.raises(ValueError) as exc:
+        PX4Agent(**kwargs)
+    message = str(exc.value)
+    assert "\n" not in message
+    if text is not None:
+        assert message.startswith(text)
+
+
+def test_observer_kwargs_must_be_a_mapping() -> None:
+    from fawtgym.agents.px4_agent import PX4ObserverAgent
+
+    with pytest.raises(ValueError) as exc:
+        PX4ObserverAgent(observer="leso", observer_kwargs=5)
+    assert str(exc.value) == "observer_kwargs must be None or a mapping of the observer's options, got 5"

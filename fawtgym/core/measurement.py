@@ -24,6 +24,7 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
+from .arrays import REAL_KINDS
 from .constants import EARTH_FIELD_NED as _EARTH_FIELD_NED
 
 POSITION = "position"
@@ -47,14 +48,16 @@ EARTH_FIELD_NED = _EARTH_FIELD_NED
 _F64 = np.dtype(np.float64)
 
 
-def batch_measurement(measurement: Mapping[str, object],
-                      keys: tuple[str, ...] | None = None) -> dict[str, NDArray[np.float64]]:
+def batch_measurement(measurement: Mapping[str, object], keys: tuple[str, ...] | None = None,
+                      who: str | None = None) -> dict[str, NDArray[np.float64]]:
     """Return the measurement with a leading batch axis on every known key (N = 1 added if absent).
 
     ``keys``: only these keys (those of them present), e.g. the ones a controller reads; default all.
     A float64 array is passed on as is (batched) or as a (1, *trailing) view (unbatched: the single env's
     info), never copied; anything else goes through ``np.asarray(value, dtype=float)``.
-    Raises ValueError naming a key whose trailing shape is wrong.
+    Raises ValueError naming a key whose trailing shape is wrong or whose value is ragged, TypeError naming a key
+    whose value is not real numbers (bool, complex, str, object refused); ``who`` (an agent's or observer's name)
+    prefixes the message.
     """
     out: dict[str, NDArray[np.float64]] = {}
     if keys is None:
@@ -68,7 +71,7 @@ def batch_measurement(measurement: Mapping[str, object],
                 if shape[1:] == trailing and len(shape) == len(trailing) + 1:
                     out[key] = value
                     continue
-            _convert_entry(out, key, value, trailing)
+            _convert_entry(out, key, value, trailing, who)
         return out
     spec = _KEY_SPECS.get(keys)
     if spec is None:
@@ -85,7 +88,7 @@ def batch_measurement(measurement: Mapping[str, object],
                 out[key] = value
                 continue
         if value is not None or key in measurement:
-            _convert_entry(out, key, value, trailing)
+            _convert_entry(out, key, value, trailing, who)
     return out
 
 
@@ -94,15 +97,25 @@ _KEY_SPECS: dict[tuple[str, ...], tuple[tuple[str, tuple[int, ...] | None], ...]
 
 
 def _convert_entry(out: dict[str, NDArray[np.float64]], key: str, value: object,
-                   trailing: tuple[int, ...] | None) -> None:
+                   trailing: tuple[int, ...] | None, who: str | None = None) -> None:
     """``out[key]`` = ``value`` as a float64 array with a leading batch axis (:func:`batch_measurement`, for what is
     not already a float64 array of the key's shape)."""
-    arr = np.asarray(value, dtype=float)
+    prefix = f"{who}: " if who else ""
+    try:
+        arr = np.asarray(value)
+    except ValueError:  # ragged
+        raise ValueError(f"{prefix}measurement[{key!r}] must be an array of real numbers, got a ragged "
+                         f"{type(value).__name__}") from None
+    if arr.dtype.kind not in REAL_KINDS:
+        raise TypeError(f"{prefix}measurement[{key!r}] must hold real numbers, got {type(value).__name__} of dtype "
+                        f"{arr.dtype}")
+    arr = arr.astype(float, copy=False)
     if trailing is None:
         out[key] = arr
         return
     if arr.shape == trailing:
         arr = arr[None, ...]
     elif arr.shape[1:] != trailing:
-        raise ValueError(f"measurement[{key!r}] must have shape {trailing} or (N, *{trailing}), got {arr.shape}")
+        raise ValueError(f"{prefix}measurement[{key!r}] must have shape {trailing} or (N, *{trailing}), got "
+                         f"{arr.shape}")
     out[key] = arr
