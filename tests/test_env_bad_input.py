@@ -25,9 +25,9 @@ def _message(make):
 S500_RATIO_PER_KG = 9.80665 / (4 * 1.15e-5 * 880.0**2)
 
 BAD_OPTIONS = [
-    ({"control_rate": "100"}, r"control_rate must be a finite real number in \[0.1, 100000\] Hz, got '100' \(str\)"),
-    ({"control_rate": None}, r"control_rate must be a finite real number in \[0.1, 100000\] Hz, got None"),
-    ({"control_rate": True}, r"control_rate must be a finite real number in \[0.1, 100000\] Hz, got True"),
+    ({"control_rate": "100"}, r"control_rate must be a finite real number in \[1, 100000\] Hz, got '100' \(str\)"),
+    ({"control_rate": None}, r"control_rate must be a finite real number in \[1, 100000\] Hz, got None"),
+    ({"control_rate": True}, r"control_rate must be a finite real number in \[1, 100000\] Hz, got True"),
     ({"physics_rate": 1e-3}, r"physics_rate must be a finite real number in \[100, 100000\] Hz, got 0.001"),
     ({"render_width": -5}, r"render_width must be an int in \[1, 8192\] pixels, got -5"),
     ({"render_height": 2.5}, r"render_height must be an int"),

@@ -212,7 +212,7 @@ class OneCosineGust(WindModel):
         amp = raw.astype(float) if raw.dtype.kind in "fiu" else np.full(1, np.nan)  # (strings, bools, objects: bad)
         if amp.shape == () and math.isfinite(float(amp)):
             amp = float(amp) * d
-        if amp.shape != (3,) or not np.all(np.isfinite(amp)) or float(np.sqrt(amp @ amp)) > MAX_GUST_AMPLITUDE:
+        if amp.shape != (3,) or not np.all(np.isfinite(amp)) or math.hypot(*amp) > MAX_GUST_AMPLITUDE:
             raise ValueError(f"amplitude must be a finite speed or NED 3-vector of magnitude at most "
                              f"{MAX_GUST_AMPLITUDE:g} m/s, got {amplitude!r}")
         length = check_number(length, "length", minimum=GUST_LENGTH_RANGE[0], maximum=GUST_LENGTH_RANGE[1],
