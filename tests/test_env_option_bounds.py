@@ -210,3 +210,19 @@ def test_refused_call_changes_nothing(what, call, message):
         for a, b in zip(_rollout(env), _rollout(ref), strict=True):
             np.testing.assert_array_equal(a, b)  # bitwise: as if the refused call had never happened
     assert texts == {message}, texts
+
+
+def test_docs_list_the_ranges_the_code_checks():
+    """docs/option-ranges.md states each vehicle and sensor field's range as the code checks it."""
+    from pathlib import Path
+
+    from fawtgym.envs.vehicles import INERTIA_RANGE, SCALAR_RANGES
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "option-ranges.md").read_text()
+    rows = {line.split("|")[1].strip(): line.split("|")[2].strip() for line in text.splitlines()
+            if line.startswith("| `")}
+    for table in (SCALAR_RANGES, FIELD_RANGES):
+        for field, (lo, hi, unit) in table.items():
+            key = next(k for k in rows if f"`{field}`" in k)
+            assert rows[key].startswith(f"[{lo:g}, {hi:g}] {unit}"), (field, rows[key])
+    assert rows["`inertia` principal moments"] == f"[{INERTIA_RANGE[0]:g}, {INERTIA_RANGE[1]:g}] kg m^2"
