@@ -18,6 +18,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import check_number
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED
 
 from .mjcf import INTEGRATORS
@@ -55,26 +56,12 @@ def hover_action(preset: VehiclePreset, action_type: str) -> NDArray[np.float32]
     return np.array([hover_thrust_ratio(preset), 0, 0, 0], dtype=np.float32)
 
 
-def real_number(value: Any, name: str) -> float:
-    """``value`` as a float if it is a real number (int, float, numpy scalar; not bool, str, None or complex)."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a real number, got {value!r} ({type(value).__name__})")
-    return float(value)
-
-
+#: control rates the env accepts [Hz]: from one step a second (the wind's longest step, DT_MAX = 1 s) to the fastest
+#: physics rate
+CONTROL_RATE_RANGE = (1.0, 100_000.0)
 #: the longest episode [s] (about 32 years: the SITL bridge's "never ends"): the step counter stays far inside
 #: int64 and float64 times keep sub-microsecond resolution; a longer "episode" (1e300) is a typo, not a flight
 MAX_EPISODE_SECONDS = 1e9
-
-
-def positive_number(value: Any, name: str) -> float:
-    """A finite number > 0, else ValueError naming ``name`` and the value."""
-    v = real_number(value, name)
-    if not (math.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be a finite positive number, got {value!r}")
-    return v
-
-
 #: the largest ``init_noise``: at 10 a row starts up to 1 m, 1 m/s, 30 deg and 1 rad/s off hover (:data:`INIT_SPREAD`
 #: times 10); beyond it the start is no hover (tilts past 90 deg from 30 on) and huge values make every episode diverge
 MAX_INIT_NOISE = 10.0
@@ -82,26 +69,20 @@ MAX_INIT_NOISE = 10.0
 MAX_SETPOINT = 1e4
 #: the largest ``max_position_error`` [m]: 1e9 is the SITL plant's "no box"; the float32 observation bounds stay finite
 MAX_POSITION_ERROR = 1e9
+#: the largest reward weight: a weighted term stays far inside float64 (a weight of 1e308 makes the reward inf)
+MAX_REWARD_WEIGHT = 1e6
 
 
 def check_init_noise(value: Any) -> float:
-    """``init_noise`` as a float; ValueError naming it unless a finite number in [0, :data:`MAX_INIT_NOISE`]."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or not (
-            math.isfinite(float(value)) and float(value) >= 0):
-        raise ValueError(f"init_noise must be a finite number >= 0, got {value!r}")
-    if float(value) > MAX_INIT_NOISE:
-        raise ValueError(f"init_noise must be at most {MAX_INIT_NOISE:g} (a start up to 1 m, 1 m/s, 30 deg, 1 rad/s "
-                         f"off hover), got {value!r}")
-    return float(value)
+    """``init_noise`` as a float: a finite real number in [0, :data:`MAX_INIT_NOISE`] (one-line ValueError else)."""
+    return check_number(value, "init_noise", minimum=0.0, inclusive_minimum=True, maximum=MAX_INIT_NOISE,
+                        note="(10: a start up to 1 m, 1 m/s, 30 deg, 1 rad/s off hover)")
 
 
 def check_max_position_error(value: Any) -> float:
     """``max_position_error`` [m] as a float: finite, > 0 and at most :data:`MAX_POSITION_ERROR`."""
-    v = positive_number(value, "max_position_error")
-    if v > MAX_POSITION_ERROR:
-        raise ValueError(f"max_position_error must be at most {MAX_POSITION_ERROR:g} m (the SITL plant's 'no box'), "
-                         f"got {value!r}")
-    return v
+    return check_number(value, "max_position_error", minimum=0.0, maximum=MAX_POSITION_ERROR,
+                        note="m (1e+09: the SITL plant's 'no box')")
 
 
 def _real_array(value: Any, name: str, what: str) -> NDArray[np.float64]:
@@ -174,10 +155,8 @@ def check_reward_weights(value: Any) -> dict[str, float]:
     for key, w in value.items():
         if key not in DEFAULT_REWARD_WEIGHTS:
             raise ValueError(f"unknown reward weight {key!r}; valid: {list(DEFAULT_REWARD_WEIGHTS)}")
-        if isinstance(w, (bool, np.bool_)) or not isinstance(w, numbers.Real) or not (
-                math.isfinite(float(w)) and float(w) >= 0):
-            raise ValueError(f"reward weight {key!r} must be a finite number >= 0, got {w!r}")
-        weights[key] = float(w)
+        weights[key] = check_number(w, f"reward weight {key!r}", minimum=0.0, inclusive_minimum=True,
+                                    maximum=MAX_REWARD_WEIGHT)
     return weights
 
 
@@ -190,12 +169,6 @@ def check_sensors(spec: Any) -> SensorSpec:
         if unknown:
             valid = ["base", *sorted(fields)]
             raise ValueError(f"unknown sensors field(s) {unknown}; valid: {valid}")
-        for key, v in spec.items():
-            if key == "base" or (key == "pose_rate" and v is None):
-                continue
-            if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
-                raise ValueError(f"sensors field {key!r} must be a real number, got {v!r}")
-        spec = {k: float(v) if k != "base" and v is not None else v for k, v in spec.items()}
     return make_sensor_spec(spec)
 
 
@@ -271,11 +244,10 @@ def hover_options(vehicle: Any = "s500", wind: Any = "calm", action_type: Any = 
         raise ValueError(f"unknown render_mode {render_mode!r}; valid: {[None, *RENDER_MODES]}")
     if not isinstance(integrator, str) or integrator not in INTEGRATORS:
         raise ValueError(f"unknown integrator {integrator!r}; valid: {list(INTEGRATORS)}")
-    control_rate = positive_number(control_rate, "control_rate")
-    physics_rate = positive_number(physics_rate, "physics_rate")
-    lo, hi = PHYSICS_RATE_RANGE
-    if not lo <= physics_rate <= hi:
-        raise ValueError(f"physics_rate must be in [{lo:g}, {hi:g}] Hz, got {physics_rate:g}")
+    control_rate = check_number(control_rate, "control_rate", minimum=CONTROL_RATE_RANGE[0], inclusive_minimum=True,
+                                maximum=CONTROL_RATE_RANGE[1], note="Hz")
+    physics_rate = check_number(physics_rate, "physics_rate", minimum=PHYSICS_RATE_RANGE[0], inclusive_minimum=True,
+                                maximum=PHYSICS_RATE_RANGE[1], note="Hz")
     ratio = physics_rate / control_rate
     if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-9:
         raise ValueError(f"control_rate {control_rate:g} Hz must divide physics_rate {physics_rate:g} Hz "
@@ -283,10 +255,8 @@ def hover_options(vehicle: Any = "s500", wind: Any = "calm", action_type: Any = 
     n_substeps = int(round(ratio))
     physics_dt = 1.0 / physics_rate
     dt = n_substeps * physics_dt
-    episode_seconds = positive_number(episode_seconds, "episode_seconds")
-    if episode_seconds > MAX_EPISODE_SECONDS:
-        raise ValueError(f"episode_seconds must be at most {MAX_EPISODE_SECONDS:g} s (about "
-                         f"{MAX_EPISODE_SECONDS / 3.156e7:.0f} years of simulated flight), got {episode_seconds!r}")
+    episode_seconds = check_number(episode_seconds, "episode_seconds", minimum=0.0, maximum=MAX_EPISODE_SECONDS,
+                                   note=f"s (1e+09 s: about {MAX_EPISODE_SECONDS / 3.156e7:.0f} years of flight)")
     max_position_error = check_max_position_error(max_position_error)
     sp = FAWT_HOVER_POINT_NED.copy() if setpoint is None else check_setpoint(setpoint)
     return HoverOptions(

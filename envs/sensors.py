@@ -38,6 +38,27 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fawtgym.core import measurement as M
+from fawtgym.core.checks import check_number
+
+#: The physical range of each :class:`SensorSpec` field: (lowest, highest, unit), lowest inclusive.  Every range spans
+#: orders of magnitude beyond the presets (a consumer IMU's gyro density is ~1e-3 (rad/s)/sqrt(Hz)); beyond it a value
+#: is a typo or a unit slip and the samples overflow (an attitude sigma of 1e300 rad) or the reward does.
+#: ``pose_rate`` may also be None (every control step).
+FIELD_RANGES: dict[str, tuple[float, float, str]] = {
+    "position_density": (0.0, 10.0, "m/sqrt(Hz)"),
+    "velocity_density": (0.0, 10.0, "(m/s)/sqrt(Hz)"),
+    "attitude_density": (0.0, 1.0, "rad/sqrt(Hz)"),
+    "angular_velocity_density": (0.0, 10.0, "(rad/s)/sqrt(Hz)"),
+    "position_sigma": (0.0, 100.0, "m"),
+    "velocity_sigma": (0.0, 100.0, "m/s"),
+    "attitude_sigma": (0.0, math.pi, "rad"),
+    "gyro_density": (0.0, 10.0, "(rad/s)/sqrt(Hz)"),
+    "accel_density": (0.0, 100.0, "(m/s^2)/sqrt(Hz)"),
+    "mag_sigma": (0.0, 10.0, "gauss"),
+    "gyro_bias_sigma": (0.0, 10.0, "rad/s"),
+    "accel_bias_sigma": (0.0, 100.0, "m/s^2"),
+    "pose_rate": (0.01, 1e5, "Hz"),
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -60,15 +81,14 @@ class SensorSpec:
     pose_rate: float | None = None  #: Hz; None = every control step
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if f.name == "name" or (v is None and f.name == "pose_rate"):
+        for field, (lowest, highest, unit) in FIELD_RANGES.items():
+            v = getattr(self, field)
+            if v is None and field == "pose_rate":
                 continue
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
-                    or not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"sensor field {f.name!r} must be a finite number >= 0, got {v!r}")
-        if self.pose_rate is not None and self.pose_rate <= 0:
-            raise ValueError(f"sensor field 'pose_rate' must be > 0 Hz, got {self.pose_rate!r}")
+            # any real number (numpy scalars too, stored as float); bool, str, None and complex are refused
+            v = check_number(v, f"sensor field {field!r}", minimum=lowest, maximum=highest, inclusive_minimum=True,
+                             note=unit + (" or None" if field == "pose_rate" else ""))
+            object.__setattr__(self, field, v)
 
 
 _IMU_250 = dict(gyro_density=0.015 / math.sqrt(250.0), accel_density=0.35 / math.sqrt(250.0), mag_sigma=0.005)

@@ -32,7 +32,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import numbers
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -41,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fawtgym.core.arrays import REAL_KINDS, as_array
+from fawtgym.core.checks import check_number
 from fawtgym.core.constants import GRAVITY  # defined in core; importable from here too (compatibility)
 
 AIR_DENSITY = 1.225  #: ISA sea-level air density [kg/m^3]
@@ -48,6 +48,29 @@ AIR_DENSITY = 1.225  #: ISA sea-level air density [kg/m^3]
 #: PX4 quad X motor order: unit arm directions in body FRD and spin directions (+1 = CCW).
 QUAD_X_ARMS = np.array([[1.0, 1.0, 0.0], [-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, 1.0, 0.0]]) / math.sqrt(2.0)
 QUAD_X_DIRECTIONS = np.array([1.0, 1.0, -1.0, -1.0])
+
+
+#: The physical range of each scalar field: (lowest, highest, unit).  Every range spans orders of magnitude around
+#: the presets (from a 10 g micro quad to a 10 t airframe); outside it a value is a typo or a unit slip, and huge or
+#: tiny values overflow the model (omega_max^2, 1 / tau) or MuJoCo's mass matrix.  A lowest of 0 is inclusive.
+SCALAR_RANGES: dict[str, tuple[float, float, str]] = {
+    "mass": (1e-4, 1e4, "kg"),
+    "arm_length": (1e-3, 100.0, "m"),
+    "k_thrust": (1e-12, 1.0, "N/(rad/s)^2"),
+    "k_moment": (1e-6, 1.0, "m"),
+    "omega_min": (0.0, 1e5, "rad/s"),
+    "omega_max": (1.0, 1e5, "rad/s"),
+    "tau_up": (1e-4, 10.0, "s"),
+    "tau_down": (1e-4, 10.0, "s"),
+    "rotor_radius": (1e-3, 10.0, "m"),
+    "rotor_drag": (0.0, 0.1, "N/((m/s)(rad/s))"),
+    "rolling_moment": (0.0, 0.1, "N m/((m/s)(rad/s))"),
+}
+#: principal moments of inertia [kg m^2] (a 10 g micro quad has ~1e-5)
+INERTIA_RANGE = (1e-7, 1e5)
+#: each body_drag entry [N/(m/s)^2] (0.5 rho C_D A: 100 is a 150 m^2 flat plate) and cop_offset entry [m]
+BODY_DRAG_RANGE = (0.0, 100.0)
+COP_OFFSET_RANGE = (-100.0, 100.0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -75,16 +98,11 @@ class VehiclePreset:
     source: str = ""  #: where the numbers come from
 
     def __post_init__(self) -> None:
-        for field in ("mass", "arm_length", "k_thrust", "k_moment", "omega_max", "tau_up", "tau_down",
-                      "rotor_radius", "omega_min", "rotor_drag", "rolling_moment"):
-            value = getattr(self, field)
-            positive = field not in ("omega_min", "rotor_drag", "rolling_moment")
+        for field, (lowest, highest, unit) in SCALAR_RANGES.items():
             # any real number (numpy scalars too, stored as float); bool, str, None and complex are refused
-            real = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
-            if not (real and math.isfinite(value) and (value > 0 if positive else value >= 0)):
-                need = "a finite positive number" if positive else "a finite number >= 0"
-                raise ValueError(f"vehicle field {field!r} must be {need}, got {value!r}")
-            object.__setattr__(self, field, float(value))
+            value = check_number(getattr(self, field), f"vehicle field {field!r}", minimum=lowest, maximum=highest,
+                                 inclusive_minimum=True, note=unit)
+            object.__setattr__(self, field, value)
         if self.omega_min >= self.omega_max:
             raise ValueError(f"vehicle field 'omega_min' ({self.omega_min}) must be below "
                              f"'omega_max' ({self.omega_max})")
@@ -97,6 +115,9 @@ class VehiclePreset:
         eig = np.linalg.eigvalsh(j)
         if eig.min() <= 0:
             raise ValueError(f"vehicle field 'inertia' must be positive definite, eigenvalues {eig.tolist()}")
+        if eig.min() < INERTIA_RANGE[0] or eig.max() > INERTIA_RANGE[1]:
+            raise ValueError(f"vehicle field 'inertia' principal moments must be in [{INERTIA_RANGE[0]:g}, "
+                             f"{INERTIA_RANGE[1]:g}] kg m^2, got {eig.tolist()}")
         if eig[0] + eig[1] < eig[2] * (1 - 1e-9):
             raise ValueError("vehicle field 'inertia' violates the triangle inequality of principal moments "
                              f"{eig.tolist()}")
@@ -105,8 +126,11 @@ class VehiclePreset:
             vec = _real_vector(field, getattr(self, field))
             if vec.shape != (3,) or not np.all(np.isfinite(vec)):
                 raise ValueError(f"vehicle field {field!r} must be 3 finite numbers, got {getattr(self, field)!r}")
-            if field == "body_drag" and np.any(vec < 0):
-                raise ValueError(f"vehicle field 'body_drag' must be >= 0, got {vec.tolist()}")
+            (lowest, highest), unit = ((BODY_DRAG_RANGE, "N/(m/s)^2") if field == "body_drag"
+                                       else (COP_OFFSET_RANGE, "m"))
+            if np.any(vec < lowest) or np.any(vec > highest):
+                raise ValueError(f"vehicle field {field!r} entries must be in [{lowest:g}, {highest:g}] {unit}, "
+                                 f"got {vec.tolist()}")
             object.__setattr__(self, field, tuple(float(x) for x in vec))
 
     # ---- derived quantities -------------------------------------------------------------

@@ -83,7 +83,8 @@ def test_unknown_sensor_preset_and_bad_field():
         make_sensor_spec("lidar")
     with pytest.raises(ValueError, match="position_sigma"):
         make_sensor_spec({"base": "none", "position_sigma": -1.0})
-    with pytest.raises(ValueError, match=r"'gyro_density' must be a finite number >= 0, got 'a'"):
+    with pytest.raises(ValueError,
+                       match=r"'gyro_density' must be a finite real number in \[0, 10\] \(rad/s\)/sqrt\(Hz\), got 'a'"):
         make_sensor_spec({"base": "mocap_imu", "gyro_density": "a"})
     with pytest.raises(ValueError, match=r"unknown sensor field\(s\) \['lidar_rate'\]; valid: \['base', 'name'"):
         make_sensor_spec({"base": "none", "lidar_rate": 10.0})

@@ -161,8 +161,10 @@ def test_max_steps_and_box_of_hover_env_take_effect():
     ("max_steps", 0, r"max_steps must be an int >= 1, got 0"),
     ("max_steps", 2.5, r"max_steps must be an int >= 1, got 2.5"),
     ("max_steps", True, r"max_steps must be an int >= 1, got True"),
-    ("max_position_error", -1.0, r"max_position_error must be a finite positive number, got -1.0"),
-    ("max_position_error", float("inf"), r"max_position_error must be a finite positive number, got inf")])
+    ("max_position_error", -1.0, r"max_position_error must be a finite real number in \(0, 1e\+09\] m .*, got -1.0 "
+                                 r"\(float\)"),
+    ("max_position_error", float("inf"), r"max_position_error must be a finite real number in \(0, 1e\+09\] m .*, "
+                                         r"got inf \(float\)")])
 def test_bad_max_steps_and_box_raise_alike(attr, value, match):
     for env in (HoverEnv(), HoverBatchEnv(3)):
         before = getattr(env, attr)

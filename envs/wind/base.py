@@ -26,8 +26,12 @@ DT_MAX = 1.0
 
 def is_real(value: Any) -> bool:
     """A finite real number (Python or numpy scalar), never a boolean: what every numeric wind option must be."""
-    return (not isinstance(value, (bool, np.bool_)) and isinstance(value, (int, float, np.integer, np.floating))
-            and math.isfinite(value))
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an int beyond float range (10**400)
+        return False
 
 
 def check_step(t: float, dt: float) -> None:

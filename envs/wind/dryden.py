@@ -43,6 +43,8 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from fawtgym.core.checks import check_number
+
 from .base import is_real
 
 FORMS = ("8785c", "1797")
@@ -50,6 +52,19 @@ FORMS = ("8785c", "1797")
 #: and L/V would freeze the gusts of a vehicle hovering in still mean air; 1 m/s keeps the time
 #: scale finite (MATLAB's Dryden block has no floor and divides by zero at V = 0).
 V_FLOOR = 1.0
+
+
+#: Gust length scales [m] the filters take: from a wind tunnel's centimetre eddies (FAWT 0.02 m) to beyond the
+#: MIL-spec's 533 m at 1000 ft; outside, the filter poles V / L under- or overflow the step matrices.
+LENGTH_SCALE_RANGE = (1e-3, 1e5)
+#: Vehicle spans [m] for the gust-gradient (``rates``) filters: a micro quad to a large airframe.
+SPAN_RANGE = (1e-3, 100.0)
+
+
+def check_length_scale(name: str, value: float) -> float:
+    """A gust length scale [m] in :data:`LENGTH_SCALE_RANGE` (one-line ValueError naming ``name`` otherwise)."""
+    return check_number(value, name, minimum=LENGTH_SCALE_RANGE[0], maximum=LENGTH_SCALE_RANGE[1],
+                        inclusive_minimum=True, note="m")
 
 
 def _check_positive(name: str, value: float) -> float:
@@ -82,10 +97,11 @@ class DrydenParams:
         if self.form not in FORMS:
             raise ValueError(f"Dryden form must be one of {FORMS}, got {self.form!r}")
         sig = tuple(_check_nonneg(f"turbulence intensity sigma_{c}", s) for c, s in zip("uvw", self.sigma, strict=True))
-        lens = tuple(_check_positive(f"length scale L_{c}", s) for c, s in zip("uvw", self.length, strict=True))
+        lens = tuple(check_length_scale(f"length scale L_{c}", s) for c, s in zip("uvw", self.length, strict=True))
         object.__setattr__(self, "sigma", sig)
         object.__setattr__(self, "length", lens)
-        object.__setattr__(self, "span", _check_positive("span", self.span))
+        object.__setattr__(self, "span", check_number(self.span, "span", minimum=SPAN_RANGE[0],
+                                                      maximum=SPAN_RANGE[1], inclusive_minimum=True, note="m"))
 
 
 def dryden_psd(params: DrydenParams, component: str, freq_hz: NDArray[np.float64] | float,

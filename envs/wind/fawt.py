@@ -56,7 +56,7 @@ from fawtgym.core.checks import check_flag
 from fawtgym.core.frames import FAWT_ORIGIN_NED, R_FAWT_TO_NED
 
 from .base import check_points, check_step, is_real, raise_not_finite, row_inputs_finite
-from .dryden import FORMS, V_FLOOR, DrydenParams
+from .dryden import FORMS, V_FLOOR, DrydenParams, check_length_scale
 from .dryden_process import DrydenProcess, GustWind, Seed, bin_filled, gust_row_step, step_bin
 from .schedule import DEFAULT_SPIN_TAU, FanSchedule
 
@@ -268,8 +268,7 @@ class FawtWind(GustWind):
         self.ti = stats["ti"]
         if length_scale is None:
             length_scale = stats["length_scale"]
-        if not is_real(length_scale) or length_scale <= 0:
-            raise ValueError(f"length_scale must be a finite positive length [m], got {length_scale!r}")
+        length_scale = check_length_scale("length_scale", length_scale)
         if not isinstance(form, str) or form not in FORMS:
             raise ValueError(f"form must be one of {FORMS}, got {form!r}")
         self.length_scale = float(length_scale)

@@ -34,16 +34,23 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from fawtgym.core.checks import check_flag
+from fawtgym.core.checks import check_flag, check_number
 
 from .base import WindModel, check_n, check_points, check_step, is_real, raise_not_finite, row_inputs_finite
-from .dryden import FORMS, V_FLOOR, DrydenParams
+from .dryden import FORMS, V_FLOOR, DrydenParams, check_length_scale
 from .dryden_process import DrydenProcess, GustWind, Seed, bin_filled, gust_row_step, step_bin
 
 FT = 0.3048  #: [m] per foot
 KNOT = 0.514444  #: [m/s] per knot
 W20_KNOTS = {"light": 15.0, "moderate": 30.0, "severe": 45.0}
 LOW_ALTITUDE_MAX = 1000.0 * FT  #: [m]
+#: the strongest mean wind [m/s] (a category-5 hurricane is ~70 m/s); beyond it a value is a typo
+MAX_MEAN_WIND = 100.0
+#: the strongest 1-cosine gust amplitude [m/s] and front speed [m/s], its longest length [m], latest start [s]
+MAX_GUST_AMPLITUDE = 100.0
+GUST_SPEED_RANGE = (1e-3, 1000.0)
+GUST_LENGTH_RANGE = (1e-3, 1e5)
+MAX_START_TIME = 1e9
 Z0_FT = 0.15  #: roughness height of the MIL-F-8785C log wind profile (flight phase C) [ft]
 
 
@@ -136,8 +143,7 @@ class DrydenWind(GustWind):
                  rates: bool = False, span: float = 0.5, discretization: str = "exact") -> None:
         params = low_altitude_params(intensity, altitude, form)
         if length_scale is not None:
-            if not is_real(length_scale) or length_scale <= 0:
-                raise ValueError(f"length_scale must be a finite positive length [m], got {length_scale!r}")
+            length_scale = check_length_scale("length_scale", length_scale)
             lat = length_scale if form == "8785c" else 0.5 * length_scale
             params = DrydenParams(sigma=params.sigma, length=(length_scale, lat, lat), form=form, span=span)
         else:
@@ -149,10 +155,11 @@ class DrydenWind(GustWind):
             speed = log_profile_speed(intensity, altitude) if mean_wind else 0.0
         elif mean_wind is None:
             speed = 0.0
-        elif is_real(mean_wind) and mean_wind >= 0:
+        elif is_real(mean_wind) and 0 <= mean_wind <= MAX_MEAN_WIND:
             speed = float(mean_wind)
         else:
-            raise ValueError(f"mean_wind must be False, True or a speed >= 0 [m/s], got {mean_wind!r}")
+            raise ValueError(f"mean_wind must be False, True or a speed in [0, {MAX_MEAN_WIND:g}] m/s, "
+                             f"got {mean_wind!r}")
         d = _direction(direction_deg)
         self.mean = speed * d  # NED
         # the air mass carrying the turbulence moves at the mean wind; without a mean-wind output it still
@@ -205,13 +212,15 @@ class OneCosineGust(WindModel):
         amp = raw.astype(float) if raw.dtype.kind in "fiu" else np.full(1, np.nan)  # (strings, bools, objects: bad)
         if amp.shape == () and math.isfinite(float(amp)):
             amp = float(amp) * d
-        if amp.shape != (3,) or not np.all(np.isfinite(amp)):
-            raise ValueError(f"amplitude must be a finite speed or NED 3-vector [m/s], got {amplitude!r}")
-        for name, val in (("length", length), ("speed", speed)):
-            if not (is_real(val) and val > 0):
-                raise ValueError(f"{name} must be a finite positive number, got {val!r}")
-        if not (is_real(start_time) and start_time >= 0):
-            raise ValueError(f"start_time must be a finite time >= 0 s, got {start_time!r}")
+        if amp.shape != (3,) or not np.all(np.isfinite(amp)) or math.hypot(*amp) > MAX_GUST_AMPLITUDE:
+            raise ValueError(f"amplitude must be a finite speed or NED 3-vector of magnitude at most "
+                             f"{MAX_GUST_AMPLITUDE:g} m/s, got {amplitude!r}")
+        length = check_number(length, "length", minimum=GUST_LENGTH_RANGE[0], maximum=GUST_LENGTH_RANGE[1],
+                              inclusive_minimum=True, note="m")
+        speed = check_number(speed, "speed", minimum=GUST_SPEED_RANGE[0], maximum=GUST_SPEED_RANGE[1],
+                             inclusive_minimum=True, note="m/s")
+        start_time = check_number(start_time, "start_time", minimum=0.0, maximum=MAX_START_TIME,
+                                  inclusive_minimum=True, note="s")
         if not isinstance(shape, str) or shape not in ("rise", "full"):
             raise ValueError(f"shape must be 'rise' or 'full', got {shape!r}")
         self.amplitude = amp

@@ -23,13 +23,17 @@ import math
 from .base import is_real
 
 DEFAULT_SPIN_TAU = 1.0  #: [s] first-order fan spin-up time constant (assumption, see module docstring)
+#: the latest on/off time [s] (about 32 years, the env's longest episode)
+MAX_TIME = 1e9
+#: fan spin-up/-down time constants [s]: from a bare motor's 0.1 ms to hours
+SPIN_TAU_RANGE = (1e-4, 1e4)
 
 
 def _check_time(name: str, value: float | None) -> float | None:
     if value is None:
         return None
-    if not (is_real(value) and value >= 0):
-        raise ValueError(f"{name} must be a finite time >= 0 s or None, got {value!r}")
+    if not (is_real(value) and 0 <= value <= MAX_TIME):
+        raise ValueError(f"{name} must be a finite time in [0, {MAX_TIME:g}] s or None, got {value!r}")
     return float(value)
 
 
@@ -48,8 +52,9 @@ class FanSchedule:
         for name, val in (("spin_tau", spin_tau), ("spin_down_tau", spin_down_tau)):
             if val is None and name == "spin_down_tau":  # None: the spin-up time constant
                 continue
-            if not (is_real(val) and val is not None and val > 0):
-                raise ValueError(f"{name} must be a finite positive time constant [s], got {val!r}")
+            if not (is_real(val) and val is not None and SPIN_TAU_RANGE[0] <= val <= SPIN_TAU_RANGE[1]):
+                raise ValueError(f"{name} must be a finite time constant in [{SPIN_TAU_RANGE[0]:g}, "
+                                 f"{SPIN_TAU_RANGE[1]:g}] s, got {val!r}")
         if self.on_time is not None and self.off_time is not None and self.off_time <= self.on_time:
             raise ValueError(f"off_time ({self.off_time}) must be after on_time ({self.on_time})")
         self.spin_tau = float(spin_tau)
