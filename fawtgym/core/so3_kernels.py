@@ -23,6 +23,8 @@ Z-Y-X (roll, pitch, yaw) as PX4's ``matrix::Eulerf``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -49,7 +51,7 @@ def cross_entries(a0: float, a1: float, a2: float, b0: float, b1: float,
 
 #: :func:`cross_entries` as plain Python (its ``py_func``; the function itself under ``NUMBA_DISABLE_JIT=1``), for
 #: numpy arrays of components: the same operations, elementwise (:func:`fawtgym.core.so3.cross`)
-cross_entries_numpy = getattr(cross_entries, "py_func", cross_entries)
+cross_entries_numpy: Callable[..., tuple[Any, Any, Any]] = getattr(cross_entries, "py_func", cross_entries)
 
 
 @njit(cache=True, inline="always")
