@@ -36,6 +36,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core.arrays import as_f64
+from fawtgym.core.so3_kernels import cross_entries
 
 from .vehicles import GRAVITY, VehiclePreset
 
@@ -61,7 +62,8 @@ def _air_velocity(rotation: NDArray[np.float64], i: int, w0: float, w1: float, w
     a0 = rotation[i, 0, 0] * d0 + rotation[i, 1, 0] * d1 + rotation[i, 2, 0] * d2  # R^T (w - v)
     a1 = rotation[i, 0, 1] * d0 + rotation[i, 1, 1] * d1 + rotation[i, 2, 1] * d2
     a2 = rotation[i, 0, 2] * d0 + rotation[i, 1, 2] * d1 + rotation[i, 2, 2] * d2
-    return (a0 - (o1 * p2 - o2 * p1), a1 - (o2 * p0 - o0 * p2), a2 - (o0 * p1 - o1 * p0))  # - Omega x p
+    x0, x1, x2 = cross_entries(o0, o1, o2, p0, p1, p2)  # Omega x p
+    return a0 - x0, a1 - x1, a2 - x2
 
 
 @njit(cache=True)
@@ -86,9 +88,10 @@ def aero_wrench_rows(rotation: NDArray[np.float64], velocity: NDArray[np.float64
             drag = k_d * rotor_speeds[i, j]  # F_j = k_d omega_j P a_j,  P = diag(1, 1, 0)
             flap = k_r * rotor_speeds[i, j]  # M_j = k_r omega_j (a_j x e3) = k_r omega_j (a_y, -a_x, 0)
             f0, f1 = drag * a0, drag * a1  # F_j (its z component is 0)
-            t0 += (h1 * 0.0 - h2 * f1) + flap * a1  # r_j x F_j + M_j
-            t1 += (h2 * f0 - h0 * 0.0) - flap * a0
-            t2 += h0 * f1 - h1 * f0
+            x0, x1, x2 = cross_entries(h0, h1, h2, f0, f1, 0.0)  # r_j x F_j
+            t0 += x0 + flap * a1  # r_j x F_j + M_j
+            t1 += x1 - flap * a0
+            t2 += x2
             fb0 += f0
             fb1 += f1
         a0, a1, a2 = _air_velocity(rotation, i, wind[i, 0, 0], wind[i, 0, 1], wind[i, 0, 2], v0, v1, v2, o0, o1, o2,
@@ -96,9 +99,10 @@ def aero_wrench_rows(rotation: NDArray[np.float64], velocity: NDArray[np.float64
         speed = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
         # F_b = D |a_0| a_0
         d0, d1, d2 = body_drag[0] * a0 * speed, body_drag[1] * a1 * speed, body_drag[2] * a2 * speed
-        t0 += c1 * d2 - c2 * d1  # c x F_b
-        t1 += c2 * d0 - c0 * d2
-        t2 += c0 * d1 - c1 * d0
+        x0, x1, x2 = cross_entries(c0, c1, c2, d0, d1, d2)  # c x F_b
+        t0 += x0
+        t1 += x1
+        t2 += x2
         fb0, fb1, fb2 = fb0 + d0, fb1 + d1, fb2 + d2
         for c in range(3):  # force = R (sum_j F_j + F_b), world NED
             force[i, c] = rotation[i, c, 0] * fb0 + rotation[i, c, 1] * fb1 + rotation[i, c, 2] * fb2

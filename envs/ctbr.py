@@ -20,6 +20,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from fawtgym.core.so3_kernels import cross_entries, mat_vec_entries
+
 from .motors import allocation_matrix
 from .vehicles import VehiclePreset
 
@@ -83,7 +85,6 @@ def rate_loop_rows(collective: NDArray[np.float64], rate_sp: NDArray[np.float64]
     """
     err = np.empty(3)
     ang_acc = np.empty(3)
-    h = np.empty(3)
     torque = np.empty(3)
     base = np.empty(4)
     part = np.empty(4)
@@ -94,12 +95,11 @@ def rate_loop_rows(collective: NDArray[np.float64], rate_sp: NDArray[np.float64]
             prev_rate[i, c] = rate[i, c]
             ang_acc[c] = kp[c] * err[c] + integral[i, c] - kd[c] * rate_dot
         has_prev[i] = True
-        for c in range(3):  # J Omega
-            h[c] = j[c, 0] * rate[i, 0] + j[c, 1] * rate[i, 1] + j[c, 2] * rate[i, 2]
         w0, w1, w2 = rate[i, 0], rate[i, 1], rate[i, 2]
-        gyro = (w1 * h[2] - w2 * h[1], w2 * h[0] - w0 * h[2], w0 * h[1] - w1 * h[0])  # Omega x J Omega
-        for c in range(3):
-            torque[c] = j[c, 0] * ang_acc[0] + j[c, 1] * ang_acc[1] + j[c, 2] * ang_acc[2] + gyro[c]
+        h0, h1, h2 = mat_vec_entries(j, w0, w1, w2)  # J Omega
+        g0, g1, g2 = cross_entries(w0, w1, w2, h0, h1, h2)  # Omega x J Omega = -(J Omega x Omega)
+        ja0, ja1, ja2 = mat_vec_entries(j, ang_acc[0], ang_acc[1], ang_acc[2])  # J (K_P e + I - K_D Omega_dot)
+        torque[0], torque[1], torque[2] = ja0 + g0, ja1 + g1, ja2 + g2
         scale = 1.0
         for r in range(4):  # keep the collective thrust; shrink the torque until every rotor fits
             base[r] = b_inv[r, 0] * collective[i]

@@ -14,6 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.arrays import REAL_KINDS, as_array
 from fawtgym.core.checks import check_positive
+from fawtgym.core.so3_kernels import known_angular_acceleration_entries
 
 
 def batch_vec(x: ArrayLike | None, n: int, label: str, who: str) -> NDArray[np.float64]:
@@ -82,11 +83,5 @@ def known_angular_acceleration_row(omega: NDArray[np.float64], torque: NDArray[n
                                    inertia: NDArray[np.float64], inertia_inv: NDArray[np.float64],
                                    out: NDArray[np.float64]) -> None:
     """out = J^-1 (J Omega x Omega + tau): the known part of Omega' in Wang et al. (2024) eq. (38) (body FRD)."""
-    jw0 = inertia[0, 0] * omega[0] + inertia[0, 1] * omega[1] + inertia[0, 2] * omega[2]
-    jw1 = inertia[1, 0] * omega[0] + inertia[1, 1] * omega[1] + inertia[1, 2] * omega[2]
-    jw2 = inertia[2, 0] * omega[0] + inertia[2, 1] * omega[1] + inertia[2, 2] * omega[2]
-    m0 = jw1 * omega[2] - jw2 * omega[1] + torque[0]
-    m1 = jw2 * omega[0] - jw0 * omega[2] + torque[1]
-    m2 = jw0 * omega[1] - jw1 * omega[0] + torque[2]
-    for j in range(3):
-        out[j] = inertia_inv[j, 0] * m0 + inertia_inv[j, 1] * m1 + inertia_inv[j, 2] * m2
+    out[0], out[1], out[2] = known_angular_acceleration_entries(inertia, inertia_inv, omega[0], omega[1], omega[2],
+                                                                torque[0], torque[1], torque[2])

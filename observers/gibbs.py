@@ -21,7 +21,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.so3 import hat
+from fawtgym.core.so3 import cross, hat
+from fawtgym.core.so3_kernels import cross_entries
 
 _EYE = np.eye(3)
 
@@ -43,8 +44,8 @@ def gibbs_to_rot_row(g0, g1, g2, R):
 def omega_row(g0, g1, g2, d0, d1, d2):
     """omega = 2 Gamma(g)^-1 g' = 2 (g' - g x g') / (1 + g.g) (eq. 80) of one row."""
     m = 1.0 + (g0 * g0 + g1 * g1 + g2 * g2)
-    return (2.0 * (d0 - (g1 * d2 - g2 * d1)) / m, 2.0 * (d1 - (g2 * d0 - g0 * d2)) / m,
-            2.0 * (d2 - (g0 * d1 - g1 * d0)) / m)
+    x0, x1, x2 = cross_entries(g0, g1, g2, d0, d1, d2)  # g x g'
+    return 2.0 * (d0 - x0) / m, 2.0 * (d1 - x1) / m, 2.0 * (d2 - x2) / m
 
 
 @njit(cache=True)
@@ -139,10 +140,12 @@ def omega_from_gibbs(g: ArrayLike, g_dot: ArrayLike) -> NDArray[np.float64]:
 
 
 def rigid_body_rhs(omega: ArrayLike, inertia: ArrayLike, torque: ArrayLike) -> NDArray[np.float64]:
-    """omega' = J^-1 (J omega x omega + tau) (eq. 49; Wang et al. (2024) eq. 38 in FRD)."""
+    """omega' = J^-1 (J omega x omega + tau) (eq. 49; Wang et al. (2024) eq. 38 in FRD), numpy (..., 3) arrays: a
+    reference for tests and the paper reproductions (the kernels use
+    :func:`fawtgym.core.so3_kernels.known_angular_acceleration_entries`)."""
     J = np.asarray(inertia, dtype=float)
     w = np.asarray(omega, dtype=float)
-    return np.einsum("ij,...j->...i", np.linalg.inv(J), np.cross(np.einsum("ij,...j->...i", J, w), w)
+    return np.einsum("ij,...j->...i", np.linalg.inv(J), cross(np.einsum("ij,...j->...i", J, w), w)
                      + np.asarray(torque, dtype=float))
 
 

@@ -42,7 +42,7 @@ from fawtgym.core import measurement as M
 from fawtgym.core.checks import check_number, check_positive
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import write_rows
-from fawtgym.core.so3_kernels import exp_so3_row, mat_mul_row
+from fawtgym.core.so3_kernels import exp_so3_row, known_angular_acceleration_entries, mat_mul_row
 
 from . import vector_attitude as va
 from ._obs_common import MAX_RATE_GAIN, real_vector
@@ -126,16 +126,12 @@ def hc_eso_rates_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, p, q, psi, s):
     pp = max(p0 * p0 + p1 * p1 + p2 * p2, _S2_FLOOR)
     hc = c_h * (s0 * wl0 + s1 * wl1 + s2 * wl2) / ss  # H(s_L) w_L, eq. 28
     hw0, hw1, hw2 = wl0 - hc * s0, wl1 - hc * s1, wl2 - hc * s2
-    jw0 = J[0, 0] * o0 + J[0, 1] * o1 + J[0, 2] * o2
-    jw1 = J[1, 0] * o0 + J[1, 1] * o1 + J[1, 2] * o2
-    jw2 = J[2, 0] * o0 + J[2, 1] * o1 + J[2, 2] * o2
-    u0 = jw1 * o2 - jw2 * o1 + tau[0]  # J Omega^m x Omega^m + tau
-    u1 = jw2 * o0 - jw0 * o2 + tau[1]
-    u2 = jw0 * o1 - jw1 * o0 + tau[2]
+    # J^-1 (J Omega^m x Omega^m + tau), the known part of Omega' (Wang et al. 2024 eq. 38)
+    k0, k1, k2 = known_angular_acceleration_entries(J, J_inv, o0, o1, o2, tau[0], tau[1], tau[2])
     kp = k_psi * pp**e_psi
-    p[0] = J_inv[0, 0] * u0 + J_inv[0, 1] * u1 + J_inv[0, 2] * u2 + sigma_hat[0] + kp * p0 - kz * hw0  # P, eq. 30
-    p[1] = J_inv[1, 0] * u0 + J_inv[1, 1] * u1 + J_inv[1, 2] * u2 + sigma_hat[1] + kp * p1 - kz * hw1
-    p[2] = J_inv[2, 0] * u0 + J_inv[2, 1] * u1 + J_inv[2, 2] * u2 + sigma_hat[2] + kp * p2 - kz * hw2
+    p[0] = k0 + sigma_hat[0] + kp * p0 - kz * hw0  # P, eq. 30
+    p[1] = k1 + sigma_hat[1] + kp * p1 - kz * hw1
+    p[2] = k2 + sigma_hat[2] + kp * p2 - kz * hw2
     ks = k_sig * pp**e_sig  # Q of eq. 30 is ks Psi
     q[0], q[1], q[2] = ks * p0, ks * p1, ks * p2
     psi[0], psi[1], psi[2] = p0, p1, p2

@@ -29,7 +29,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.so3_kernels import quat_to_rot_row
+from fawtgym.core.so3 import cross
+from fawtgym.core.so3_kernels import cross_entries, quat_to_rot_row
 
 _NEWTON_ITERS = 8
 #: where the attitude is a half turn the Gibbs vector does not exist: reported with this norm
@@ -77,9 +78,10 @@ def _profile(b, r, a, f0, f1, f2):
         B20 += p2 * s0
         B21 += p2 * s1
         B22 += p2 * s2
-        z0 += p1 * s2 - p2 * s1  # eq. 62: a_i b_i x r_i
-        z1 += p2 * s0 - p0 * s2
-        z2 += p0 * s1 - p1 * s0
+        x0, x1, x2 = cross_entries(p0, p1, p2, s0, s1, s2)  # eq. 62: a_i b_i x r_i
+        z0 += x0
+        z1 += x1
+        z2 += x2
     return B00, B01, B02, B10, B11, B12, B20, B21, B22, z0, z1, z2
 
 
@@ -261,7 +263,7 @@ def quest(body: ArrayLike, reference: ArrayLike, weights: ArrayLike | None = Non
     if not (np.isfinite(a) & (a > 0)).all():
         raise ValueError(f"weights must be finite and > 0, got {weights!r}")
     for name, v in (("body", b), ("reference", r)):
-        c = np.cross(v[:, :, None, :], v[:, None, :, :])  # largest |v_i x v_j|^2 over the pairs
+        c = cross(v[:, :, None, :], v[:, None, :, :])  # largest |v_i x v_j|^2 over the pairs
         s2 = (c * c).sum(axis=-1)
         if (s2.reshape(s2.shape[0], -1).max(axis=1) < min_sin * min_sin).any():
             raise ValueError(f"{name} directions are collinear (|sin| < {min_sin}); attitude is not observable")

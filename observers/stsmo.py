@@ -28,6 +28,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.rows import check_row_mask, write_rows
+from fawtgym.core.so3_kernels import cross_entries, gyroscopic_entries, mat_vec_entries
 
 from .gibbs import omega_row
 from .predefined_sta import check_params, switch_and_gain_times
@@ -55,22 +56,19 @@ def stsmo_row(x1, x2, t, y, u, w, J, J_inv, p, dt, x1_out, x2_out):
     # with Gamma'(g) w = g (g'.w) + g' (g.w) + g' x w and Gamma(g) v = g (g.v) + g x v + v (eq. 48)
     d2w = b0 * w0 + b1 * w1 + b2 * w2
     d1w = a0 * w0 + a1 * w1 + a2 * w2
-    gd0 = a0 * d2w + b0 * d1w + (b1 * w2 - b2 * w1)
-    gd1 = a1 * d2w + b1 * d1w + (b2 * w0 - b0 * w2)
-    gd2 = a2 * d2w + b2 * d1w + (b0 * w1 - b1 * w0)
-    jw0 = J[0, 0] * w0 + J[0, 1] * w1 + J[0, 2] * w2
-    jw1 = J[1, 0] * w0 + J[1, 1] * w1 + J[1, 2] * w2
-    jw2 = J[2, 0] * w0 + J[2, 1] * w1 + J[2, 2] * w2
-    q0 = (jw1 * w2 - jw2 * w1) + u[0] + kappa2 * n0
-    q1 = (jw2 * w0 - jw0 * w2) + u[1] + kappa2 * n1
-    q2 = (jw0 * w1 - jw1 * w0) + u[2] + kappa2 * n2
-    v0 = J_inv[0, 0] * q0 + J_inv[0, 1] * q1 + J_inv[0, 2] * q2
-    v1 = J_inv[1, 0] * q0 + J_inv[1, 1] * q1 + J_inv[1, 2] * q2
-    v2 = J_inv[2, 0] * q0 + J_inv[2, 1] * q1 + J_inv[2, 2] * q2
+    x0, x1, x2 = cross_entries(b0, b1, b2, w0, w1, w2)  # g' x w
+    gd0 = a0 * d2w + b0 * d1w + x0
+    gd1 = a1 * d2w + b1 * d1w + x1
+    gd2 = a2 * d2w + b2 * d1w + x2
+    # J w x w + u + kappa2 x1_tilde/||x1_tilde|| (summed in this order: not known_angular_acceleration_entries of the
+    # sum of the two torques, whose rounding differs), then J^-1
+    y0, y1, y2 = gyroscopic_entries(J, w0, w1, w2)
+    v0, v1, v2 = mat_vec_entries(J_inv, y0 + u[0] + kappa2 * n0, y1 + u[1] + kappa2 * n1, y2 + u[2] + kappa2 * n2)
     d1v = a0 * v0 + a1 * v1 + a2 * v2
-    xd0 = 0.5 * (gd0 + a0 * d1v + (a1 * v2 - a2 * v1) + v0)
-    xd1 = 0.5 * (gd1 + a1 * d1v + (a2 * v0 - a0 * v2) + v1)
-    xd2 = 0.5 * (gd2 + a2 * d1v + (a0 * v1 - a1 * v0) + v2)
+    x0, x1, x2 = cross_entries(a0, a1, a2, v0, v1, v2)  # g x v
+    xd0 = 0.5 * (gd0 + a0 * d1v + x0 + v0)
+    xd1 = 0.5 * (gd1 + a1 * d1v + x1 + v1)
+    xd2 = 0.5 * (gd2 + a2 * d1v + x2 + v2)
     # eq. 75 / 77 / 81: x1' = x2 + sigma, sigma = eta/(t_d - t) x1_tilde before t_s, the STA term after
     s0, s1, s2 = kappa1 * s0, kappa1 * s1, kappa1 * s2
     if conventional:

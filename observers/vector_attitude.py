@@ -31,7 +31,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.arrays import REAL_KINDS, as_array
 from fawtgym.core.measurement import EARTH_FIELD_NED
-from fawtgym.core.so3 import hat, vee
+from fawtgym.core.so3 import cross, hat, vee
+from fawtgym.core.so3_kernels import cross_entries
 
 #: floor on s^T s in the Hölder terms (eqs. 26, 28, 30): they are continuous at s = 0 but their
 #: formulas divide by powers of |s|; below this the direction is undefined and the term is ~0.
@@ -148,7 +149,7 @@ def imu_inertial_vectors(field_ned: ArrayLike = EARTH_FIELD_NED) -> NDArray[np.f
         raise ValueError(f"field_ned must be a finite non-zero 3-vector, got {field_ned!r}")
     g_i = np.array([0.0, 0.0, 1.0])
     m_i = field / np.linalg.norm(field)
-    c_i = np.cross(g_i, m_i)
+    c_i = cross(g_i, m_i)
     if np.linalg.norm(c_i) < 1e-6:
         raise ValueError(f"the Earth field {field} is parallel to gravity; no attitude from these vectors")
     return np.stack([g_i, m_i, c_i / np.linalg.norm(c_i)], axis=1)
@@ -188,7 +189,7 @@ def imu_body_vectors_row(f, m, U):
     if n < 1e-9:
         return 2
     m0, m1, m2 = m[0] / n, m[1] / n, m[2] / n
-    c0, c1, c2 = g1 * m2 - g2 * m1, g2 * m0 - g0 * m2, g0 * m1 - g1 * m0  # g_b x m_b
+    c0, c1, c2 = cross_entries(g0, g1, g2, m0, m1, m2)  # g_b x m_b
     n = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
     if n < 1e-9:
         return 3

@@ -1,14 +1,20 @@
 """The test suite's tolerance policy: when two results must agree, and how closely (docs/testing.md).
 
 1. **Same code path, run twice** (determinism, seeding, resume, pickling, a reset that must reproduce a
-   run): bitwise equality, :func:`assert_same_path` (or ``np.testing.assert_array_equal``).  The same
-   operations on the same inputs in the same process give the same bits; any difference is a bug.
+   run), and **one code path on a batch and on one of its rows**: bitwise equality,
+   :func:`assert_same_path` (or ``np.testing.assert_array_equal``).  The same operations on the same inputs
+   in the same process give the same bits; any difference is a bug.  Every law is one compiled row kernel
+   and N = 1 is a batch of one (HoverEnv is HoverBatchEnv(1), an observer of one row is the same kernel),
+   rows never interact, so row i of an N-row env, observer, wind or aero call is bitwise the one-row run with
+   that row's inputs and seeds: a batch-vs-N = 1 comparison belongs to this case, not to case 2 (a tolerance
+   there would hide a rounding-level coupling of the rows, the defect such a test is for).
 
-2. **Two implementations of one law** (a batched numpy path and an N = 1 float fast path, a vectorized
-   env and the single env, an observer batch and separate runs, a closed-form exponential and
-   ``scipy.linalg.expm``): :func:`assert_same_law`.  They round differently (the order of a sum, a fused
-   multiply-add, BLAS picking another kernel for another shape or CPU: ``OPENBLAS_CORETYPE``), so they
-   agree to a tolerance scaled by the magnitudes involved and by the number of steps, never to one ulp::
+2. **Two implementations of one law** (a compiled kernel and an independent numpy reference written in the
+   test, e.g. a per-rotor loop with ``numpy.cross`` and BLAS products; a closed-form exponential and
+   ``scipy.linalg.expm``; a quaternion and a matrix form of one rotation): :func:`assert_same_law`.  They
+   round differently (the order of a sum, a fused multiply-add, BLAS picking another kernel for another shape
+   or CPU: ``OPENBLAS_CORETYPE``), so they agree to a tolerance scaled by the magnitudes involved and by the
+   number of steps, never to one ulp::
 
        tol  = C * eps * scale * cond * sqrt(steps)     absolute
        rtol = C * eps * cond * sqrt(steps)             relative, on top: |actual - desired| <= tol + rtol |desired|
@@ -29,9 +35,9 @@
      the gain-times-step product of a high-gain loop.
 
    The tolerance must stay orders of magnitude below any real discrepancy (a missing or wrong term, a
-   step of another length, a wrong gain: 1e-4 and up, relative), so the test can still fail (the fast-path
-   tests catch a 1e-5 relative change of one HC-ESO gain, 1e-7 of an FFTS-ESO gain, 1e-9 of the GESO
-   bandwidth); and it must stay >= 30x above the measured difference on every OpenBLAS kernel
+   step of another length, a wrong gain: 1e-4 and up, relative), so the test can still fail (the former
+   N = 1 fast-path comparisons caught a 1e-5 relative change of one HC-ESO gain, 1e-7 of an FFTS-ESO gain,
+   1e-9 of the GESO bandwidth); and it must stay >= 30x above the measured difference on every OpenBLAS kernel
    (``OPENBLAS_CORETYPE=SkylakeX``, ``Haswell``, ``Prescott``).  ``cond`` is never fitted to one machine:
    it is a bound or a named constant below, with its reason.
 

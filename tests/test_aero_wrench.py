@@ -46,11 +46,19 @@ def test_matches_loop_reference_on_random_inputs(name):
     r = euler_to_rot(*rng.uniform(-0.5, 0.5, (3, n)))
     v, rate = rng.normal(0, 2, (n, 3)), rng.normal(0, 1, (n, 3))
     omega, wind = rng.uniform(100, 800, (n, 4)), rng.normal(0, 5, (n, 5, 3))
-    f, t = AeroModel(preset).wrench(r, v, rate, omega, wind)
+    model = AeroModel(preset)
+    f, t = model.wrench(r, v, rate, omega, wind)
     fr, tr = _reference(preset, r, v, rate, omega, wind)
-    # the vectorized model and the per-rotor loop: two implementations of one law (tests/_tolerance.py)
+    # the compiled kernel and the numpy per-rotor loop above (BLAS matrix products, numpy.cross, another order of
+    # the sums): two implementations of one law (tests/_tolerance.py, case 2)
     assert_same_law(f, fr, what="force")
     assert_same_law(t, tr, what="torque")
+    # N = 1 is a batch of one (one kernel, rows never interact): each row of the 7-row call is bitwise the
+    # one-row call on that row (tests/_tolerance.py, case 1)
+    for i in range(n):
+        f1, t1 = model.wrench(r[i:i + 1], v[i:i + 1], rate[i:i + 1], omega[i:i + 1], wind[i:i + 1])
+        np.testing.assert_array_equal(f[i:i + 1], f1, err_msg=f"force of row {i}")
+        np.testing.assert_array_equal(t[i:i + 1], t1, err_msg=f"torque of row {i}")
 
 
 def test_zero_wind_zero_motion_gives_zero_wrench():

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.so3_kernels import exp_so3_rows
+from fawtgym.core.so3_kernels import cross_entries_numpy, exp_so3_rows
 
 _SMALL = 1e-8
 
@@ -29,13 +29,14 @@ def hat(w: ArrayLike) -> NDArray[np.float64]:
 
 
 def cross(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
-    """``a x b`` over the last axis of (..., 3) arrays, broadcast (explicit components: much cheaper than
-    ``numpy.cross`` on small batches); the row kernels use :func:`fawtgym.core.so3_kernels.cross_row`."""
+    """``a x b`` over the last axis of (..., 3) arrays, broadcast: the one law
+    :func:`fawtgym.core.so3_kernels.cross_entries` evaluated by numpy on the component arrays (much cheaper than
+    ``numpy.cross`` on small batches, and bitwise equal to the row kernels' :func:`~fawtgym.core.so3_kernels.cross_row`
+    row by row)."""
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    out[..., 0], out[..., 1], out[..., 2] = cross_entries_numpy(a[..., 0], a[..., 1], a[..., 2],
+                                                                b[..., 0], b[..., 1], b[..., 2])
     return out
 
 

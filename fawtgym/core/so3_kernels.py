@@ -4,7 +4,12 @@ Every function here works on ONE row (a 3-vector, a 3 x 3 matrix, a (w, x, y, z)
 its result into an ``out`` array it is given (no allocation), so a kernel that loops over the rows of a
 batch calls them per row: ``for i in range(n): exp_so3_row(h * w[i], r_step[i])``.  They are compiled
 with ``@njit(cache=True)`` and inlined by numba into the kernels that call them; with
-``NUMBA_DISABLE_JIT=1`` they run as plain Python.
+``NUMBA_DISABLE_JIT=1`` they run as plain Python.  The ``*_entries`` helpers take and return scalars instead
+(``cross_entries``, ``mat_vec_entries``, the rigid-body ``gyroscopic_entries`` and
+``known_angular_acceleration_entries``, ``quat_to_rot_entries``): the laws themselves, which the ``*_row`` helpers
+and every kernel of the package call, so that e.g. the cross product is written once (a kernel that holds its
+vectors as scalars calls the ``*_entries`` form; inlined, it compiles to the same instructions as the expressions
+written out, in the same operation order, so results are bitwise those of the written-out form).
 
 The batch-first functions of :mod:`fawtgym.core.so3` and :mod:`fawtgym.core.frames` with a counterpart here
 (``exp_so3``, ``rot_to_euler``, ``quat_to_rot``, ``rot_to_quat``) call these helpers through the ``*_rows``
@@ -18,6 +23,8 @@ Z-Y-X (roll, pitch, yaw) as PX4's ``matrix::Eulerf``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -32,18 +39,59 @@ ROTATION_TOL = 1e-6
 
 
 @njit(cache=True, inline="always")
+def cross_entries(a0: float, a1: float, a2: float, b0: float, b1: float,
+                  b2: float) -> tuple[float, float, float]:
+    """a x b of a = (a0, a1, a2), b = (b0, b1, b2): THE cross-product law of the package, scalars in and out (a
+    kernel keeps them in registers; inlined, it costs what the three lines written out would).  Every cross product
+    (the row helper :func:`cross_row`, the numpy-facing :func:`fawtgym.core.so3.cross`, the kernels of ``envs`` and
+    ``observers``) is this function, so each component is ``a_j b_k - a_k b_j`` in this operand order everywhere.
+    Plain arithmetic only: it also runs on numpy arrays (componentwise) as :data:`cross_entries_numpy`."""
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+#: :func:`cross_entries` as plain Python (its ``py_func``; the function itself under ``NUMBA_DISABLE_JIT=1``), for
+#: numpy arrays of components: the same operations, elementwise (:func:`fawtgym.core.so3.cross`)
+cross_entries_numpy: Callable[..., tuple[Any, Any, Any]] = getattr(cross_entries, "py_func", cross_entries)
+
+
+@njit(cache=True, inline="always")
 def cross_row(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
-    """out = a x b (3-vectors); ``out`` must not alias ``a`` or ``b``."""
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
+    """out = a x b (3-vectors, :func:`cross_entries`); ``out`` may alias ``a`` or ``b``."""
+    out[0], out[1], out[2] = cross_entries(a[0], a[1], a[2], b[0], b[1], b[2])
+
+
+@njit(cache=True, inline="always")
+def mat_vec_entries(m: np.ndarray, v0: float, v1: float, v2: float) -> tuple[float, float, float]:
+    """M v of a 3 x 3 array M and v = (v0, v1, v2), scalars out (each entry ``m_j0 v0 + m_j1 v1 + m_j2 v2``, summed
+    left to right)."""
+    return (m[0, 0] * v0 + m[0, 1] * v1 + m[0, 2] * v2,
+            m[1, 0] * v0 + m[1, 1] * v1 + m[1, 2] * v2,
+            m[2, 0] * v0 + m[2, 1] * v1 + m[2, 2] * v2)
 
 
 @njit(cache=True, inline="always")
 def mat_vec_row(r: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
-    """out = R v (3 x 3 times a 3-vector); ``out`` must not alias ``v``."""
-    for j in range(3):
-        out[j] = r[j, 0] * v[0] + r[j, 1] * v[1] + r[j, 2] * v[2]
+    """out = R v (3 x 3 times a 3-vector, :func:`mat_vec_entries`); ``out`` may alias ``v``."""
+    out[0], out[1], out[2] = mat_vec_entries(r, v[0], v[1], v[2])
+
+
+@njit(cache=True, inline="always")
+def gyroscopic_entries(inertia: np.ndarray, w0: float, w1: float, w2: float) -> tuple[float, float, float]:
+    """(J w) x w, the gyroscopic term of Euler's rigid-body equation J w' = J w x w + tau (body frame; Wang et al.
+    (2024) eq. 38), for the inertia J (3 x 3) and the body rate w = (w0, w1, w2).  Its negative w x (J w), the
+    feedforward of a rate controller, is ``cross_entries(w, J w)`` (the same products, operands swapped)."""
+    jw0, jw1, jw2 = mat_vec_entries(inertia, w0, w1, w2)
+    return cross_entries(jw0, jw1, jw2, w0, w1, w2)
+
+
+@njit(cache=True, inline="always")
+def known_angular_acceleration_entries(inertia: np.ndarray, inertia_inv: np.ndarray, w0: float, w1: float, w2: float,
+                                       t0: float, t1: float, t2: float) -> tuple[float, float, float]:
+    """w' = J^-1 (J w x w + tau): the known part of the body-rate derivative in Wang et al. (2024) eq. 38 (Euler's
+    equation; body FRD), from J, J^-1 (3 x 3), the rate w and the torque tau = (t0, t1, t2).  The observers' models
+    (``observers._obs_common.known_angular_acceleration_row``, HC-ESO's eq. 30) are this function."""
+    g0, g1, g2 = gyroscopic_entries(inertia, w0, w1, w2)
+    return mat_vec_entries(inertia_inv, g0 + t0, g1 + t1, g2 + t2)
 
 
 @njit(cache=True, inline="always")
