@@ -21,6 +21,7 @@ subclass implements :meth:`Observer._reset`, which builds the fresh state of the
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Iterator, Mapping
 from operator import itemgetter
 from typing import Any, ClassVar
@@ -416,6 +417,9 @@ def fast_inputs(measurement: object, shapes: tuple[tuple[str, tuple[int, ...], i
 
 
 
+#: the smallest positive float (a subnormal): as an inclusive lower bound of dt it means dt > 0
+SMALLEST_DT = math.ulp(0.0)
+
 #: the largest gravitational acceleration an observer accepts [m/s^2] (ten times Jupiter's 24.8): a larger one is a
 #: typo, and the divergence bound MAX_FORCE_WEIGHTS m g would grow with it
 MAX_GRAVITY = 250.0
@@ -438,19 +442,31 @@ def _inertia_matrix(inertia: object, who: str) -> NDArray[np.float64]:
     return j
 
 
-def check_dt(dt: object, max_dt: float, who: str) -> float:
-    """``dt`` as a float in (0, ``max_dt``]: TypeError unless a real number (bool, str, None, complex refused),
-    ValueError naming it if not finite, <= 0 or above ``max_dt``."""
+def check_dt(dt: object, max_dt: float, who: str, min_dt: float = SMALLEST_DT, why_min: str = "") -> float:
+    """``dt`` as a float in [``min_dt``, ``max_dt``]: TypeError unless a real number (bool, str, None, complex refused),
+    ValueError naming it if not finite (an int beyond float range too), below ``min_dt`` or above ``max_dt``.
+
+    ``min_dt``: the shortest step the law takes (:attr:`Observer.min_dt`); the default, the smallest positive float,
+    makes the range (0, ``max_dt``].  ``why_min``: why a larger ``min_dt`` (:attr:`Observer.min_dt_reason`), named in
+    the message."""
+    shown = None
     if type(dt) is not float:
         real = isinstance(dt, (int, float, np.integer, np.floating)) and not isinstance(dt, (bool, np.bool_))
         if not real and isinstance(dt, np.ndarray) and dt.ndim == 0 and dt.dtype.kind in REAL_KINDS:
             real = True
         if not real:
             raise TypeError(f"{who}: dt must be a real number of seconds, got {dt!r} ({type(dt).__name__})")
-        dt = float(dt)  # type: ignore[arg-type]
-    if not (0.0 < dt <= max_dt):         # NaN fails too
-        raise ValueError(f"{who}: dt must be a finite number of seconds in (0, {max_dt:g}] (max_dt, the bound of "
-                         f"its discretisation), got {dt!r}")
+        try:
+            dt = float(dt)  # type: ignore[arg-type]
+        except OverflowError:   # an int beyond float range: named as given
+            shown, dt = dt, math.inf
+    if not (min_dt <= dt <= max_dt):         # NaN fails too
+        got = repr(dt if shown is None else shown)
+        if min_dt <= SMALLEST_DT:
+            raise ValueError(f"{who}: dt must be a finite number of seconds in (0, {max_dt:g}] (max_dt, the bound of "
+                             f"its discretisation), got {got}")
+        raise ValueError(f"{who}: dt must be a finite number of seconds in [{min_dt:g}, {max_dt:g}] (min_dt: "
+                         f"{why_min}; max_dt, the bound of its discretisation), got {got}")
     return dt
 
 

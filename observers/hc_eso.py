@@ -66,9 +66,14 @@ class HcEsoGains:
 
     def __post_init__(self) -> None:
         number = (int, float, np.integer, np.floating)
-        if (isinstance(self.gamma, bool) or not isinstance(self.gamma, number) or not float(self.gamma).is_integer()
-                or self.gamma < 1):
-            raise ValueError(f"gamma must be a positive integer (Prop. 3), got {self.gamma!r}")
+        is_number = isinstance(self.gamma, number) and not isinstance(self.gamma, (bool, np.bool_))
+        try:
+            g = float(self.gamma) if is_number else math.nan
+        except OverflowError:   # an int beyond float range
+            g = math.inf
+        if not (math.isfinite(g) and g.is_integer() and g >= 1):
+            raise ValueError(f"hc_eso: gamma must be a positive integer (Prop. 3), finite as a float, got "
+                             f"{self.gamma!r}")
         if isinstance(self.alpha, bool) or not isinstance(self.alpha, number) or not (0.5 < self.alpha < 1.0):
             raise ValueError(f"alpha must satisfy 1/2 < alpha < 1 (Prop. 3), got {self.alpha!r}")
         if self.gamma - 3.0 * self.alpha + 1.0 < 0:
