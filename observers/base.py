@@ -45,6 +45,13 @@ from fawtgym.observers._checks import (
     first_nonfinite_row,
 )
 
+#: the smallest positive float (a subnormal): as an inclusive lower bound of dt it means dt > 0
+SMALLEST_DT = math.ulp(0.0)
+
+#: the shortest update step [s] of a law that divides by dt (a finite difference, a first-order hold): below it the
+#: quotient overflows or swamps the estimate (a subnormal dt gives inf); no env or flight log steps faster than 1 ns
+DIVIDING_MIN_DT = 1e-9
+
 
 @dataclasses.dataclass
 class ObserverEstimate:
@@ -128,6 +135,12 @@ class Observer:
     #: own, derived from its design rate / the stability of its discretisation (an instance may set a bound
     #: that depends on its gains).  The base value, 0.1 s, is a fallback for an observer that states none.
     max_dt: float = 0.1
+    #: the shortest update step dt [s] (inclusive).  The default, the smallest positive float, accepts every dt > 0;
+    #: an observer whose law divides by dt states :data:`DIVIDING_MIN_DT` and the reason (:attr:`min_dt_reason`,
+    #: named in the dt error)
+    min_dt: float = SMALLEST_DT
+    #: why :attr:`min_dt` (a few words, e.g. "the finite difference divides by dt"); empty for the default
+    min_dt_reason: str = ""
     #: an estimated force component above this many vehicle weights (m g) counts as divergence
     MAX_FORCE_WEIGHTS: ClassVar[float] = 1e3
     #: an estimated torque component above this angular acceleration [rad/s^2] times the largest principal
@@ -261,12 +274,14 @@ class Observer:
 
         ``measurement``: mapping with the keys :attr:`required_keys` (shapes of :mod:`fawtgym.core.measurement`,
         N rows, N the batch of the last full reset; unbatched at N = 1); ``thrust``: a number or (N,) [N];
-        ``torque``: (3,) or (N, 3) [N m]; ``dt``: a real number of seconds in (0, :attr:`max_dt`].
+        ``torque``: (3,) or (N, 3) [N m]; ``dt``: a real number of seconds in [:attr:`min_dt`, :attr:`max_dt`]
+        (any dt > 0 up to max_dt unless the law divides by dt).
 
         The checks, in this order, each a one-line error naming the value, the same type and text at every N
         (sizes are named as ``N = <n>``): update before reset -> RuntimeError; ``dt`` not a real number (bool,
-        str, None, complex) -> TypeError, not finite, <= 0 or > ``max_dt`` -> ValueError; measurement not a
-        mapping or a value not real -> TypeError; a key missing, a wrong shape or row count, a non-finite
+        str, None, complex) -> TypeError, not finite (an int beyond float range too), below ``min_dt`` (<= 0 by
+        default) or above ``max_dt`` -> ValueError; measurement not a mapping or a value not real -> TypeError; a
+        key missing, a wrong shape or row count, a non-finite
         entry, an attitude that is not a rotation (orthonormal within :data:`ROTATION_TOL`, det +1) ->
         ValueError; thrust/torque the same.  Then the law (:meth:`_update`); an estimate that is not finite
         or absurdly large (a force component above :attr:`MAX_FORCE_WEIGHTS` vehicle weights, a torque
@@ -287,7 +302,7 @@ class Observer:
         """
         n = self._n_rows
         meas = None
-        if n is not None and type(dt) is float and 0.0 < dt <= self.max_dt:
+        if n is not None and type(dt) is float and self.min_dt <= dt <= self.max_dt:
             if self._checked_path:
                 est = self._update_checked(measurement, thrust, torque, dt, n)
                 if est is not None:  # the law's kernel checked its inputs and its estimate (one compiled call)
@@ -311,7 +326,7 @@ class Observer:
         if meas is None:        # the Python checks: they convert the inputs or word the error
             if n is None:
                 raise RuntimeError(f"{who}: update() before reset(); call reset(measurement) first")
-            dt = check_dt(dt, self.max_dt, who)
+            dt = check_dt(dt, self.max_dt, who, self.min_dt, self.min_dt_reason)
             meas = check_measurement(measurement, self.required_keys, n, who)
             thrust, torque = check_inputs(thrust, torque, n, who)
         est, state = self._update(meas, thrust, torque, dt)  # type: ignore[arg-type]
@@ -325,8 +340,8 @@ class Observer:
         the current state's arrays): :meth:`update` stores it with :meth:`_commit` once the estimate passed.
 
         ``meas``: the keys of :attr:`required_keys` (only those), checked, as float64 arrays with N rows;
-        ``thrust`` (N,), ``torque`` (N, 3) float64, finite; ``dt`` a float
-        in (0, :attr:`max_dt`].  The estimate's arrays must not be views of state the next update writes into.
+        ``thrust`` (N,), ``torque`` (N, 3) float64, finite; ``dt`` a float in [:attr:`min_dt`, :attr:`max_dt`].
+        The estimate's arrays must not be views of state the next update writes into.
         """
         raise NotImplementedError(f"{type(self).__name__} must implement _update (or override update)")
 
@@ -416,9 +431,6 @@ def fast_inputs(measurement: object, shapes: tuple[tuple[str, tuple[int, ...], i
     return out
 
 
-
-#: the smallest positive float (a subnormal): as an inclusive lower bound of dt it means dt > 0
-SMALLEST_DT = math.ulp(0.0)
 
 #: the largest gravitational acceleration an observer accepts [m/s^2] (ten times Jupiter's 24.8): a larger one is a
 #: typo, and the divergence bound MAX_FORCE_WEIGHTS m g would grow with it

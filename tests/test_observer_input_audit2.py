@@ -67,7 +67,15 @@ def _norm(text: str) -> str:
 
 
 # ---- A4: dt beyond float range ------------------------------------------------------------------------------------
+#: the observers whose law divides by dt, and why (the floor of A5)
+FLOORED = {"fxtsdo": "the finite difference of the velocities divides by dt",
+           "qb": "the first-order hold divides by dt"}
+
+
 def _dt_message(obs: Observer, got: str) -> str:
+    if obs.name in FLOORED:
+        return (f"{obs.name}: dt must be a finite number of seconds in [1e-09, {obs.max_dt:g}] (min_dt: "
+                f"{FLOORED[obs.name]}; max_dt, the bound of its discretisation), got {got}")
     return (f"{obs.name}: dt must be a finite number of seconds in (0, {obs.max_dt:g}] (max_dt, the bound of its "
             f"discretisation), got {got}")
 
@@ -89,3 +97,47 @@ def test_hc_eso_gamma_beyond_float_range_is_the_gamma_error(gamma: object) -> No
     assert str(info.value) == (f"hc_eso: gamma must be a positive integer (Prop. 3), finite as a float, got "
                                f"{gamma!r}")
     assert _make("hc_eso", gamma=3).gains.gamma == 3
+
+
+# ---- A5: a dt floor for the laws that divide by dt ----------------------------------------------------------------
+def _stepped(name: str, n: int, dt: float) -> np.ndarray:
+    """The estimate (force, torque) of one update by ``dt`` after a reset, the velocities 1 cm/s and 0.01 rad/s off the
+    reset's (the audit's scripts/repro_fxtsdo_dt.py, for every observer and key)."""
+    obs = _make(name)
+    meas = _measurement(n)
+    obs.reset(meas)
+    moved = {k: v + (0.01 if v.ndim == 2 else 0.0) for k, v in meas.items()}
+    est = obs.update(moved, *_inputs(n), dt)
+    return np.concatenate([est.force, est.torque], axis=1)
+
+
+@pytest.mark.parametrize("name", sorted(FLOORED))
+@pytest.mark.parametrize("n", [1, 3])
+@pytest.mark.parametrize("dt", [float(np.nextafter(1e-9, 0.0)), 1e-12, 1e-300, 5e-324])
+def test_a_dt_below_the_floor_of_a_dividing_law_is_the_dt_error(name: str, n: int, dt: float) -> None:
+    """A5: fxtsdo's finite difference divides by dt; a tiny dt was accepted and its estimate (growing like dt^-1/2)
+    reported as divergence, inf at a subnormal dt.  Now refused with the dt message naming min_dt (as qb's)."""
+    text = _refused(name, n, lambda o: o.update(_measurement(n), *_inputs(n), dt), ValueError)
+    assert text == _dt_message(_make(name), repr(dt))
+    assert _make(name).min_dt == 1e-9
+    assert np.isfinite(_stepped(name, n, 1e-9)).all()      # the floor itself is accepted
+
+
+@pytest.mark.parametrize("name", [n for n in NAMES if n not in FLOORED])
+def test_the_laws_that_do_not_divide_by_dt_take_any_positive_dt(name: str) -> None:
+    """The other observers integrate with dt as a factor (Euler steps, expm of F dt, substeps of dt): a subnormal dt
+    changes their state by (almost) nothing, so they keep the range (0, max_dt]."""
+    assert _make(name).min_dt == 5e-324
+    for dt in (1e-9, 1e-300, 5e-324):
+        est = _stepped(name, 3, dt)
+        np.testing.assert_allclose(est, _stepped(name, 3, 1e-15), rtol=0, atol=1e-6)
+
+
+def test_fxtsdo_gains_whose_max_dt_is_below_the_floor_keep_max_dt() -> None:
+    """k2 = 1e6, a2 = 3.5 (the largest accepted) gives max_dt = 6e-12 s < 1 ns: min_dt = max_dt, that step runs."""
+    obs = _make("fxtsdo", k2=1e6, a2=3.5)
+    assert obs.min_dt == obs.max_dt < 1e-9
+    obs.reset(_measurement(1))
+    obs.update(_measurement(1), *_inputs(1), obs.max_dt)
+    with pytest.raises(ValueError, match=re.escape(f"in [{obs.max_dt:g}, {obs.max_dt:g}] (min_dt: ")):
+        obs.update(_measurement(1), *_inputs(1), obs.max_dt / 2)
