@@ -197,7 +197,8 @@ class Observer:
         Raises ValueError (one line; the same text at every N apart from the sizes it names, and for every
         observer) when ``rows`` is given before any full reset, is not a bool array of shape (N,), or
         ``measurement`` does not hold N rows, or a guess is not real numbers (bool, complex, str refused) of
-        shape (3,) or (N, 3), all finite (:func:`check_guess`); the state is then unchanged.  ``options`` are
+        shape (3,) or (N, 3), all finite and within its channel's divergence bound (:meth:`estimate_bounds`: a
+        larger guess would make every later update raise) (:func:`check_guess`); the state is then unchanged.  ``options`` are
         the observer-specific reset options of :attr:`reset_options` (e.g. ``thrust`` of the QB observer:
         a number or one per row, checked the same way); any other keyword -> TypeError naming it and the
         allowed ones, the same text for every observer.
@@ -212,8 +213,7 @@ class Observer:
             n = self._rows_of(measurement)
             if self.required_keys:
                 meas = check_measurement(measurement, self.required_keys, n, who)
-            force = check_guess(force, n, "force guess", (3,), who)
-            torque = check_guess(torque, n, "torque guess", (3,), who)
+            force, torque = self._check_guesses(force, torque, n, who)
             options = {k: check_guess(v, n, k, allowed[k], who) for k, v in options.items()}
             self._n_rows = self._reset(meas, force, torque, None, **options)
             return
@@ -227,8 +227,9 @@ class Observer:
             if key in TRAILING_SHAPES and value.shape[0] != n:
                 raise ValueError(f"{who}: reset(rows=mask) needs the measurement of all {n} rows of the batch (the "
                                  f"mask selects among them); measurement[{key!r}] has {value.shape[0]} rows")
-        force_rows = _masked(check_guess(force, n, "force guess", (3,), who), mask, 1)
-        torque_rows = _masked(check_guess(torque, n, "torque guess", (3,), who), mask, 1)
+        force_checked, torque_checked = self._check_guesses(force, torque, n, who)
+        force_rows = _masked(force_checked, mask, 1)
+        torque_rows = _masked(torque_checked, mask, 1)
         option_rows = {k: _masked(check_guess(v, n, k, allowed[k], who), mask, len(allowed[k]))
                        for k, v in options.items()}
         if not mask.any():
@@ -240,6 +241,17 @@ class Observer:
         if self.required_keys:
             sub = check_measurement(sub, self.required_keys, int(mask.sum()), who)
         self._reset(sub, force_rows, torque_rows, mask, **option_rows)
+
+    def _check_guesses(self, force: ArrayLike | None, torque: ArrayLike | None, n: int,
+                       who: str) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
+        """The reset's force and torque guesses checked by :func:`check_guess`, each within its channel's divergence
+        bound (:meth:`estimate_bounds`): a larger guess would make every later update raise (the estimate is refused
+        and the state kept), so it is refused here, naming the bound."""
+        force_bound, torque_bound = self.estimate_bounds()
+        weights = f"{self.MAX_FORCE_WEIGHTS:g} vehicle weights m g"
+        inertia = f"{self.MAX_ANGULAR_ACCELERATION:g} rad/s^2 times the largest principal inertia"
+        return (check_guess(force, n, "force guess", (3,), who, bound=(force_bound, "N", weights)),
+                check_guess(torque, n, "torque guess", (3,), who, bound=(torque_bound, "N m", inertia)))
 
     def _rows_of(self, measurement: Mapping[str, ArrayLike]) -> int:
         """The batch size of a full reset's measurement: the rows of its first required key (of its first known key
@@ -593,14 +605,15 @@ def check_inputs(thrust: ArrayLike, torque: ArrayLike, n: int,
     return f, tau
 
 
-def check_guess(guess: ArrayLike | None, n: int, label: str, trailing: tuple[int, ...],
-                who: str) -> NDArray[np.float64] | None:
+def check_guess(guess: ArrayLike | None, n: int, label: str, trailing: tuple[int, ...], who: str,
+                bound: tuple[float, str, str] | None = None) -> NDArray[np.float64] | None:
     """A reset's initial guess (``force``, ``torque``: trailing (3,); an option such as qb's ``thrust``: ()) as a
     float64 array of shape ``trailing`` (every row) or (n, *trailing) (one per row); None stays None.
 
     One-line ValueError, the same text for every observer and N (sizes named as ``N = <n>``), naming the argument
     and the allowed shapes unless it holds real numbers (bool, complex, str refused) of one of those shapes, all
-    finite."""
+    finite; with ``bound`` = (b, its unit, what it is), also naming the bound unless every component is at most b in
+    magnitude (the first offending value: the guess (every row), or its row of a per-row guess)."""
     if guess is None:
         return None
     rows = f"({', '.join(('N', *map(str, trailing)))}{',' if not trailing else ''}) with N = {n} (one per row)"
@@ -616,6 +629,18 @@ def check_guess(guess: ArrayLike | None, n: int, label: str, trailing: tuple[int
     if not np.all(np.isfinite(g)):
         raise ValueError(f"{who}: reset {label} must be {allowed}, got a non-finite entry: "
                          f"{float(g.reshape(-1)[~np.isfinite(g.reshape(-1))][0])!r}")
+    if bound is not None:
+        limit, unit, meaning = bound
+        large = np.abs(g) > limit
+        if large.any():
+            if g.shape == trailing:
+                got = f"{g.tolist()}"
+            else:
+                row = int(np.argmax(large.reshape(n, -1).any(axis=1)))
+                got = f"row {row}: {g[row].tolist()}"
+            raise ValueError(f"{who}: reset {label} must be within the divergence bound of the estimate, "
+                             f"|component| <= {limit:.10g} {unit} ({meaning}; an update refuses a larger estimate), "
+                             f"got {got}")
     return g
 
 

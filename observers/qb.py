@@ -55,6 +55,7 @@ from fawtgym.core import measurement as M
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import write_rows
 
+from ._checks import first_bad_wrench
 from .base import DIVIDING_MIN_DT, BufferStates, Observer, ObserverEstimate, register_observer
 from .qb_uav_model import momentum_input_row, momentum_output, momentum_output_row
 
@@ -310,8 +311,27 @@ class QBObserver(Observer):
             x[:, 9:12] = np.einsum("nij,nj->ni", R, np.broadcast_to(torque, (n_b, 3)))
         if not np.all(np.isfinite(x)):
             raise ValueError("qb: reset: the initial state is not finite (check the measurement and the guesses)")
+        self._check_initial_estimate(x, np.ascontiguousarray(R), rows)
         self._x, self._y, self._R = write_rows((self._x, self._y, self._R), (x, y, np.ascontiguousarray(R)), rows)
         return n_b
+
+    def _check_initial_estimate(self, x: NDArray[np.float64], R: NDArray[np.float64],
+                                rows: NDArray[np.bool_] | None) -> None:
+        """ValueError (before anything is stored) if the estimate of a fresh state ``x`` of the rows reset is beyond the
+        divergence bound (:meth:`Observer.estimate_bounds`): without a force guess the initial force comes from the
+        accelerometer and ``thrust``, so a finite but absurd thrust would make every later update raise."""
+        out = np.empty(x.shape)
+        _estimate_rows(x, R, self.mass, self._J_inv, out)
+        bounds = self.estimate_bounds()
+        code = first_bad_wrench(out[:, 0:3], out[:, 3:6], *bounds)
+        if code >= 0:
+            row, channel = code // 2, code % 2
+            batch_row = row if rows is None else int(np.flatnonzero(rows)[row])
+            value = out[row, 3 * channel:3 * channel + 3].tolist()
+            raise ValueError(f"qb: reset: the initial {('force', 'torque')[channel]} estimate is beyond the divergence "
+                             f"bound of the estimate (row {batch_row}: {value}; "
+                             f"allowed: |component| <= {bounds[channel]:.10g}; an update refuses a larger estimate): "
+                             "check the measurement and thrust")
 
     def _update(self, meas: dict[str, NDArray[np.float64]], thrust: NDArray[np.float64],
                 torque: NDArray[np.float64], dt: float) -> tuple[ObserverEstimate, Any]:

@@ -141,3 +141,70 @@ def test_fxtsdo_gains_whose_max_dt_is_below_the_floor_keep_max_dt() -> None:
     obs.update(_measurement(1), *_inputs(1), obs.max_dt)
     with pytest.raises(ValueError, match=re.escape(f"in [{obs.max_dt:g}, {obs.max_dt:g}] (min_dt: ")):
         obs.update(_measurement(1), *_inputs(1), obs.max_dt / 2)
+
+
+# ---- A6: reset guesses beyond the divergence bound ----------------------------------------------------------------
+def _guess_message(obs: Observer, label: str, got: str) -> str:
+    force_bound, torque_bound = obs.estimate_bounds()
+    if label == "force":
+        bound, unit, meaning = force_bound, "N", "1000 vehicle weights m g"
+    else:
+        bound, unit, meaning = torque_bound, "N m", "100000 rad/s^2 times the largest principal inertia"
+    return (f"{obs.name}: reset {label} guess must be within the divergence bound of the estimate, "
+            f"|component| <= {bound:.10g} {unit} ({meaning}; an update refuses a larger estimate), got {got}")
+
+
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("n", [1, 3])
+@pytest.mark.parametrize("label", ["force", "torque"])
+@pytest.mark.parametrize("per_row", [False, True], ids=["every-row", "per-row"])
+@pytest.mark.parametrize("masked", [False, True], ids=["full", "rows-mask"])
+def test_a_guess_beyond_the_divergence_bound_is_refused_at_reset(name: str, n: int, label: str, per_row: bool,
+                                                                 masked: bool) -> None:
+    """A6: reset(force=[1e300, 0, 0]) was accepted and every later update raised 'the force estimate diverged'.  Now
+    the reset is refused naming the bound (the same for a per-row reset) and the state is the one before it."""
+    obs = _make(name)
+    bound = obs.estimate_bounds()[label == "torque"]
+    big = float(np.nextafter(bound, np.inf))
+    guess = np.zeros((n, 3)) if per_row else np.zeros(3)
+    (guess[n - 1] if per_row else guess)[1] = -big
+    kwargs = {label: guess, "rows": np.ones(n, bool) if masked else None}
+    text = _refused(name, n, lambda o: o.reset(_measurement(n), **kwargs), ValueError)
+    got = f"row {n - 1}: {[0.0, -big, 0.0]}" if per_row else f"{[0.0, -big, 0.0]}"
+    assert text == _guess_message(obs, label, got)
+    if per_row:
+        assert text.endswith(f"got row {n - 1}: [0.0, {-big!r}, 0.0]")
+    ok = _make(name)            # just below the bound a guess is accepted (qb rotates the torque: a rounding above)
+    ok.reset(_measurement(n), **{label: [0.0, bound * (1 - 1e-12), 0.0]})
+    ok.reset(_measurement(n), **{label: np.full((n, 3), -bound / 2)})
+
+
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("label", ["force", "torque"])
+def test_the_guess_bound_error_is_the_same_text_at_every_n(name: str, label: str) -> None:
+    texts = set()
+    for n in (1, 3):
+        with pytest.raises(ValueError) as info:
+            obs = _make(name)
+            obs.reset(_measurement(n), **{label: [1e300, 0.0, 0.0]})
+        texts.add(_norm(str(info.value)))
+    assert len(texts) == 1
+    assert texts.pop() == _guess_message(_make(name), label, "[1e+300, 0.0, 0.0]")
+
+
+@pytest.mark.parametrize("n", [1, 3])
+@pytest.mark.parametrize("masked", [False, True], ids=["full", "rows-mask"])
+def test_qb_refuses_a_thrust_whose_initial_force_is_beyond_the_bound(n: int, masked: bool) -> None:
+    """qb without a force guess starts its force from the accelerometer and the reset's ``thrust``: thrust = 1e9 N was
+    accepted, then every update raised 'the force estimate diverged'.  Refused at reset (naming the batch's row)."""
+    thrust = np.full(n, MASS * 9.81)
+    thrust[n - 1] = 1e9
+    kwargs = {"thrust": thrust, "rows": np.ones(n, bool) if masked else None}
+    if masked and n == 3:
+        kwargs["rows"] = np.array([False, True, True])
+    text = _refused("qb", n, lambda o: o.reset(_measurement(n), **kwargs), ValueError)
+    bound = _make("qb").estimate_bounds()[0]
+    assert text.startswith(f"qb: reset: the initial force estimate is beyond the divergence bound of the estimate "
+                           f"(row {n - 1}: [")
+    assert text.endswith(f"allowed: |component| <= {bound:.10g}; an update refuses a larger estimate): check the "
+                         "measurement and thrust")
