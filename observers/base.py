@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.arrays import REAL_KINDS, as_array
-from fawtgym.core.checks import check_positive
+from fawtgym.core.checks import check_number
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.kernel_types import TYPED_DISPATCH, compile_only
 from fawtgym.core.measurement import ATTITUDE, TRAILING_SHAPES, batch_measurement
@@ -165,13 +165,20 @@ class Observer:
             getattr(cls, hook) is getattr(owner, hook) for hook in ("_update", "_check_estimate", "_commit"))
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = GRAVITY) -> None:
-        """``mass`` [kg] and ``gravity`` [m/s^2]: real, finite, > 0 (``gravity`` at most :data:`MAX_GRAVITY`);
-        ``inertia`` [kg m^2]: a symmetric-part positive-definite 3x3 matrix of real numbers, or its 3 diagonal
-        entries.  Else one-line ValueError naming the argument and what is allowed."""
+        """``mass`` [kg]: a real number in :data:`MASS_RANGE`; ``gravity`` [m/s^2]: a real number in
+        [:data:`MIN_GRAVITY`, :data:`MAX_GRAVITY`]; ``inertia`` [kg m^2]: a symmetric-part positive-definite 3x3 matrix
+        of real numbers, or its 3 diagonal entries, each principal moment a body of this mass can have (radius of
+        gyration in :data:`RADIUS_OF_GYRATION`).  Else one-line ValueError naming the argument and what is allowed.
+
+        The bounds are physical, far outside any multicopter, and keep the laws in float range: the divergence bounds
+        (:meth:`estimate_bounds`) scale with m g and the inertia, so a subnormal gravity or inertia (accepted as > 0
+        before) made every update of a hovering vehicle "diverge"."""
         who = self.name or type(self).__name__
-        self.mass = check_positive(mass, f"{who}: mass", note="kg")
-        self.gravity = check_positive(gravity, f"{who}: gravity", maximum=MAX_GRAVITY, note="m/s^2")
-        j = _inertia_matrix(inertia, who)
+        self.mass = check_number(mass, f"{who}: mass", minimum=MASS_RANGE[0], maximum=MASS_RANGE[1],
+                                 inclusive_minimum=True, note="kg")
+        self.gravity = check_number(gravity, f"{who}: gravity", minimum=MIN_GRAVITY, maximum=MAX_GRAVITY,
+                                    inclusive_minimum=True, note="m/s^2")
+        j = _inertia_matrix(inertia, who, self.mass)
         self.inertia = j
         self.inertia_inv = np.linalg.inv(j)
         self._j_max = float(np.linalg.eigvalsh((j + j.T) / 2).max())
@@ -198,9 +205,9 @@ class Observer:
         observer) when ``rows`` is given before any full reset, is not a bool array of shape (N,), or
         ``measurement`` does not hold N rows, or a guess is not real numbers (bool, complex, str refused) of
         shape (3,) or (N, 3), all finite and within its channel's divergence bound (:meth:`estimate_bounds`: a
-        larger guess would make every later update raise) (:func:`check_guess`); the state is then unchanged.  ``options`` are
-        the observer-specific reset options of :attr:`reset_options` (e.g. ``thrust`` of the QB observer:
-        a number or one per row, checked the same way); any other keyword -> TypeError naming it and the
+        larger guess would make every later update raise) (:func:`check_guess`); the state is then unchanged.
+        ``options`` are the observer-specific reset options of :attr:`reset_options` (e.g. ``thrust`` of the QB
+        observer: a number or one per row, checked the same way); any other keyword -> TypeError naming it and the
         allowed ones, the same text for every observer.
         """
         who = self.name or type(self).__name__
@@ -447,12 +454,21 @@ def fast_inputs(measurement: object, shapes: tuple[tuple[str, tuple[int, ...], i
 #: the largest gravitational acceleration an observer accepts [m/s^2] (ten times Jupiter's 24.8): a larger one is a
 #: typo, and the divergence bound MAX_FORCE_WEIGHTS m g would grow with it
 MAX_GRAVITY = 250.0
+#: the smallest [m/s^2] (a third of Ceres' 0.28; Titan's is 1.35): the divergence bound MAX_FORCE_WEIGHTS m g shrinks
+#: with it, and at 1e-300 every update of a vehicle in Earth gravity "diverged"
+MIN_GRAVITY = 0.1
+#: the vehicle masses an observer accepts [kg], 0.1 g to 10 t (a subnormal or 1e300 mass made qb's every update diverge)
+MASS_RANGE = (1e-4, 1e4)
+#: the radius of gyration sqrt(principal moment / mass) [m] of each principal axis, 1 mm to 100 m (a multicopter's is
+#: a few cm to a few m): a subnormal inertia gave an infinite inverse, and qb's momentum estimate mixes the force into
+#: the torque at a far smaller radius (every update "diverged" at 0.1 mm)
+RADIUS_OF_GYRATION = (1e-3, 1e2)
 
 
-def _inertia_matrix(inertia: object, who: str) -> NDArray[np.float64]:
+def _inertia_matrix(inertia: object, who: str, mass: float) -> NDArray[np.float64]:
     """``inertia`` as a float64 (3, 3) (3 entries: the diagonal); ValueError naming it unless it holds real
-    numbers (bool, complex, str refused), has one of those shapes, is finite and its symmetric part is positive
-    definite."""
+    numbers (bool, complex, str refused), has one of those shapes, is finite, its symmetric part is positive
+    definite and each principal moment's radius of gyration sqrt(moment / ``mass``) is in :data:`RADIUS_OF_GYRATION`."""
     allowed = "a 3x3 matrix or 3 diagonal entries of finite real numbers [kg m^2], positive definite"
     j = as_array(inertia)
     if j.dtype.kind not in REAL_KINDS:
@@ -461,8 +477,17 @@ def _inertia_matrix(inertia: object, who: str) -> NDArray[np.float64]:
     j = np.diag(j) if j.shape == (3,) else j
     if j.shape != (3, 3) or not np.all(np.isfinite(j)):
         raise ValueError(f"{who}: inertia must be {allowed}, got {inertia!r}")
-    if np.linalg.eigvalsh((j + j.T) / 2).min() <= 0:
+    moments = np.linalg.eigvalsh((j + j.T) / 2)
+    if moments.min() <= 0:
         raise ValueError(f"{who}: inertia must be {allowed}, got {inertia!r} (not positive definite)")
+    low, high = RADIUS_OF_GYRATION
+    radii = np.sqrt(moments / mass)
+    outside = (radii < low) | (radii > high)
+    if outside.any():
+        k = int(np.argmax(outside))
+        raise ValueError(f"{who}: inertia must be {allowed}, with every radius of gyration sqrt(principal moment / "
+                         f"mass) in [{low:g}, {high:g}] m, got {inertia!r} (principal moment {moments[k]:.4g} kg m^2, "
+                         f"mass {mass:g} kg: radius {radii[k]:.4g} m)")
     return j
 
 

@@ -21,10 +21,10 @@ NAMES = observer_names()
 DT = 2e-3
 
 
-def _make(name: str, **kwargs: object) -> Observer:
+def _make(name: str, mass: float = MASS, inertia: object = J, **kwargs: object) -> Observer:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")     # qb: the shipped gain was designed for another mass
-        return make_observer(name, MASS, J, **kwargs)
+        return make_observer(name, mass, inertia, **kwargs)
 
 
 def _measurement(n: int, seed: int = 1) -> dict[str, np.ndarray]:
@@ -208,3 +208,56 @@ def test_qb_refuses_a_thrust_whose_initial_force_is_beyond_the_bound(n: int, mas
                            f"(row {n - 1}: [")
     assert text.endswith(f"allowed: |component| <= {bound:.10g}; an update refuses a larger estimate): check the "
                          "measurement and thrust")
+
+
+# ---- audit item 9 (observers): tiny or huge finite mass, gravity, inertia -----------------------------------------
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("mass", [5e-324, 1e-300, 9.99e-5, 1.0001e4, 1e300])
+def test_a_mass_outside_the_physical_range_is_refused(name: str, mass: float) -> None:
+    """qb accepted mass 1e-300 / 1e300 and then every update 'diverged'; every observer accepted a subnormal mass."""
+    with pytest.raises(ValueError) as info:
+        _make(name, mass=mass, inertia=np.full(3, 1e-6))
+    assert str(info.value) == f"{name}: mass must be a finite real number in [0.0001, 10000] kg, got {mass!r} (float)"
+
+
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("gravity", [5e-324, 1e-300, 0.0999])
+def test_a_gravity_below_the_physical_range_is_refused(name: str, gravity: float) -> None:
+    """gravity 1e-300 was accepted: the divergence bound 1e3 m g became 1e-297 N and every update of ffts_eso, fxtsdo,
+    geso, leso, qb and sto 'diverged'; pdt_sta's reset raised numpy's LinAlgError."""
+    with pytest.raises(ValueError) as info:
+        _make(name, gravity=gravity)
+    assert str(info.value) == (f"{name}: gravity must be a finite real number in [0.1, 250] m/s^2, got {gravity!r} "
+                               "(float)")
+
+
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("inertia,moment", [((5e-324,) * 3, 5e-324), ((1e-300, 0.03, 0.05), 1e-300),
+                                            ((0.03, 0.03, 1e300), 1e300), ((1.4e-6, 0.03, 0.05), 1.4e-6)])
+def test_an_inertia_no_body_of_the_mass_can_have_is_refused(name: str, inertia: tuple, moment: float) -> None:
+    """A subnormal inertia was accepted (its inverse is inf: every update 'diverged' in 7 of 8 observers), qb's every
+    update diverged at 1e300.  Each principal moment must have a radius of gyration in [1 mm, 100 m]."""
+    radius = (moment / MASS) ** 0.5
+    assert not 1e-3 <= radius <= 1e2
+    with pytest.raises(ValueError) as info:
+        _make(name, inertia=inertia)
+    assert str(info.value) == (f"{name}: inertia must be a 3x3 matrix or 3 diagonal entries of finite real numbers "
+                               f"[kg m^2], positive definite, with every radius of gyration sqrt(principal moment / "
+                               f"mass) in [0.001, 100] m, got {inertia!r} (principal moment {moment:.4g} kg m^2, mass "
+                               f"1.5 kg: radius {radius:.4g} m)")
+
+
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("mass,radius,gravity", [(1e-4, 1e-3, 9.80665), (1e-4, 1e2, 9.80665), (1e4, 1e-3, 9.80665),
+                                                 (1e4, 1e2, 9.80665), (1.5, 0.15, 0.1)])
+def test_the_range_limits_are_accepted_and_fly(name: str, mass: float, radius: float, gravity: float) -> None:
+    """At the limits of the ranges every observer runs 20 updates of a hovering vehicle (Earth-gravity measurement)
+    without a divergence (the radius a little inside its range: eigvalsh rounds)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        obs = make_observer(name, mass, np.full(3, mass * radius**2 * (1 + 1e-9 if radius < 1 else 1 - 1e-9)),
+                            gravity=gravity)
+    obs.reset(_measurement(3))
+    for k in range(20):
+        est = obs.update(_measurement(3, seed=20 + k), np.full(3, mass * 9.81), np.zeros((3, 3)), DT)
+    assert np.isfinite(est.force).all() and np.isfinite(est.torque).all()
