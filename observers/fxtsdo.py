@@ -105,7 +105,7 @@ class FxTSDO(Observer):
 
     def estimate(self) -> ObserverEstimate:
         if self._n_rows is None:
-            raise RuntimeError("fxtsdo: call reset(measurement) first")
+            raise RuntimeError("fxtsdo: estimate() before reset(); call reset(measurement) first")
         est = np.empty((self._state.shape[0], 6))
         fxtsdo_estimate(self._state, self._gains, self.inertia, est)
         return ObserverEstimate(force=est[:, 0:3], torque=est[:, 3:6], states={})

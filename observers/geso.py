@@ -364,7 +364,10 @@ def geso_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.
 
 
 def _parse_channels(channels: str | Iterable[str]) -> tuple[str, ...]:
-    items = (channels,) if isinstance(channels, str) else tuple(channels)
+    try:
+        items = (channels,) if isinstance(channels, str) else tuple(channels)
+    except TypeError:           # not iterable (a number, None)
+        items = (channels,)     # type: ignore[assignment]
     bad = [c for c in items if c not in CHANNELS]
     if bad or not items:
         raise ValueError(f"GESO channels must be a non-empty subset of {CHANNELS}, got {channels!r}")

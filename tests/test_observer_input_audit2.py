@@ -261,3 +261,31 @@ def test_the_range_limits_are_accepted_and_fly(name: str, mass: float, radius: f
     for k in range(20):
         est = obs.update(_measurement(3, seed=20 + k), np.full(3, mass * 9.81), np.zeros((3, 3)), DT)
     assert np.isfinite(est.force).all() and np.isfinite(est.torque).all()
+
+
+# ---- audit item 11 (observers): smaller items ---------------------------------------------------------------------
+@pytest.mark.parametrize("name", [n for n in NAMES if hasattr(_make(n), "estimate")])
+def test_estimate_before_reset_has_one_text_for_every_observer(name: str) -> None:
+    """qb said 'estimate() before reset(); ...', the others only 'call reset(measurement) first'."""
+    with pytest.raises(RuntimeError) as info:
+        _make(name).estimate()
+    assert str(info.value) == f"{name}: estimate() before reset(); call reset(measurement) first"
+
+
+@pytest.mark.parametrize("noise_bound", [1e300, 0.3])
+def test_pdt_sta_noise_bound_beyond_t_c_over_eta_names_noise_bound(noise_bound: float) -> None:
+    """noise_bound = 1e300 gave 't_e = t_c - eta*ell = -5e+300 is not after t0 = 0.0', naming no argument."""
+    with pytest.raises(ValueError) as info:
+        _make("pdt_sta", noise_bound=noise_bound)
+    assert str(info.value) == ("pdt_sta: noise_bound must be a finite real number in [0, 0.3) (ell of eq. 42; below "
+                               "t_c / eta, so that the early switch t_e = t_c - eta ell of eq. 43 is after t = 0), got "
+                               f"{noise_bound!r} ({type(noise_bound).__name__})")
+    assert _make("pdt_sta", noise_bound=0.29).core.t_s == pytest.approx(1.5 - 5 * 0.29)
+
+
+@pytest.mark.parametrize("channels", [5, None, 2.5])
+def test_geso_channels_not_iterable_is_the_channels_error(channels: object) -> None:
+    """channels=5 gave a bare "TypeError: 'int' object is not iterable"."""
+    with pytest.raises(ValueError) as info:
+        _make("geso", channels=channels)
+    assert str(info.value) == f"GESO channels must be a non-empty subset of ('force', 'torque'), got {channels!r}"
