@@ -289,3 +289,24 @@ def test_geso_channels_not_iterable_is_the_channels_error(channels: object) -> N
     with pytest.raises(ValueError) as info:
         _make("geso", channels=channels)
     assert str(info.value) == f"GESO channels must be a non-empty subset of ('force', 'torque'), got {channels!r}"
+
+
+@pytest.mark.parametrize("name,kwargs", [("geso", {}), ("geso", {"channels": "torque", "order": 2}),
+                                         ("geso", {"hold": "zoh"}), ("hc_eso", {})])
+@pytest.mark.parametrize("n", [1, 3])
+def test_estimate_is_the_last_updates_estimate(name: str, kwargs: dict, n: int) -> None:
+    """geso and hc_eso had no estimate() (AttributeError): it now returns, bitwise, what the last update returned
+    (the same row helper the update's kernel uses), and after a reset the guesses."""
+    obs = _make(name, **kwargs)
+    obs.reset(_measurement(n), force=[0.25, 0.0, 0.0], torque=[0.0, 0.01, 0.0])
+    first = obs.estimate()
+    if "force" in obs.channels:
+        np.testing.assert_array_equal(first.force, np.tile([0.25, 0.0, 0.0], (n, 1)))
+    np.testing.assert_allclose(first.torque, np.tile([0.0, 0.01, 0.0], (n, 1)), rtol=1e-15, atol=1e-18)
+    for k in range(3):
+        est = obs.update(_measurement(n, seed=30 + k), *_inputs(n), DT)
+    again = obs.estimate()
+    for a, b in [(est.force, again.force), (est.torque, again.torque),
+                 *((est.states[key], again.states[key]) for key in est.states)]:
+        np.testing.assert_array_equal(a, b)
+    assert list(again.states) == list(est.states)
