@@ -21,6 +21,7 @@ subclass implements :meth:`Observer._reset`, which builds the fresh state of the
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Iterator, Mapping
 from operator import itemgetter
 from typing import Any, ClassVar
@@ -29,7 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.arrays import REAL_KINDS, as_array
-from fawtgym.core.checks import check_positive
+from fawtgym.core.checks import check_number
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.kernel_types import TYPED_DISPATCH, compile_only
 from fawtgym.core.measurement import ATTITUDE, TRAILING_SHAPES, batch_measurement
@@ -43,6 +44,13 @@ from fawtgym.observers._checks import (
     first_nonfinite_input,
     first_nonfinite_row,
 )
+
+#: the smallest positive float (a subnormal): as an inclusive lower bound of dt it means dt > 0
+SMALLEST_DT = math.ulp(0.0)
+
+#: the shortest update step [s] of a law that divides by dt (a finite difference, a first-order hold): below it the
+#: quotient overflows or swamps the estimate (a subnormal dt gives inf); no env or flight log steps faster than 1 ns
+DIVIDING_MIN_DT = 1e-9
 
 
 @dataclasses.dataclass
@@ -127,6 +135,12 @@ class Observer:
     #: own, derived from its design rate / the stability of its discretisation (an instance may set a bound
     #: that depends on its gains).  The base value, 0.1 s, is a fallback for an observer that states none.
     max_dt: float = 0.1
+    #: the shortest update step dt [s] (inclusive).  The default, the smallest positive float, accepts every dt > 0;
+    #: an observer whose law divides by dt states :data:`DIVIDING_MIN_DT` and the reason (:attr:`min_dt_reason`,
+    #: named in the dt error)
+    min_dt: float = SMALLEST_DT
+    #: why :attr:`min_dt` (a few words, e.g. "the finite difference divides by dt"); empty for the default
+    min_dt_reason: str = ""
     #: an estimated force component above this many vehicle weights (m g) counts as divergence
     MAX_FORCE_WEIGHTS: ClassVar[float] = 1e3
     #: an estimated torque component above this angular acceleration [rad/s^2] times the largest principal
@@ -151,13 +165,20 @@ class Observer:
             getattr(cls, hook) is getattr(owner, hook) for hook in ("_update", "_check_estimate", "_commit"))
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = GRAVITY) -> None:
-        """``mass`` [kg] and ``gravity`` [m/s^2]: real, finite, > 0 (``gravity`` at most :data:`MAX_GRAVITY`);
-        ``inertia`` [kg m^2]: a symmetric-part positive-definite 3x3 matrix of real numbers, or its 3 diagonal
-        entries.  Else one-line ValueError naming the argument and what is allowed."""
+        """``mass`` [kg]: a real number in :data:`MASS_RANGE`; ``gravity`` [m/s^2]: a real number in
+        [:data:`MIN_GRAVITY`, :data:`MAX_GRAVITY`]; ``inertia`` [kg m^2]: a symmetric-part positive-definite 3x3 matrix
+        of real numbers, or its 3 diagonal entries, each principal moment a body of this mass can have (radius of
+        gyration in :data:`RADIUS_OF_GYRATION`).  Else one-line ValueError naming the argument and what is allowed.
+
+        The bounds are physical, far outside any multicopter, and keep the laws in float range: the divergence bounds
+        (:meth:`estimate_bounds`) scale with m g and the inertia, so a subnormal gravity or inertia (accepted as > 0
+        before) made every update of a hovering vehicle "diverge"."""
         who = self.name or type(self).__name__
-        self.mass = check_positive(mass, f"{who}: mass", note="kg")
-        self.gravity = check_positive(gravity, f"{who}: gravity", maximum=MAX_GRAVITY, note="m/s^2")
-        j = _inertia_matrix(inertia, who)
+        self.mass = check_number(mass, f"{who}: mass", minimum=MASS_RANGE[0], maximum=MASS_RANGE[1],
+                                 inclusive_minimum=True, note="kg")
+        self.gravity = check_number(gravity, f"{who}: gravity", minimum=MIN_GRAVITY, maximum=MAX_GRAVITY,
+                                    inclusive_minimum=True, note="m/s^2")
+        j = _inertia_matrix(inertia, who, self.mass)
         self.inertia = j
         self.inertia_inv = np.linalg.inv(j)
         self._j_max = float(np.linalg.eigvalsh((j + j.T) / 2).max())
@@ -183,9 +204,10 @@ class Observer:
         Raises ValueError (one line; the same text at every N apart from the sizes it names, and for every
         observer) when ``rows`` is given before any full reset, is not a bool array of shape (N,), or
         ``measurement`` does not hold N rows, or a guess is not real numbers (bool, complex, str refused) of
-        shape (3,) or (N, 3), all finite (:func:`check_guess`); the state is then unchanged.  ``options`` are
-        the observer-specific reset options of :attr:`reset_options` (e.g. ``thrust`` of the QB observer:
-        a number or one per row, checked the same way); any other keyword -> TypeError naming it and the
+        shape (3,) or (N, 3), all finite and within its channel's divergence bound (:meth:`estimate_bounds`: a
+        larger guess would make every later update raise) (:func:`check_guess`); the state is then unchanged.
+        ``options`` are the observer-specific reset options of :attr:`reset_options` (e.g. ``thrust`` of the QB
+        observer: a number or one per row, checked the same way); any other keyword -> TypeError naming it and the
         allowed ones, the same text for every observer.
         """
         who = self.name or type(self).__name__
@@ -198,8 +220,7 @@ class Observer:
             n = self._rows_of(measurement)
             if self.required_keys:
                 meas = check_measurement(measurement, self.required_keys, n, who)
-            force = check_guess(force, n, "force guess", (3,), who)
-            torque = check_guess(torque, n, "torque guess", (3,), who)
+            force, torque = self._check_guesses(force, torque, n, who)
             options = {k: check_guess(v, n, k, allowed[k], who) for k, v in options.items()}
             self._n_rows = self._reset(meas, force, torque, None, **options)
             return
@@ -213,8 +234,9 @@ class Observer:
             if key in TRAILING_SHAPES and value.shape[0] != n:
                 raise ValueError(f"{who}: reset(rows=mask) needs the measurement of all {n} rows of the batch (the "
                                  f"mask selects among them); measurement[{key!r}] has {value.shape[0]} rows")
-        force_rows = _masked(check_guess(force, n, "force guess", (3,), who), mask, 1)
-        torque_rows = _masked(check_guess(torque, n, "torque guess", (3,), who), mask, 1)
+        force_checked, torque_checked = self._check_guesses(force, torque, n, who)
+        force_rows = _masked(force_checked, mask, 1)
+        torque_rows = _masked(torque_checked, mask, 1)
         option_rows = {k: _masked(check_guess(v, n, k, allowed[k], who), mask, len(allowed[k]))
                        for k, v in options.items()}
         if not mask.any():
@@ -226,6 +248,17 @@ class Observer:
         if self.required_keys:
             sub = check_measurement(sub, self.required_keys, int(mask.sum()), who)
         self._reset(sub, force_rows, torque_rows, mask, **option_rows)
+
+    def _check_guesses(self, force: ArrayLike | None, torque: ArrayLike | None, n: int,
+                       who: str) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
+        """The reset's force and torque guesses checked by :func:`check_guess`, each within its channel's divergence
+        bound (:meth:`estimate_bounds`): a larger guess would make every later update raise (the estimate is refused
+        and the state kept), so it is refused here, naming the bound."""
+        force_bound, torque_bound = self.estimate_bounds()
+        weights = f"{self.MAX_FORCE_WEIGHTS:g} vehicle weights m g"
+        inertia = f"{self.MAX_ANGULAR_ACCELERATION:g} rad/s^2 times the largest principal inertia"
+        return (check_guess(force, n, "force guess", (3,), who, bound=(force_bound, "N", weights)),
+                check_guess(torque, n, "torque guess", (3,), who, bound=(torque_bound, "N m", inertia)))
 
     def _rows_of(self, measurement: Mapping[str, ArrayLike]) -> int:
         """The batch size of a full reset's measurement: the rows of its first required key (of its first known key
@@ -260,12 +293,14 @@ class Observer:
 
         ``measurement``: mapping with the keys :attr:`required_keys` (shapes of :mod:`fawtgym.core.measurement`,
         N rows, N the batch of the last full reset; unbatched at N = 1); ``thrust``: a number or (N,) [N];
-        ``torque``: (3,) or (N, 3) [N m]; ``dt``: a real number of seconds in (0, :attr:`max_dt`].
+        ``torque``: (3,) or (N, 3) [N m]; ``dt``: a real number of seconds in [:attr:`min_dt`, :attr:`max_dt`]
+        (any dt > 0 up to max_dt unless the law divides by dt).
 
         The checks, in this order, each a one-line error naming the value, the same type and text at every N
         (sizes are named as ``N = <n>``): update before reset -> RuntimeError; ``dt`` not a real number (bool,
-        str, None, complex) -> TypeError, not finite, <= 0 or > ``max_dt`` -> ValueError; measurement not a
-        mapping or a value not real -> TypeError; a key missing, a wrong shape or row count, a non-finite
+        str, None, complex) -> TypeError, not finite (an int beyond float range too), below ``min_dt`` (<= 0 by
+        default) or above ``max_dt`` -> ValueError; measurement not a mapping or a value not real -> TypeError; a
+        key missing, a wrong shape or row count, a non-finite
         entry, an attitude that is not a rotation (orthonormal within :data:`ROTATION_TOL`, det +1) ->
         ValueError; thrust/torque the same.  Then the law (:meth:`_update`); an estimate that is not finite
         or absurdly large (a force component above :attr:`MAX_FORCE_WEIGHTS` vehicle weights, a torque
@@ -286,7 +321,7 @@ class Observer:
         """
         n = self._n_rows
         meas = None
-        if n is not None and type(dt) is float and 0.0 < dt <= self.max_dt:
+        if n is not None and type(dt) is float and self.min_dt <= dt <= self.max_dt:
             if self._checked_path:
                 est = self._update_checked(measurement, thrust, torque, dt, n)
                 if est is not None:  # the law's kernel checked its inputs and its estimate (one compiled call)
@@ -310,7 +345,7 @@ class Observer:
         if meas is None:        # the Python checks: they convert the inputs or word the error
             if n is None:
                 raise RuntimeError(f"{who}: update() before reset(); call reset(measurement) first")
-            dt = check_dt(dt, self.max_dt, who)
+            dt = check_dt(dt, self.max_dt, who, self.min_dt, self.min_dt_reason)
             meas = check_measurement(measurement, self.required_keys, n, who)
             thrust, torque = check_inputs(thrust, torque, n, who)
         est, state = self._update(meas, thrust, torque, dt)  # type: ignore[arg-type]
@@ -324,8 +359,8 @@ class Observer:
         the current state's arrays): :meth:`update` stores it with :meth:`_commit` once the estimate passed.
 
         ``meas``: the keys of :attr:`required_keys` (only those), checked, as float64 arrays with N rows;
-        ``thrust`` (N,), ``torque`` (N, 3) float64, finite; ``dt`` a float
-        in (0, :attr:`max_dt`].  The estimate's arrays must not be views of state the next update writes into.
+        ``thrust`` (N,), ``torque`` (N, 3) float64, finite; ``dt`` a float in [:attr:`min_dt`, :attr:`max_dt`].
+        The estimate's arrays must not be views of state the next update writes into.
         """
         raise NotImplementedError(f"{type(self).__name__} must implement _update (or override update)")
 
@@ -419,12 +454,21 @@ def fast_inputs(measurement: object, shapes: tuple[tuple[str, tuple[int, ...], i
 #: the largest gravitational acceleration an observer accepts [m/s^2] (ten times Jupiter's 24.8): a larger one is a
 #: typo, and the divergence bound MAX_FORCE_WEIGHTS m g would grow with it
 MAX_GRAVITY = 250.0
+#: the smallest [m/s^2] (a third of Ceres' 0.28; Titan's is 1.35): the divergence bound MAX_FORCE_WEIGHTS m g shrinks
+#: with it, and at 1e-300 every update of a vehicle in Earth gravity "diverged"
+MIN_GRAVITY = 0.1
+#: the vehicle masses an observer accepts [kg], 0.1 g to 10 t (a subnormal or 1e300 mass made qb's every update diverge)
+MASS_RANGE = (1e-4, 1e4)
+#: the radius of gyration sqrt(principal moment / mass) [m] of each principal axis, 1 mm to 100 m (a multicopter's is
+#: a few cm to a few m): a subnormal inertia gave an infinite inverse, and qb's momentum estimate mixes the force into
+#: the torque at a far smaller radius (every update "diverged" at 0.1 mm)
+RADIUS_OF_GYRATION = (1e-3, 1e2)
 
 
-def _inertia_matrix(inertia: object, who: str) -> NDArray[np.float64]:
+def _inertia_matrix(inertia: object, who: str, mass: float) -> NDArray[np.float64]:
     """``inertia`` as a float64 (3, 3) (3 entries: the diagonal); ValueError naming it unless it holds real
-    numbers (bool, complex, str refused), has one of those shapes, is finite and its symmetric part is positive
-    definite."""
+    numbers (bool, complex, str refused), has one of those shapes, is finite, its symmetric part is positive
+    definite and each principal moment's radius of gyration sqrt(moment / ``mass``) is in :data:`RADIUS_OF_GYRATION`."""
     allowed = "a 3x3 matrix or 3 diagonal entries of finite real numbers [kg m^2], positive definite"
     j = as_array(inertia)
     if j.dtype.kind not in REAL_KINDS:
@@ -433,24 +477,45 @@ def _inertia_matrix(inertia: object, who: str) -> NDArray[np.float64]:
     j = np.diag(j) if j.shape == (3,) else j
     if j.shape != (3, 3) or not np.all(np.isfinite(j)):
         raise ValueError(f"{who}: inertia must be {allowed}, got {inertia!r}")
-    if np.linalg.eigvalsh((j + j.T) / 2).min() <= 0:
+    moments = np.linalg.eigvalsh((j + j.T) / 2)
+    if moments.min() <= 0:
         raise ValueError(f"{who}: inertia must be {allowed}, got {inertia!r} (not positive definite)")
+    low, high = RADIUS_OF_GYRATION
+    radii = np.sqrt(moments / mass)
+    outside = (radii < low) | (radii > high)
+    if outside.any():
+        k = int(np.argmax(outside))
+        raise ValueError(f"{who}: inertia must be {allowed}, with every radius of gyration sqrt(principal moment / "
+                         f"mass) in [{low:g}, {high:g}] m, got {inertia!r} (principal moment {moments[k]:.4g} kg m^2, "
+                         f"mass {mass:g} kg: radius {radii[k]:.4g} m)")
     return j
 
 
-def check_dt(dt: object, max_dt: float, who: str) -> float:
-    """``dt`` as a float in (0, ``max_dt``]: TypeError unless a real number (bool, str, None, complex refused),
-    ValueError naming it if not finite, <= 0 or above ``max_dt``."""
+def check_dt(dt: object, max_dt: float, who: str, min_dt: float = SMALLEST_DT, why_min: str = "") -> float:
+    """``dt`` as a float in [``min_dt``, ``max_dt``]: TypeError unless a real number (bool, str, None, complex refused),
+    ValueError naming it if not finite (an int beyond float range too), below ``min_dt`` or above ``max_dt``.
+
+    ``min_dt``: the shortest step the law takes (:attr:`Observer.min_dt`); the default, the smallest positive float,
+    makes the range (0, ``max_dt``].  ``why_min``: why a larger ``min_dt`` (:attr:`Observer.min_dt_reason`), named in
+    the message."""
+    shown = None
     if type(dt) is not float:
         real = isinstance(dt, (int, float, np.integer, np.floating)) and not isinstance(dt, (bool, np.bool_))
         if not real and isinstance(dt, np.ndarray) and dt.ndim == 0 and dt.dtype.kind in REAL_KINDS:
             real = True
         if not real:
             raise TypeError(f"{who}: dt must be a real number of seconds, got {dt!r} ({type(dt).__name__})")
-        dt = float(dt)  # type: ignore[arg-type]
-    if not (0.0 < dt <= max_dt):         # NaN fails too
-        raise ValueError(f"{who}: dt must be a finite number of seconds in (0, {max_dt:g}] (max_dt, the bound of "
-                         f"its discretisation), got {dt!r}")
+        try:
+            dt = float(dt)  # type: ignore[arg-type]
+        except OverflowError:   # an int beyond float range: named as given
+            shown, dt = dt, math.inf
+    if not (min_dt <= dt <= max_dt):         # NaN fails too
+        got = repr(dt if shown is None else shown)
+        if min_dt <= SMALLEST_DT:
+            raise ValueError(f"{who}: dt must be a finite number of seconds in (0, {max_dt:g}] (max_dt, the bound of "
+                             f"its discretisation), got {got}")
+        raise ValueError(f"{who}: dt must be a finite number of seconds in [{min_dt:g}, {max_dt:g}] (min_dt: "
+                         f"{why_min}; max_dt, the bound of its discretisation), got {got}")
     return dt
 
 
@@ -565,14 +630,15 @@ def check_inputs(thrust: ArrayLike, torque: ArrayLike, n: int,
     return f, tau
 
 
-def check_guess(guess: ArrayLike | None, n: int, label: str, trailing: tuple[int, ...],
-                who: str) -> NDArray[np.float64] | None:
+def check_guess(guess: ArrayLike | None, n: int, label: str, trailing: tuple[int, ...], who: str,
+                bound: tuple[float, str, str] | None = None) -> NDArray[np.float64] | None:
     """A reset's initial guess (``force``, ``torque``: trailing (3,); an option such as qb's ``thrust``: ()) as a
     float64 array of shape ``trailing`` (every row) or (n, *trailing) (one per row); None stays None.
 
     One-line ValueError, the same text for every observer and N (sizes named as ``N = <n>``), naming the argument
     and the allowed shapes unless it holds real numbers (bool, complex, str refused) of one of those shapes, all
-    finite."""
+    finite; with ``bound`` = (b, its unit, what it is), also naming the bound unless every component is at most b in
+    magnitude (the first offending value: the guess (every row), or its row of a per-row guess)."""
     if guess is None:
         return None
     rows = f"({', '.join(('N', *map(str, trailing)))}{',' if not trailing else ''}) with N = {n} (one per row)"
@@ -588,6 +654,18 @@ def check_guess(guess: ArrayLike | None, n: int, label: str, trailing: tuple[int
     if not np.all(np.isfinite(g)):
         raise ValueError(f"{who}: reset {label} must be {allowed}, got a non-finite entry: "
                          f"{float(g.reshape(-1)[~np.isfinite(g.reshape(-1))][0])!r}")
+    if bound is not None:
+        limit, unit, meaning = bound
+        large = np.abs(g) > limit
+        if large.any():
+            if g.shape == trailing:
+                got = f"{g.tolist()}"
+            else:
+                row = int(np.argmax(large.reshape(n, -1).any(axis=1)))
+                got = f"row {row}: {g[row].tolist()}"
+            raise ValueError(f"{who}: reset {label} must be within the divergence bound of the estimate, "
+                             f"|component| <= {limit:.10g} {unit} ({meaning}; an update refuses a larger estimate), "
+                             f"got {got}")
     return g
 
 

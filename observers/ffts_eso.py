@@ -298,7 +298,7 @@ class FFTSESO(Observer):
 
     def estimate(self) -> ObserverEstimate:
         if self._n_rows is None:
-            raise RuntimeError("ffts_eso: call reset(measurement) first")
+            raise RuntimeError("ffts_eso: estimate() before reset(); call reset(measurement) first")
         est = np.empty_like(self._state)
         ffts_eso_estimate(self._state, est)
         return _estimate(est)

@@ -37,7 +37,7 @@ from fawtgym.observers._obs_common import (
     positive,
     sig_row,
 )
-from fawtgym.observers.base import Observer, ObserverEstimate, register_observer
+from fawtgym.observers.base import DIVIDING_MIN_DT, Observer, ObserverEstimate, register_observer
 
 #: columns of the state (N, 12): previous v^m, previous Omega^m, d_t_hat [m/s^2], d_a_hat [rad/s^2]
 V_PREV, W_PREV, D_T, D_A = 0, 3, 6, 9
@@ -56,10 +56,13 @@ class FxTSDO(Observer):
     ``max_dt`` = 2 / (k2 a2 E^(a2 - 1)) with E = :data:`LARGE_ERROR` (10 g): explicit Euler of
     d' = k1 sig^a1(e) + k2 sig^a2(e), e = r - d, diverges once the law's slope times dt exceeds 2, and the
     a2 > 1 term's slope grows with |e|; the bound keeps errors up to 10 g inside the stable region
-    (27 ms at the defaults).
+    (27 ms at the defaults).  ``min_dt`` = 1 ns (:data:`~fawtgym.observers.base.DIVIDING_MIN_DT`, or max_dt if
+    smaller): the finite-differenced velocities divide by dt, and a velocity step dv moves the estimate by
+    k2 dv^a2 dt^(1 - a2) (dt^-1/2 at the defaults; 1 cm/s at dt = 1 ns: 190 N on 1.2 kg).
     """
 
     required_keys = _KEYS
+    min_dt_reason = "the finite difference of the velocities divides by dt"
 
     def __init__(self, mass: float, inertia: ArrayLike, gravity: float = GRAVITY, *, k1: float = 5.0,
                  k2: float = 5.0, a1: float = 0.5, a2: float = 1.5) -> None:
@@ -75,6 +78,10 @@ class FxTSDO(Observer):
         # explicit Euler of d' = law(r - d) is stable while law's slope times dt < 2; the a2 > 1 term's slope
         # k2 a2 |e|^(a2-1) grows without bound, so dt is bounded to keep errors up to LARGE_ERROR stable
         self.max_dt = 2.0 / (self.k2 * self.a2 * LARGE_ERROR ** (self.a2 - 1.0))
+        # the finite difference (v_k - v_{k-1}) / dt feeds k2 sig^a2: a velocity step dv moves d_hat by
+        # k2 dv^a2 dt^(1 - a2), which grows without bound as dt -> 0 (a subnormal dt gives inf); gains whose max_dt is
+        # below the floor (a2 near MAX_A2 with k2 near MAX_RATE_GAIN) keep max_dt as their only step
+        self.min_dt = min(DIVIDING_MIN_DT, self.max_dt)
 
     def _reset(self, measurement: Mapping[str, NDArray[np.float64]], force: ArrayLike | None,
                torque: ArrayLike | None, rows: NDArray[np.bool_] | None) -> int:
@@ -98,7 +105,7 @@ class FxTSDO(Observer):
 
     def estimate(self) -> ObserverEstimate:
         if self._n_rows is None:
-            raise RuntimeError("fxtsdo: call reset(measurement) first")
+            raise RuntimeError("fxtsdo: estimate() before reset(); call reset(measurement) first")
         est = np.empty((self._state.shape[0], 6))
         fxtsdo_estimate(self._state, self._gains, self.inertia, est)
         return ObserverEstimate(force=est[:, 0:3], torque=est[:, 3:6], states={})

@@ -352,19 +352,42 @@ def geso_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.
                 for c in range(m, mm):
                     xo[c] = 0.0
                 xo[mm], xo[mm + 1] = y_new[j], aux_new[j]
-                est[i, k, 0, j] = xo[1]
-                for c in range(2, mm):
-                    est[i, k, c, j] = xo[c]          # 0 beyond the slot's n + 1
-            for j in range(3):
-                if is_force:
-                    est[i, k, 1, j] = x_new[i, k, j, 0] / mass
-                else:
-                    est[i, k, 1, j] = (inertia_inv[j, 0] * x_new[i, k, 0, 0] + inertia_inv[j, 1] * x_new[i, k, 1, 0]
-                                       + inertia_inv[j, 2] * x_new[i, k, 2, 0])
+            slot_estimate_row(x_new[i, k], is_force, mass, inertia_inv, est[i, k])
+
+
+@njit(cache=True)
+def slot_estimate_row(x: NDArray[np.float64], is_force: bool, mass: float, inertia_inv: NDArray[np.float64],
+                      est: NDArray[np.float64]) -> None:
+    """The estimate (M, 3) of one row's channel slot from its state ``x`` (3, M + 2) (:func:`geso_step`): the
+    disturbance x_hat[1] of each axis, the rate (v = x0 / m or Omega = J^-1 x0), then the derivatives."""
+    mm = x.shape[1] - 2
+    for j in range(3):
+        est[0, j] = x[j, 1]
+        for c in range(2, mm):
+            est[c, j] = x[j, c]          # 0 beyond the slot's n + 1
+    for j in range(3):
+        if is_force:
+            est[1, j] = x[j, 0] / mass
+        else:
+            est[1, j] = inertia_inv[j, 0] * x[0, 0] + inertia_inv[j, 1] * x[1, 0] + inertia_inv[j, 2] * x[2, 0]
+
+
+@njit(cache=True)
+def geso_estimate(x: NDArray[np.float64], slots: NDArray[np.int64], params: NDArray[np.float64],
+                  est: NDArray[np.float64]) -> None:
+    """:func:`slot_estimate_row` of every row and slot of the state ``x`` (N, K, 3, M + 2) into ``est`` (N, K, M, 3)."""
+    mass = params[0]
+    inertia_inv = params[11:20].reshape((3, 3))
+    for i in range(x.shape[0]):
+        for k in range(x.shape[1]):
+            slot_estimate_row(x[i, k], slots[k, 0] == 0, mass, inertia_inv, est[i, k])
 
 
 def _parse_channels(channels: str | Iterable[str]) -> tuple[str, ...]:
-    items = (channels,) if isinstance(channels, str) else tuple(channels)
+    try:
+        items = (channels,) if isinstance(channels, str) else tuple(channels)
+    except TypeError:           # not iterable (a number, None)
+        items = (channels,)     # type: ignore[assignment]
     bad = [c for c in items if c not in CHANNELS]
     if bad or not items:
         raise ValueError(f"GESO channels must be a non-empty subset of {CHANNELS}, got {channels!r}")
@@ -494,9 +517,23 @@ class GESO(Observer):
         est = np.empty((n, x.shape[1], self._m, 3))
         geso_step(x, vel, meas.get(M.ATTITUDE, _EYE3), rate, f, tau, self._slots, self.hold == "foh", self._params,
                   mats, x_new, est)
+        return self._estimate_of(est), x_new
+
+    def _estimate_of(self, est: NDArray[np.float64]) -> ObserverEstimate:
+        """The estimate as views of the kernels' buffer ``est`` (N, K, M, 3) (zeros for a channel not estimated)."""
+        n = est.shape[0]
         flat = est.reshape(n, -1)
         out = {chan: flat[:, col:col + 3] for chan, col in self._wrench_cols}
         if len(out) == 1:                                     # the channel this instance does not estimate
             out["torque" if "force" in out else "force"] = np.zeros((n, 3))
         return ObserverEstimate(force=out["force"], torque=out["torque"],
-                                states=BufferStates(flat, self._states_layout)), x_new
+                                states=BufferStates(flat, self._states_layout))
+
+    def estimate(self) -> ObserverEstimate:
+        """The current estimate (after reset/update): the one the last update returned, from the stored state."""
+        if self._n_rows is None:
+            raise RuntimeError("geso: estimate() before reset(); call reset(measurement) first")
+        x = self._state
+        est = np.empty((x.shape[0], x.shape[1], self._m, 3))
+        geso_estimate(x, self._slots, self._params, est)
+        return self._estimate_of(est)

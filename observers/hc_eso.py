@@ -66,9 +66,14 @@ class HcEsoGains:
 
     def __post_init__(self) -> None:
         number = (int, float, np.integer, np.floating)
-        if (isinstance(self.gamma, bool) or not isinstance(self.gamma, number) or not float(self.gamma).is_integer()
-                or self.gamma < 1):
-            raise ValueError(f"gamma must be a positive integer (Prop. 3), got {self.gamma!r}")
+        is_number = isinstance(self.gamma, number) and not isinstance(self.gamma, (bool, np.bool_))
+        try:
+            g = float(self.gamma) if is_number else math.nan
+        except OverflowError:   # an int beyond float range
+            g = math.inf
+        if not (math.isfinite(g) and g.is_integer() and g >= 1):
+            raise ValueError(f"hc_eso: gamma must be a positive integer (Prop. 3), finite as a float, got "
+                             f"{self.gamma!r}")
         if isinstance(self.alpha, bool) or not isinstance(self.alpha, number) or not (0.5 < self.alpha < 1.0):
             raise ValueError(f"alpha must satisfy 1/2 < alpha < 1 (Prop. 3), got {self.alpha!r}")
         if self.gamma - 3.0 * self.alpha + 1.0 < 0:
@@ -222,10 +227,27 @@ def _update_rows(r_hat, w, sigma_hat, l, o, tau, use_attitude, sf, mag, att, rat
         if code:
             return code, i
         o_new[i] = rate[i]
-        for k in range(3):
-            row[k] = 0.0  # the force: HC-ESO estimates the torque only
-            tau_hat[k] = J[k, 0] * sigma_new[0] + J[k, 1] * sigma_new[1] + J[k, 2] * sigma_new[2]
+        _wrench_row(sigma_new, J, row[0:3], tau_hat)
     return 0, -1
+
+
+@njit(cache=True)
+def _wrench_row(sigma_hat, J, force, torque):
+    """The estimated wrench of one row: force 0 (HC-ESO estimates the torque only), torque J sigma_hat."""
+    for k in range(3):
+        force[k] = 0.0
+        torque[k] = J[k, 0] * sigma_hat[0] + J[k, 1] * sigma_hat[1] + J[k, 2] * sigma_hat[2]
+
+
+@njit(cache=True)
+def _estimate_rows(r_hat, w, sigma_hat, J, out):
+    """The estimate of the state of every row into ``out`` (N, 21), the layout of :func:`_update_rows`."""
+    for i in range(r_hat.shape[0]):
+        row = out[i]
+        row[6:15].reshape(3, 3)[:, :] = r_hat[i]
+        row[15:18] = w[i]
+        row[18:21] = sigma_hat[i]
+        _wrench_row(sigma_hat[i], J, row[0:3], row[3:6])
 
 
 def _rows3(x: ArrayLike, n: int, trailing: tuple[int, ...]) -> NDArray[np.float64]:
@@ -406,3 +428,11 @@ class HcEsoSO3(Observer):
 
     def _commit(self, state: Any) -> None:
         self._r_hat, self._w_hat, self._sigma, self._l, self._o = state
+
+    def estimate(self) -> ObserverEstimate:
+        """The current estimate (after reset/update): the one the last update returned, from the stored state."""
+        if self._n_rows is None:
+            raise RuntimeError("hc_eso: estimate() before reset(); call reset(measurement) first")
+        out = np.empty((self._r_hat.shape[0], 21))
+        _estimate_rows(self._r_hat, self._w_hat, self._sigma, self._J, out)
+        return ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6], states=BufferStates(out, _STATES))

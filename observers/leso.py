@@ -94,7 +94,7 @@ class LESO(Observer):
 
     def estimate(self) -> ObserverEstimate:
         if self._n_rows is None:
-            raise RuntimeError("leso: call reset(measurement) first")
+            raise RuntimeError("leso: estimate() before reset(); call reset(measurement) first")
         est = np.empty_like(self._state)
         leso_estimate(self._state, self._gains, est)
         return _estimate(est)

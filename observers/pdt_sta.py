@@ -33,7 +33,7 @@ from fawtgym.core.so3_kernels import cross_row, mat_mul_row, quat_to_rot_row
 from ._obs_common import real_vector
 from .base import BufferStates, Observer, ObserverEstimate, register_observer
 from .gibbs import gibbs_to_rot_row, omega_row, rot_to_gibbs_row
-from .predefined_sta import early_switch_time
+from .predefined_sta import check_params, early_switch_time
 from .quest import quest_row
 from .stsmo import GibbsSTSMO, stsmo_row
 
@@ -175,7 +175,15 @@ class PdtStaAttitudeObserver(Observer):
         kappa1 = check_positive(kappa1, "pdt_sta: gain kappa1", note="(kappa1 > 0, eqs. 16-22)")
         noise_bound = check_number(noise_bound, "pdt_sta: noise_bound", minimum=0.0, inclusive_minimum=True,
                                    note="(ell of eq. 42)")
-        t_switch = early_switch_time(t_c, eta, noise_bound) if noise_bound > 0 else None
+        t_switch = None
+        if noise_bound > 0:
+            check_params(t_c, eta)      # (its own messages, naming t_c / eta) before t_c / eta is formed
+            # the early switch t_e = t_c - eta ell (eq. 43) must come after t0 = 0: ell < t_c / eta
+            check_number(noise_bound, "pdt_sta: noise_bound", minimum=0.0, inclusive_minimum=True,
+                         maximum=float(t_c) / float(eta), inclusive_maximum=False,
+                         note="(ell of eq. 42; below t_c / eta, so that the early switch t_e = t_c - eta ell of eq. 43 "
+                              "is after t = 0)")
+            t_switch = early_switch_time(t_c, eta, noise_bound)
         if kappa2 is None:
             kappa2 = 6.0 * float(np.linalg.eigvalsh(self.inertia).min())
         self.core = GibbsSTSMO(self.inertia, t_c, eta, kappa1, kappa2, mode, t_switch)

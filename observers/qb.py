@@ -55,7 +55,8 @@ from fawtgym.core import measurement as M
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import write_rows
 
-from .base import BufferStates, Observer, ObserverEstimate, register_observer
+from ._checks import first_bad_wrench
+from .base import DIVIDING_MIN_DT, BufferStates, Observer, ObserverEstimate, register_observer
 from .qb_uav_model import momentum_input_row, momentum_output, momentum_output_row
 
 GAIN_DIR = Path(__file__).resolve().parent
@@ -252,9 +253,10 @@ class QBObserver(Observer):
     #: Rbar = (R_prev + R) / 2, which is second-order accurate only while the vehicle turns little over dt:
     #: 0.1 s at 1 rad/s is 0.1 rad (the paper's simulation is continuous-time)
     max_dt = 0.1
-    #: the shortest update step [s]: the first-order hold of y is integrated with y's rate (y_{k+1} - y_k) / dt
-    #: (:func:`discretize`), which overflows for a subnormal dt; no env or log steps faster than a microsecond
-    min_dt = 1e-9
+    #: the shortest update step [s] (checked by :meth:`Observer.update`): the first-order hold of y is integrated with
+    #: y's rate (y_{k+1} - y_k) / dt (:func:`discretize`), which overflows for a subnormal dt
+    min_dt = DIVIDING_MIN_DT
+    min_dt_reason = "the first-order hold divides by dt"
     #: the collective thrust [N] of the accelerometer term of y at reset: a number or one per row
     reset_options = {"thrust": ()}
 
@@ -309,8 +311,27 @@ class QBObserver(Observer):
             x[:, 9:12] = np.einsum("nij,nj->ni", R, np.broadcast_to(torque, (n_b, 3)))
         if not np.all(np.isfinite(x)):
             raise ValueError("qb: reset: the initial state is not finite (check the measurement and the guesses)")
+        self._check_initial_estimate(x, np.ascontiguousarray(R), rows)
         self._x, self._y, self._R = write_rows((self._x, self._y, self._R), (x, y, np.ascontiguousarray(R)), rows)
         return n_b
+
+    def _check_initial_estimate(self, x: NDArray[np.float64], R: NDArray[np.float64],
+                                rows: NDArray[np.bool_] | None) -> None:
+        """ValueError (before anything is stored) if the estimate of a fresh state ``x`` of the rows reset is beyond the
+        divergence bound (:meth:`Observer.estimate_bounds`): without a force guess the initial force comes from the
+        accelerometer and ``thrust``, so a finite but absurd thrust would make every later update raise."""
+        out = np.empty(x.shape)
+        _estimate_rows(x, R, self.mass, self._J_inv, out)
+        bounds = self.estimate_bounds()
+        code = first_bad_wrench(out[:, 0:3], out[:, 3:6], *bounds)
+        if code >= 0:
+            row, channel = code // 2, code % 2
+            batch_row = row if rows is None else int(np.flatnonzero(rows)[row])
+            value = out[row, 3 * channel:3 * channel + 3].tolist()
+            raise ValueError(f"qb: reset: the initial {('force', 'torque')[channel]} estimate is beyond the divergence "
+                             f"bound of the estimate (row {batch_row}: {value}; "
+                             f"allowed: |component| <= {bounds[channel]:.10g}; an update refuses a larger estimate): "
+                             "check the measurement and thrust")
 
     def _update(self, meas: dict[str, NDArray[np.float64]], thrust: NDArray[np.float64],
                 torque: NDArray[np.float64], dt: float) -> tuple[ObserverEstimate, Any]:
@@ -329,16 +350,10 @@ class QBObserver(Observer):
         self._x, self._y, self._R = state
 
     def _stacked(self, dt: float) -> NDArray[np.float64]:
-        """The discrete step for ``dt`` as one matrix (cached for the last few distinct dt).
-
-        ValueError (the one-line dt message, with :attr:`min_dt` as the lower bound) for a ``dt`` below
-        :attr:`min_dt`: :func:`discretize` divides by dt (a subnormal dt overflows to inf)."""
+        """The discrete step for ``dt`` (in [:attr:`min_dt`, :attr:`max_dt`], checked by :meth:`Observer.update`) as
+        one matrix (cached for the last few distinct dt)."""
         stacked = self._disc.get(dt)
         if stacked is None:
-            if not dt >= self.min_dt:
-                raise ValueError(f"qb: dt must be a finite number of seconds in [{self.min_dt:g}, {self.max_dt:g}] "
-                                 "(min_dt: the first-order hold divides by dt; max_dt, the bound of its "
-                                 f"discretisation), got {dt!r}")
             phi, gu, gy0, gy1 = discretize(self.gain, dt)
             # x+ = Phi x + Gu u + Gy0 y_prev + Gy1 (y - y_prev), as one product with [x, u, y_prev, y]
             stacked = np.ascontiguousarray(np.vstack([phi.T, gu.T, (gy0 - gy1).T, gy1.T]))

@@ -101,7 +101,7 @@ class SuperTwistingObserver(Observer):
 
     def estimate(self) -> ObserverEstimate:
         if self._n_rows is None:
-            raise RuntimeError("sto: call reset(measurement) first")
+            raise RuntimeError("sto: estimate() before reset(); call reset(measurement) first")
         est = np.empty_like(self._state)
         sto_estimate(self._state, self._gains, self.inertia, est)
         return _estimate(est)
