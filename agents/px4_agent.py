@@ -133,8 +133,8 @@ def _setpoint_rows(sp: Any, n: int, who: str) -> NDArray[np.float64]:
         return np.ascontiguousarray(a[None])
     if a is not None and a.shape in ((1, 3), (n, 3)):
         return np.ascontiguousarray(a)
-    raise ValueError(f"{who}: info['setpoint'] must be real NED coordinates [m] of shape (3,), (1, 3) or ({n}, 3), "
-                     f"got {sp!r}")
+    shapes = "(3,) or (1, 3)" if n == 1 else f"(3,), (1, 3) or ({n}, 3)"
+    raise ValueError(f"{who}: info['setpoint'] must be real NED coordinates [m] of shape {shapes}, got {sp!r}")
 
 
 def _rows3(x: ArrayLike, n: int) -> NDArray[np.float64]:
@@ -268,6 +268,9 @@ class PX4Agent(Agent):
         becomes exactly a fresh agent's; the other rows are untouched.  ``rows`` needs an earlier full reset
         with the same number of vehicles N.
         """
+        if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer))
+                                 or seed < 0):
+            raise ValueError(f"{type(self).__name__}.reset: seed must be None or an int >= 0, got {seed!r}")
         meas, _ = measurement_from_info(info)
         n = meas["position"].shape[0]
         if rows is not None and n != self._n:

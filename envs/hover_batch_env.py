@@ -210,6 +210,10 @@ def default_physics_threads(n: int) -> int:
 
 #: the most rollout threads ``HoverBatchEnv(physics_threads=...)`` takes
 MAX_PHYSICS_THREADS = 256
+#: the most rows a HoverBatchEnv takes
+MAX_NUM_ENVS = 10**6
+#: what step() and reset() of a closed env raise
+CLOSED = "the env was closed: step() and reset() need a new env"
 
 
 def _check_physics_threads(threads: Any) -> int | None:
@@ -274,8 +278,9 @@ class HoverBatchEnv(VectorEnv):
                  render_height: int = 480, autoreset_mode: str | AutoresetMode = "next_step",
                  randomizer: Callable[[NDArray[np.intp], list[np.random.Generator]], Mapping[str, Any]] | None = None,
                  physics_threads: int | None = None) -> None:
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
+        if (isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer))
+                or not 1 <= num_envs <= MAX_NUM_ENVS):
+            raise ValueError(f"num_envs must be an int in [1, {MAX_NUM_ENVS}], got {num_envs!r}")
         modes: dict[str | AutoresetMode, AutoresetMode] = {k: v for k, v in AUTORESET_MODES.items()}
         modes.update({m: m for m in AUTORESET_MODES.values()})
         if not isinstance(autoreset_mode, (str, AutoresetMode)) or autoreset_mode not in modes:
@@ -657,6 +662,8 @@ class HoverBatchEnv(VectorEnv):
     def _reset(self, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None,
                single: bool = False) -> tuple[NDArray[np.float32], dict[str, Any]]:
         """:meth:`reset`; ``single``: the info in the single env's form (:func:`info_views`)."""
+        if self._rollout is None:
+            raise RuntimeError(CLOSED)
         n = self.num_envs
         seeds = _check_seeds(seed, n)
         sp, noise = check_reset_options(options, n)  # checked before anything changes
@@ -750,6 +757,8 @@ class HoverBatchEnv(VectorEnv):
         (:func:`check_actions` with ``finite=False``: a non-finite entry of a stepping row raises here, before
         anything changes, naming ``name[row, entry]``, or ``name[entry]`` if ``name`` is HoverEnv's ``"action"``);
         ``single``: the info in the single env's form (:func:`info_views`)."""
+        if self._rollout is None:
+            raise RuntimeError(CLOSED)
         n = self.num_envs
         resetting = self._autoreset
         any_reset = self._n_autoreset > 0

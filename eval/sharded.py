@@ -76,6 +76,7 @@ class ShardedLoop:
             ThreadPoolExecutor(len(self.envs) - 1, thread_name_prefix="ShardedLoop") if len(self.envs) > 1 else None)
         self._state: list[tuple[Any, Any] | None] = [None] * len(self.envs)
         self._ended: list[NDArray[np.bool_] | None] = [None] * len(self.envs)  # rows the env restarts next step
+        self._closed = False
 
     @classmethod
     def build(cls, n: int, make_agent: Callable[[Any], Any], shards: int | None = None,
@@ -97,6 +98,8 @@ class ShardedLoop:
         and its agent."""
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise ValueError(f"seed must be an int >= 0, got {seed!r}")
+        if self._closed:
+            raise RuntimeError("ShardedLoop.reset() called after close(): build a new loop")
         for k, (env, agent) in enumerate(zip(self.envs, self.agents, strict=True)):
             obs, info = env.reset(seed=int(seed) + self.offsets[k])
             agent.reset(info)
@@ -129,6 +132,8 @@ class ShardedLoop:
         (the env's autoreset, and the agent's per-row reset: :meth:`_fly`)."""
         if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
             raise ValueError(f"steps must be an int >= 0, got {steps!r}")
+        if self._closed:
+            raise RuntimeError("ShardedLoop.step() called after close(): build a new loop")
         if any(s is None for s in self._state):
             raise RuntimeError("ShardedLoop.step() called before reset(): call reset(seed) first")
         self.each(lambda k, env, agent: self._fly(k, int(steps)))
@@ -174,6 +179,7 @@ class ShardedLoop:
 
     def close(self) -> None:
         """Stop the threads and close the envs."""
+        self._closed = True
         if self._pool is not None:
             self._pool.shutdown()
             self._pool = None

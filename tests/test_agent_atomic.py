@@ -84,8 +84,9 @@ def test_a_bad_setpoint_reads_the_same_at_every_n(n):
         info["setpoint"] = bad
         with pytest.raises(ValueError) as exc:
             agent.act(None, info)
-        assert str(exc.value) == (f"PX4ObserverAgent: info['setpoint'] must be real NED coordinates [m] of shape (3,), "
-                                  f"(1, 3) or ({n}, 3), got {bad!r}")
+        shapes = "(3,) or (1, 3)" if n == 1 else f"(3,), (1, 3) or ({n}, 3)"
+        assert str(exc.value) == (f"PX4ObserverAgent: info['setpoint'] must be real NED coordinates [m] of shape "
+                                  f"{shapes}, got {bad!r}")
 
 
 @pytest.mark.parametrize("name", sorted(AGENTS))
@@ -127,3 +128,14 @@ def test_a_refused_reset_changes_nothing(name, where):
     b.reset(bad, rows=np.array([True, False, False]) if where != "setpoint" else np.array([False, False, False]))
     for k in (3, 4, 5):
         np.testing.assert_array_equal(a.act(None, infos[k]), b.act(None, infos[k]))
+
+
+@pytest.mark.parametrize("seed", ["a", -1, True, 1.5])
+def test_reset_refuses_a_bad_seed_and_changes_nothing(seed):
+    env, infos = _infos(1, 1)
+    agent = PX4ObserverAgent.for_env(env, observer="ffts_eso")
+    with pytest.raises(ValueError) as exc:
+        agent.reset(infos[0], seed=seed)
+    assert str(exc.value) == f"PX4ObserverAgent.reset: seed must be None or an int >= 0, got {seed!r}"
+    with pytest.raises(RuntimeError, match=r"before reset\(\)"):
+        agent.act(None, infos[1])

@@ -19,7 +19,7 @@ TAU = np.array([0.05, -0.03, 0.02])     # constant disturbance torque [N m], |ta
 
 
 @pytest.mark.parametrize("p", [1.05, 1.2, 1.5, 1.9])
-@pytest.mark.parametrize("n", [1, 2])   # the N = 1 float fast path and the batched numpy path
+@pytest.mark.parametrize("n", [1, 2])   # a batch of one and of two (one row kernel)
 def test_constant_disturbance_converges_for_every_admissible_p(p, n):
     h, steps = 1e-3, 2000
     obs = FFTSESO(MASS, J, p=p)

@@ -41,7 +41,7 @@ def _cell(values, failures=None):
     return {"mean_position_error": v, "failures": failures or [""] * len(v)}
 
 
-def test_evaluate_reports_the_issue13_goals_with_margins() -> None:
+def test_evaluate_reports_the_table4_flight_goals_with_margins() -> None:
     good = {("px4", 50): _cell([0.06, 0.06]), ("px4+ffts_eso", 50): _cell([0.025, 0.026]),
             ("px4", 60): _cell([0.08]), ("px4+ffts_eso", 60): _cell([0.04]),
             ("px4", 70): _cell([0.5], ["upstream_wall"]), ("px4+ffts_eso", 70): _cell([0.05])}

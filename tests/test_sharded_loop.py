@@ -138,3 +138,26 @@ def test_a_shards_error_reaches_the_caller(failing_rows):
         loop.reset(seed=0)
         with pytest.raises(FloatingPointError, match=f"agent of {failing_rows} rows diverged"):
             loop.step(2)
+
+
+def test_a_closed_loop_and_a_closed_env_refuse_to_step():
+    loop = ShardedLoop.build(2, _agent, 2)
+    loop.reset(seed=0)
+    loop.close()
+    for call in (lambda: loop.step(1), lambda: loop.reset(seed=0)):
+        with pytest.raises(RuntimeError, match=r"after close\(\): build a new loop"):
+            call()
+    env = HoverBatchEnv(2)
+    env.reset(seed=0)
+    env.close()
+    for call in (lambda: env.step(env.hover_action()), lambda: env.reset(seed=0)):
+        with pytest.raises(RuntimeError) as exc:
+            call()
+        assert str(exc.value) == "the env was closed: step() and reset() need a new env"
+
+
+def test_num_envs_is_bounded():
+    for bad in (0, 10**400, 10**6 + 1, True, 2.0):
+        with pytest.raises(ValueError) as exc:
+            HoverBatchEnv(bad)
+        assert str(exc.value) == f"num_envs must be an int in [1, 1000000], got {bad!r}"
