@@ -376,15 +376,15 @@ class PX4Agent(Agent):
         _c = np.ascontiguousarray
         pos, vel, att, gyro = _c(pos), _c(vel), _c(att), _c(gyro)
         sf = self._no_estimate if sf is None else _c(sf)
-        if self._pose_delay.steps or self._updates_first:
-            # state changes before the cascade's kernel runs (the pose enters the delay line, the observer takes its
-            # step): the kernel's own input check first, so that a refused act changes nothing
+        if self._pose_delay.steps:
+            # the pose enters the delay line (the kernel sees it steps later): checked now, with the cascade's other
+            # inputs (the kernel's own check), so that a bad pose is refused at once and a refused act changes nothing
             code, row = C.first_bad_input(pos, vel, att, gyro, sf, setpoint)
             if code:
                 self._raise_status(code, row, meas, setpoint)
-        if self._pose_delay.steps:  # the pose enters the delay line checked (the kernel sees it steps later)
             meas = self._pose_delay(meas)
             pos, vel, att = _c(meas["position"]), _c(meas["velocity"]), _c(meas["attitude"])
+        taken = self._snapshot()  # what the estimator's step replaces (references): taken back if the cascade refuses
         try:
             force_hat, torque_hat = self._estimate(meas, info, self.dt)
             raw = self.raw_estimate
@@ -398,14 +398,22 @@ class PX4Agent(Agent):
             if self._pose_delay.steps:  # refused after the push (the observer's inputs): the line as it was
                 self._pose_delay.undo(meas)
             raise
-        self.last_estimate = (force_hat, torque_hat)
         if code:
+            if code == C.BAD_MEASUREMENT or code == C.BAD_SETPOINT:  # refused before the cascade changed anything
+                self._take_back(taken)
+                if self._pose_delay.steps:
+                    self._pose_delay.undo(meas)
             self._raise_status(code, row, meas, setpoint)
+        self.last_estimate = (force_hat, torque_hat)
         self._setpoint = setpoint
         return self._action.copy() if batched else self._action[0].copy()  # unbatched: N = 1 (pos was (3,))
 
-    #: True for an agent whose ``act`` changes state before the cascade's kernel runs (an observer's update)
-    _updates_first = False
+    def _snapshot(self) -> Any:
+        """What ``act``'s estimator step replaces, for :meth:`_take_back` (None: PX4Agent has no estimator)."""
+        return None
+
+    def _take_back(self, taken: Any) -> None:
+        """Undo the estimator's step of a refused ``act`` (:meth:`_snapshot`)."""
 
     def _raise_status(self, code: int, row: int, meas: Mapping[str, NDArray[np.float64]],
                       setpoint: NDArray[np.float64]) -> None:
@@ -457,8 +465,6 @@ class PX4ObserverAgent(PX4Agent):
     applied thrust/torque over the step just taken.
     """
 
-    _updates_first = True  # the observer takes its step before the cascade's kernel runs
-
     def __init__(self, observer: Any = "ffts_eso", force_ff: bool = True, torque_ff: bool = True,
                  observer_kwargs: Mapping[str, Any] | None = None, **kwargs: Any) -> None:
         force_ff = check_flag(force_ff, "force_ff")
@@ -483,6 +489,13 @@ class PX4ObserverAgent(PX4Agent):
         self.raw_estimate: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self.force_ff = force_ff and "force" in observer.channels
         self.torque_ff = torque_ff and "torque" in observer.channels
+
+    def _snapshot(self) -> Any:
+        return self.observer.snapshot(), self.raw_estimate
+
+    def _take_back(self, taken: Any) -> None:
+        snapshot, self.raw_estimate = taken
+        self.observer.restore(snapshot)
 
     def _reset_estimator(self, meas: dict[str, NDArray[np.float64]], seed: int | None,
                          rows: NDArray[np.bool_] | None) -> None:

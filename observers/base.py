@@ -72,6 +72,10 @@ class ObserverEstimate:
     states: Mapping[str, NDArray[np.float64]] = dataclasses.field(default_factory=dict)
 
 
+#: :meth:`Observer.snapshot` of an observer that keeps no ``_state`` (nothing to take back)
+_NO_SNAPSHOT = object()
+
+
 class BufferStates(Mapping[str, NDArray[np.float64]]):
     """The ``states`` of an estimate whose arrays are all column blocks of one kernel buffer (N, k).
 
@@ -381,6 +385,19 @@ class Observer:
     def _commit(self, state: Any) -> None:
         """Store the new state :meth:`_update` returned (default: as ``self._state``)."""
         self._state = state
+
+    def snapshot(self) -> Any:
+        """The state an :meth:`update` replaces, as :meth:`_commit` takes it (references, not copies: an update
+        never writes into the arrays it holds, it stores new ones), for a caller that must take an update back
+        (:meth:`restore`): e.g. an agent whose controller refuses the step the observer has just taken.  An
+        observer whose :meth:`_commit` stores more than ``self._state`` returns what it stores; one that keeps its
+        state elsewhere (a user class overriding :meth:`update`) overrides both, or cannot be taken back."""
+        return getattr(self, "_state", _NO_SNAPSHOT)
+
+    def restore(self, snapshot: Any) -> None:
+        """Take back the updates since :meth:`snapshot` returned ``snapshot`` (no reset in between)."""
+        if snapshot is not _NO_SNAPSHOT:
+            self._commit(snapshot)
 
     def estimate_bounds(self) -> tuple[float, float]:
         """(force bound [N], torque bound [N m]): an estimate component above one counts as divergence

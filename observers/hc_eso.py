@@ -429,6 +429,9 @@ class HcEsoSO3(Observer):
     def _commit(self, state: Any) -> None:
         self._r_hat, self._w_hat, self._sigma, self._l, self._o = state
 
+    def snapshot(self) -> Any:
+        return self._r_hat, self._w_hat, self._sigma, self._l, self._o
+
     def estimate(self) -> ObserverEstimate:
         """The current estimate (after reset/update): the one the last update returned, from the stored state."""
         if self._n_rows is None:

@@ -245,6 +245,9 @@ class PdtStaAttitudeObserver(Observer):
     def _commit(self, state: Any) -> None:
         self.anchor, self.core.x1, self.core.x2, self.core.t, self.quest_valid = state
 
+    def snapshot(self) -> Any:
+        return self.anchor, self.core.x1, self.core.x2, self.core.t, self.quest_valid
+
     def params(self) -> dict[str, Any]:
         c = self.core
         return dict(t_c=c.t_c, eta=c.eta, kappa1=c.kappa1, kappa2=c.kappa2, t_switch=c.t_s, mode=c.mode)

@@ -349,6 +349,9 @@ class QBObserver(Observer):
     def _commit(self, state: Any) -> None:
         self._x, self._y, self._R = state
 
+    def snapshot(self) -> Any:
+        return self._x, self._y, self._R
+
     def _stacked(self, dt: float) -> NDArray[np.float64]:
         """The discrete step for ``dt`` (in [:attr:`min_dt`, :attr:`max_dt`], checked by :meth:`Observer.update`) as
         one matrix (cached for the last few distinct dt)."""

@@ -17,6 +17,8 @@ AGENTS = {
     "px4+sto commanded": lambda env: PX4ObserverAgent.for_env(env, observer="sto", observer_inputs="commanded"),
     "px4 pose_latency": lambda env: PX4Agent.for_env(env, pose_latency=0.02),
     "px4+leso pose_latency": lambda env: PX4ObserverAgent.for_env(env, observer="leso", pose_latency=0.02),
+    **{f"px4+{name}": (lambda env, name=name: PX4ObserverAgent.for_env(env, observer=name))
+       for name in ("fxtsdo", "geso", "hc_eso", "leso", "qb", "sto")},
 }
 
 
@@ -59,7 +61,8 @@ def test_a_refused_act_changes_nothing(name, where, n):
             with pytest.raises(ValueError) as exc:
                 a.act(None, _corrupt(infos[k], where, n - 1))
             text = str(exc.value)
-            assert "\n" not in text and type(a).__name__ in text
+            who = (type(a).__name__, getattr(getattr(a, "observer", None), "name", type(a).__name__))
+            assert "\n" not in text and text.startswith(who)  # the agent, or its observer for a key it reads
             assert ("info['setpoint']" if where == "setpoint" else f"measurement['{where}']") in text
         np.testing.assert_array_equal(a.act(None, infos[k]), b.act(None, infos[k]))
         if isinstance(a, PX4ObserverAgent):
@@ -97,8 +100,10 @@ def test_rows_of_different_lengths_are_refused(name):
     for key in ("velocity", "angular_velocity", "attitude", "specific_force"):
         info = copy.deepcopy(infos[1])
         info["measurement"][key] = info["measurement"][key][:2]
-        with pytest.raises(ValueError, match=r"^" + type(agent).__name__ + ": measurement\\['" + key):
-            agent.act(None, info)
+        who = (type(agent).__name__, getattr(getattr(agent, "observer", None), "name", type(agent).__name__))
+        with pytest.raises(ValueError) as exc:
+            agent.act(None, info)  # the agent, or its observer for a key it reads, names the key
+        assert str(exc.value).startswith(tuple(f"{w}: measurement['{key}']" for w in who)), str(exc.value)
     np.testing.assert_array_equal(agent.act(None, infos[1]), _act(name, env, infos))
 
 
