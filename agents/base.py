@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.arrays import REAL_KINDS, as_array
 from fawtgym.core.measurement import batch_measurement
 
 
@@ -138,11 +139,8 @@ def applied_from_info(info: Mapping[str, Any], n: int, default_thrust: float) ->
 def _applied_array(value: Any, key: str, n: int, trailing: tuple[int, ...]) -> NDArray[np.float64]:
     """``info["applied"][key]`` as a float64 (n, *trailing) array: n rows, or one row for every vehicle (a view when
     it already holds n rows); ValueError / TypeError naming it if it is not real numbers of such a shape."""
-    try:
-        a = np.asarray(value)
-    except ValueError:  # ragged
-        a = np.asarray(None)
-    if a.dtype.kind not in "iuf":
+    a = as_array(value)
+    if a.dtype.kind not in REAL_KINDS:
         raise TypeError(f"info['applied'][{key!r}] must hold real numbers, got {value!r}")
     a = a.astype(float, copy=False)
     size = int(np.prod(trailing, dtype=int))

@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.arrays import REAL_KINDS, as_array
 from fawtgym.core.checks import check_flag, check_number
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED
@@ -108,11 +109,8 @@ _F64 = np.dtype(np.float64)
 def _checked_setpoint(value: Any, given: Any) -> NDArray[np.float64]:
     """An agent's own setpoint option: real NED coordinates [m] of shape (3,) or (N, 3), each within the env's
     :data:`~fawtgym.envs.options.MAX_SETPOINT`; one-line ValueError naming ``given`` otherwise."""
-    try:
-        a = np.asarray(value)
-    except ValueError:  # ragged
-        a = np.asarray(None)
-    if a.dtype.kind in "iuf" and a.shape[-1:] == (3,) and a.ndim <= 2 and bool(np.all(np.abs(a) <= MAX_SETPOINT)):
+    a = as_array(value)
+    if a.dtype.kind in REAL_KINDS and a.shape[-1:] == (3,) and a.ndim <= 2 and bool(np.all(np.abs(a) <= MAX_SETPOINT)):
         return a.astype(float)
     raise ValueError(f"setpoint must be real NED coordinates [m] of shape (3,) or (N, 3), each within "
                      f"{MAX_SETPOINT:g} m, got {given!r}")
@@ -124,17 +122,20 @@ def _setpoint_rows(sp: Any, n: int, who: str) -> NDArray[np.float64]:
     (its finiteness is the kernel's check: ``BAD_SETPOINT``)."""
     a = sp
     if type(a) is not np.ndarray or a.dtype is not _F64:
-        try:
-            a = np.asarray(sp)
-        except (TypeError, ValueError):  # ragged
-            a = None
-        a = a.astype(float) if a is not None and a.dtype.kind in "iuf" else None
+        a = as_array(sp)
+        a = a.astype(float) if a.dtype.kind in REAL_KINDS else None
     if a is not None and a.shape == (3,):
         return np.ascontiguousarray(a[None])
     if a is not None and a.shape in ((1, 3), (n, 3)):
         return np.ascontiguousarray(a)
     shapes = "(3,) or (1, 3)" if n == 1 else f"(3,), (1, 3) or ({n}, 3)"
     raise ValueError(f"{who}: info['setpoint'] must be real NED coordinates [m] of shape {shapes}, got {sp!r}")
+
+
+def _bad_setpoint_row(who: str, row: int, setpoint: NDArray[np.float64]) -> ValueError:
+    """The error of a setpoint row the cascade refuses (``BAD_SETPOINT``: not finite or beyond ``MAX_SETPOINT``)."""
+    return ValueError(f"{who}: info['setpoint'] row {row} is not finite NED coordinates [m] within {MAX_SETPOINT:g} m: "
+                      f"{setpoint[row].tolist()}")
 
 
 def _rows3(x: ArrayLike, n: int) -> NDArray[np.float64]:
@@ -288,8 +289,7 @@ class PX4Agent(Agent):
         bad = np.flatnonzero(starts & ~(np.abs(new_sp) <= MAX_SETPOINT).all(axis=1))  # NaN fails too
         if bad.size:
             row = int(bad[0])
-            raise ValueError(f"{who}: info['setpoint'] row {row} is not finite NED coordinates [m] within "
-                             f"{MAX_SETPOINT:g} m: {new_sp[row].tolist()}")
+            raise _bad_setpoint_row(who, row, new_sp)
         if mask is None or mask.any():
             starting = meas if mask is None else {k: v[mask] for k, v in meas.items()}
             refuse_measurement(starting, self._cascade_keys(starting), int(starting["position"].shape[0]), who)
@@ -428,8 +428,7 @@ class PX4Agent(Agent):
             raise ValueError(f"{who}: measurement row {row} refused by the cascade (not finite, the attitude not a "
                              "rotation, or rows missing)")  # the check above words it; kept should the two disagree
         if code == C.BAD_SETPOINT:
-            raise ValueError(f"{who}: info['setpoint'] row {row} is not finite NED coordinates [m] within "
-                             f"{MAX_SETPOINT:g} m: {setpoint[row].tolist()}")
+            raise _bad_setpoint_row(who, row, setpoint)
         if code == C.BAD_ESTIMATE:
             raise FloatingPointError(self._bad_estimate(row))
         if code == C.BAD_ACTION:

@@ -200,11 +200,15 @@ THREADED_ROWS = 64
 PHYSICS_CHUNK_ROWS = 64
 
 
+def usable_cores() -> int:
+    """The cores this process may use (its CPU affinity where the OS has one)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
 def default_physics_threads(n: int) -> int:
     """Threads of the env's ``mujoco.rollout`` for ``n`` rows, each with its own ``MjData``: one per core this
     process may use (at most one per :data:`THREADED_ROWS` rows), or 0 (the calling thread) if that is one."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    threads = min(cores, n // THREADED_ROWS)
+    threads = min(usable_cores(), n // THREADED_ROWS)
     return threads if threads > 1 else 0
 
 

@@ -27,7 +27,6 @@ Example::
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, wait
 from typing import Any
@@ -35,11 +34,6 @@ from typing import Any
 import numpy as np
 from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
-
-
-def default_shards() -> int:
-    """One shard per core this process may use."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 def shard_sizes(n: int, shards: int) -> list[int]:
@@ -81,14 +75,14 @@ class ShardedLoop:
     @classmethod
     def build(cls, n: int, make_agent: Callable[[Any], Any], shards: int | None = None,
               **env_options: Any) -> ShardedLoop:
-        """``shards`` envs (None: :func:`default_shards`, at most ``n``) of the N = ``n`` vehicles with
+        """``shards`` envs (None: one per usable core, at most ``n``) of the N = ``n`` vehicles with
         ``env_options`` (those of ``HoverBatchEnv``; ``physics_threads`` is set to 0), each with ``make_agent(env)``."""
-        from fawtgym.envs.hover_batch_env import HoverBatchEnv
+        from fawtgym.envs.hover_batch_env import HoverBatchEnv, usable_cores
 
         if "physics_threads" in env_options:
             raise ValueError("ShardedLoop.build sets physics_threads=0 itself (each shard's physics on its own "
                              f"thread); got physics_threads={env_options['physics_threads']!r}")
-        k = min(default_shards(), n) if shards is None and isinstance(n, (int, np.integer)) and n >= 1 else shards
+        k = min(usable_cores(), n) if shards is None and isinstance(n, (int, np.integer)) and n >= 1 else shards
         sizes = shard_sizes(n, k)  # type: ignore[arg-type]  # checked there
         envs = [HoverBatchEnv(m, physics_threads=0, **env_options) for m in sizes]
         return cls(envs, [make_agent(env) for env in envs])
