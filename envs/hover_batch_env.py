@@ -135,6 +135,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
 from fawtgym.core.arrays import REAL_KINDS, ReadOnlyState, as_array, as_f64, read_only
+from fawtgym.core.checks import check_flag
 from fawtgym.core.frames import SIGN_MJ_NED, rot_ned_to_quat_mj
 from fawtgym.core.so3 import exp_so3
 
@@ -142,6 +143,7 @@ from .aero import AeroModel
 from .ctbr import MAX_RATES, RateLoop
 from .mjcf import hull_points, vehicle_mjcf
 from .motors import allocation_matrix, decay_factors, substep_times
+from .mujoco_timers import timers_off, timers_on
 from .observation import OBS_SIZE, hover_observation, observation_bounds
 from .options import (
     INIT_SPREAD,
@@ -270,6 +272,10 @@ class HoverBatchEnv(VectorEnv):
             :func:`default_physics_threads` (one per core from :data:`THREADED_ROWS` rows on), 0 for the calling
             thread.  0 lets one thread per core each fly its own env of N / cores rows with its own agent (the
             ``sharded`` loop of ``fawtgym bench closed-loop``: the fastest closed loop on a 2-core machine).
+        mujoco_timers: False (default): the env's physics runs with MuJoCo's profiler timers off (a quarter of
+            ``mj_step`` on the s500; the same physics bit for bit; :mod:`fawtgym.envs.mujoco_timers`); True: with
+            them, as the Python bindings set them up (for code that reads ``mjData.timer`` of MuJoCo it steps on
+            other threads meanwhile).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -281,7 +287,7 @@ class HoverBatchEnv(VectorEnv):
                  integrator: str = "Euler", render_mode: str | None = None, render_width: int = 480,
                  render_height: int = 480, autoreset_mode: str | AutoresetMode = "next_step",
                  randomizer: Callable[[NDArray[np.intp], list[np.random.Generator]], Mapping[str, Any]] | None = None,
-                 physics_threads: int | None = None) -> None:
+                 physics_threads: int | None = None, mujoco_timers: bool = False) -> None:
         if (isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer))
                 or not 1 <= num_envs <= MAX_NUM_ENVS):
             raise ValueError(f"num_envs must be an int in [1, {MAX_NUM_ENVS}], got {num_envs!r}")
@@ -293,6 +299,7 @@ class HoverBatchEnv(VectorEnv):
             raise ValueError(f"randomizer must be None or a callable (rows, rngs) -> draws, got "
                              f"{type(randomizer).__name__}")
         threads = _check_physics_threads(physics_threads)
+        self._timers = check_flag(mujoco_timers, "mujoco_timers")
         if render_mode is not None:
             raise ValueError(f"HoverBatchEnv does not render; render_mode must be None, got {render_mode!r} "
                              "(render a single fawtgym/Hover-v0 instead)")
@@ -716,6 +723,11 @@ class HoverBatchEnv(VectorEnv):
         return self._step(self._checked_actions(actions, "step"))
 
     @property
+    def mujoco_timers(self) -> bool:
+        """Whether the env's physics runs with MuJoCo's profiler timers (the ``mujoco_timers`` option)."""
+        return self._timers
+
+    @property
     def physics_threads(self) -> int:
         """Threads of the env's ``mujoco.rollout`` (0: the calling thread); the ``physics_threads`` option, or
         :func:`default_physics_threads` of N."""
@@ -871,8 +883,16 @@ class HoverBatchEnv(VectorEnv):
         env's state there) with controls ``ctrl`` (N, nstep, 10) into ``out`` (N, nstep, 14) (all C-contiguous float64:
         the checks are skipped); returns ``out``: the final states ``out[:, -1]`` are at MuJoCo time
         ``_MJ_T0 + nstep physics_dt`` unless MuJoCo reset a diverging row."""
-        self._rollout.rollout(self._models, self._datas, state, ctrl, control_spec=_CONTROL_SPEC,
-                              skip_checks=True, nstep=ctrl.shape[1], state=out, chunk_size=self._chunk)
+        if self._timers:
+            self._rollout.rollout(self._models, self._datas, state, ctrl, control_spec=_CONTROL_SPEC,
+                                  skip_checks=True, nstep=ctrl.shape[1], state=out, chunk_size=self._chunk)
+            return out
+        timers_off()  # MuJoCo's profiler timers (:mod:`.mujoco_timers`)
+        try:
+            self._rollout.rollout(self._models, self._datas, state, ctrl, control_spec=_CONTROL_SPEC,
+                                  skip_checks=True, nstep=ctrl.shape[1], state=out, chunk_size=self._chunk)
+        finally:
+            timers_on()
         return out
 
     def _run_ctbr(self, a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:

@@ -201,7 +201,14 @@ class HoverEnv(gym.Env):
         max_position_error: half-size of the termination box [m], in (0, 1e9] (1e9: the SITL plant's "no box").
         integrator: MuJoCo integrator name.
         render_mode: ``None`` or ``"rgb_array"`` (headless via MUJOCO_GL=egl, set by default).
+        mujoco_timers: whether the physics runs with MuJoCo's profiler timers (default False: a quarter of
+            ``mj_step`` saved; :class:`~fawtgym.envs.hover_batch_env.HoverBatchEnv`).
     """
+
+    @property
+    def mujoco_timers(self) -> bool:
+        """Whether the physics runs with MuJoCo's profiler timers (the ``mujoco_timers`` option)."""
+        return self._batch.mujoco_timers
 
     @property
     def metadata(self) -> dict[str, Any]:
@@ -223,7 +230,7 @@ class HoverEnv(gym.Env):
                  episode_seconds: float = 10.0, setpoint: ArrayLike | None = None, init_noise: float = 1.0,
                  reward_weights: Mapping[str, float] | None = None, max_position_error: float = 2.0,
                  integrator: str = "Euler", render_mode: str | None = None, render_width: int = 480,
-                 render_height: int = 480) -> None:
+                 render_height: int = 480, mujoco_timers: bool = False) -> None:
         super().__init__()
         kwargs = dict(vehicle=vehicle, wind=wind, action_type=action_type, sensors=sensors,
                       control_rate=control_rate, physics_rate=physics_rate, episode_seconds=episode_seconds,
@@ -231,7 +238,7 @@ class HoverEnv(gym.Env):
                       max_position_error=max_position_error, integrator=integrator, render_width=render_width,
                       render_height=render_height)
         hover_options(**kwargs, render_mode=render_mode)  # the render mode is this env's (the batch does not render)
-        self._batch = HoverBatchEnv(1, **kwargs)
+        self._batch = HoverBatchEnv(1, **kwargs, mujoco_timers=mujoco_timers)
         self._batch._autoreset_on = False  # Gymnasium's single-env API: the caller resets
         b = self._batch
         self.preset = b.preset

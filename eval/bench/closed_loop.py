@@ -166,6 +166,7 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int, shards: int | N
     import mujoco
     from mujoco import rollout
 
+    from fawtgym.envs import mujoco_timers
     from fawtgym.envs.hover_batch_env import _CONTROL_SPEC, HoverBatchEnv, default_physics_threads
     from fawtgym.eval.sharded import ShardedLoop
 
@@ -292,7 +293,7 @@ def _batch_jobs(n: int, control_rate: float, vehicle_steps: int, shards: int | N
         state, ctrl, out = env._mj_state.copy(), env._ctrl.copy(), env._out.copy()
         threads = default_physics_threads(n)  # the env's own: one MjData per thread
         models, data = [env.model] * n, [mujoco.MjData(env.model) for _ in range(max(threads, 1))]
-        with rollout.Rollout(nthread=threads) as r:
+        with rollout.Rollout(nthread=threads) as r, mujoco_timers.suspended(not env.mujoco_timers):
             t0, c0 = time.perf_counter(), time.process_time()
             for _ in range(steps):
                 r.rollout(models, data, state, ctrl, control_spec=_CONTROL_SPEC, skip_checks=True,
