@@ -26,6 +26,7 @@ Agents are named by the grammar of :mod:`fawtgym.agents.spec` (``px4``, ``px4+ff
 from __future__ import annotations
 
 import abc
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -143,7 +144,7 @@ def _applied_array(value: Any, key: str, n: int, trailing: tuple[int, ...]) -> N
     if a.dtype.kind not in REAL_KINDS:
         raise TypeError(f"info['applied'][{key!r}] must hold real numbers, got {value!r}")
     a = a.astype(float, copy=False)
-    size = int(np.prod(trailing, dtype=int))
+    size = math.prod(trailing)
     if a.size == n * size:
         return a.reshape((n, *trailing))
     if a.size == size:

@@ -126,6 +126,7 @@ one-line ``ValueError`` naming it and what is allowed.
 | ``integrator`` | ``"Euler"`` | MuJoCo integrator: ``Euler``, ``RK4``, ``implicit``, ``implicitfast`` |
 | ``render_mode`` | None | ``"rgb_array"`` only (``"human"`` is refused); see :mod:`fawtgym.envs.render` |
 | ``render_width``, ``render_height`` | 480, 480 | frame size [px] |
+| ``mujoco_timers`` | False | MuJoCo's profiler timers on (:mod:`fawtgym.envs.mujoco_timers`) |
 
 ## Rendering
 
@@ -141,7 +142,8 @@ height cue (:mod:`fawtgym.envs.render`); ``metadata["render_fps"]`` is the contr
   ``info["reward_terms"]``; ``render_fps`` follows the control rate and the frame shows the fan array; this env is the
   batch env at N = 1 (one step law: trajectories equal to rounding); bad input that was accepted
   (bool/complex/str numbers, wrongly shaped actions, a set point under the floor, a vehicle that cannot
-  hover, physics rates below 100 Hz) is refused with one ``ValueError``.
+  hover, physics rates below 100 Hz) is refused with one ``ValueError``.  The physics runs with MuJoCo's
+  profiler timers off (``mujoco_timers``; bit for bit the same trajectories).
 
 ``"mocap_imu"`` sensors: motion-capture pose at 100 Hz (0.5 mm, 0.1 deg) and an IMU with turn-on
 biases, as the VICON-fed PX4 of Wang et al. (2024), Sec. 7 (:mod:`fawtgym.envs.sensors`).

@@ -4,7 +4,7 @@ Both are timed in the same process, interleaved over several rounds, best round 
 disturbed by other load).  The raw figure is ``n_substeps`` bare ``mj_step`` calls on the env's own
 model/data (the physics the env cannot avoid); the ratio env/raw is the env's total cost in units of
 that physics, so ``ratio - 1`` is the env's overhead.  The raw and batched physics run with MuJoCo's profiler timers as
-the env runs its own (off by default: :mod:`fawtgym.envs.mujoco_timers`); the bare body below runs with them as the
+the env runs its own (off by default: `fawtgym/envs/mujoco_timers.py`); the bare body below runs with them as the
 Python bindings set them up (on), the unit the reference machine's figure was measured in.
 
 The absolute target (>= 10,000 env steps/s) was set on a machine where a bare 4-rotor free body steps at
