@@ -274,8 +274,8 @@ class HoverBatchEnv(VectorEnv):
             ``sharded`` loop of ``fawtgym bench closed-loop``: the fastest closed loop on a 2-core machine).
         mujoco_timers: False (default): the env's physics runs with MuJoCo's profiler timers off (a quarter of
             ``mj_step`` on the s500; the same physics bit for bit; :mod:`fawtgym.envs.mujoco_timers`); True: with
-            them, as the Python bindings set them up (for code that reads ``mjData.timer`` of MuJoCo it steps on
-            other threads meanwhile).
+            them, as the Python bindings set them up.  The switch is one process global: code that reads
+            ``mjData.timer`` of MuJoCo it steps on other threads while envs step builds every env with True.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}

@@ -1,21 +1,25 @@
 """MuJoCo's profiler timers, off while an env's own physics runs.
 
 MuJoCo times the stages of ``mj_step`` into ``mjData.timer`` only while the global callback ``mjcb_time`` is set;
-the C library leaves it unset.  The Python bindings set one (a steady clock) when they make an ``MjData``, and every
-``mj_step`` then reads that clock about a dozen times: on the 2-vCPU VM of
+the C library leaves it unset.  The Python bindings set one (a steady clock) when ``mujoco`` is imported (and
+``mujoco.set_mjcb_time(None)`` sets it back; ``mujoco.get_mjcb_time()`` shows only callbacks set from Python, so it
+reports None), and every ``mj_step`` then reads that clock about a dozen times: on the 2-vCPU VM of
 docs/performance.md a quarter of the s500's ``mj_step`` (2.08 -> 1.55 us per step, bit-for-bit the same physics).
 An env's ``MjData`` are its own and nobody reads their timers, so by default (``HoverBatchEnv(mujoco_timers=False)``)
 its rollouts run with ``mjcb_time`` unset, and it is set back afterwards (the bindings' clock, or whatever callback
 was set before).
 
-``mjcb_time`` is one global of the process: while an env's rollout runs, MuJoCo stepped by other code on other
-threads records no timer samples (a stage that straddles the switch adds a meaningless duration to that data's
-timer).  Code that profiles MuJoCo with ``mjData.timer`` while envs step on other threads builds them with
-``mujoco_timers=True``.  Envs stepping at once on several threads (:class:`fawtgym.eval.sharded.ShardedLoop`) share
-one count: the first unsets the callback, the last sets it back; a callback set meanwhile (by other code) is kept.
+``mjcb_time`` is one global of the process.  Stepping in one thread at a time (an env, then other MuJoCo code), every
+timer is as before.  But while an env's rollout runs, MuJoCo stepped on other threads -- other code, or an env built
+with ``mujoco_timers=True`` -- gets meaningless timer statistics: a stage timed from before the switch to after it
+adds minus a clock reading (negative durations).  Code that reads ``mjData.timer`` while envs step on other threads
+builds every env with ``mujoco_timers=True``.  Envs stepping at once on several threads
+(:class:`fawtgym.eval.sharded.ShardedLoop`) share one count: the first unsets the callback, the last sets it back; a
+callback set meanwhile (by other code) is kept.
 
-The callback is reached through ``ctypes`` in the ``libmujoco`` the bindings ship; where it cannot be found
-(:data:`AVAILABLE` False) the switch does nothing and MuJoCo keeps its timers.
+The callback is reached through ``ctypes`` in the ``libmujoco`` the bindings have loaded (only a library already
+loaded is taken, never a second copy); where it cannot be found (:data:`AVAILABLE` False) the switch does nothing and
+MuJoCo keeps its timers.
 """
 
 from __future__ import annotations
@@ -32,14 +36,25 @@ import mujoco
 __all__ = ["AVAILABLE", "suspended", "timer_callback", "timers_off", "timers_on"]
 
 
+def _loaded(path: str) -> ctypes.CDLL | None:
+    """The library at ``path`` if this process has it loaded already (never loads a second copy), else None."""
+    if os.name == "nt":  # LoadLibrary has no "only if loaded": ask for the module's handle first
+        if not ctypes.WinDLL("kernel32").GetModuleHandleW(path):  # type: ignore[attr-defined, unused-ignore]
+            return None
+        return ctypes.CDLL(path)
+    return ctypes.CDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_LAZY)  # OSError if not loaded
+
+
 def _callback_slot() -> ctypes.c_void_p | None:
-    """``mjcb_time`` of the ``libmujoco`` next to the bindings (the library they are linked against), or None."""
+    """``mjcb_time`` of the ``libmujoco`` next to the bindings that the bindings have loaded, or None."""
     folder = os.path.dirname(mujoco.__file__)
     for pattern in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll"):
         for path in sorted(glob.glob(os.path.join(folder, pattern))):
             try:
-                return ctypes.c_void_p.in_dll(ctypes.CDLL(path), "mjcb_time")
-            except (OSError, ValueError):  # not loadable, or no such symbol
+                lib = _loaded(path)
+                if lib is not None:
+                    return ctypes.c_void_p.in_dll(lib, "mjcb_time")
+            except (OSError, ValueError, AttributeError):  # not loaded, or no such symbol
                 continue
     return None
 

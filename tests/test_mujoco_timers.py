@@ -24,16 +24,44 @@ def _stepped_duration(active: bool) -> tuple[float, int]:
     """The STEP timer's (duration, count) added by 50 mj_steps of a fresh MjData, timers suspended or not."""
     model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><body><freejoint/><geom size='.1'/></body>"
                                            "</worldbody></mujoco>")
-    data = mujoco.MjData(model)  # the bindings set their clock here if none is set
+    data = mujoco.MjData(model)
     with T.suspended(active):
         for _ in range(50):
             mujoco.mj_step(model, data)
     return data.timer[STEP].duration, data.timer[STEP].number
 
 
+#: the C type of ``mjcb_time``: ``mjtNum (*)(void)``
+_TIMER = ctypes.CFUNCTYPE(ctypes.c_double)
+
+
+def test_an_envs_physics_runs_without_the_timers_unless_asked():
+    """A counting timer callback in MuJoCo's slot is called by every timed stage: never while a default env's
+    physics runs, many times for an env built with mujoco_timers=True (the bindings' clock is put back after)."""
+    calls = [0]
+
+    def clock() -> float:
+        calls[0] += 1
+        return 0.0
+
+    counting = _TIMER(clock)  # kept alive until the slot holds the bindings' clock again
+    before = T.timer_callback()
+    T._SLOT.value = ctypes.cast(counting, ctypes.c_void_p).value
+    try:
+        for timers, expect_calls in ((False, False), (True, True)):
+            env = HoverBatchEnv(2, wind="fawt-50", physics_threads=0, mujoco_timers=timers)
+            env.reset(seed=0)
+            calls[0] = 0
+            for _ in range(5):
+                env.step(env.hover_action())
+            env.close()
+            assert (calls[0] > 0) is expect_calls, (timers, calls[0])
+            assert T.timer_callback() == ctypes.cast(counting, ctypes.c_void_p).value  # set back after each step
+    finally:
+        T._SLOT.value = before
 def test_suspended_stops_the_timers_and_sets_the_callback_back():
     before = T.timer_callback()
-    assert before is not None  # the bindings' clock (set when an MjData is made)
+    assert before is not None  # the bindings' clock (set by `import mujoco`)
     duration, count = _stepped_duration(True)
     assert count == 50 and duration == 0.0  # stepped, but no stage was timed
     assert T.timer_callback() == before
@@ -52,19 +80,26 @@ def test_nested_and_concurrent_uses_share_one_count():
     assert T.timer_callback() == before
     with pytest.raises(RuntimeError, match=r"^mujoco_timers\.timers_on\(\) without a timers_off\(\) before it$"):
         T.timers_on()
-    barrier = threading.Barrier(4)
+    barrier = threading.Barrier(4, timeout=30)
+    errors: list[BaseException] = []
 
     def worker() -> None:
-        for _ in range(200):
-            with T.suspended():
-                barrier.wait() if _ == 0 else None
-                assert T.timer_callback() is None
+        try:
+            for k in range(200):
+                with T.suspended():
+                    if k == 0:
+                        barrier.wait()  # all four inside at once
+                    assert T.timer_callback() is None
+        except BaseException as exc:  # re-raised by the main thread below
+            errors.append(exc)
+            barrier.abort()
 
     threads = [threading.Thread(target=worker) for _ in range(4)]
     for t in threads:
         t.start()
     for t in threads:
         t.join()
+    assert not errors, errors
     assert T.timer_callback() == before
 
 

@@ -3,9 +3,10 @@
 Both are timed in the same process, interleaved over several rounds, best round kept (the least
 disturbed by other load).  The raw figure is ``n_substeps`` bare ``mj_step`` calls on the env's own
 model/data (the physics the env cannot avoid); the ratio env/raw is the env's total cost in units of
-that physics, so ``ratio - 1`` is the env's overhead.  The raw and batched physics run with MuJoCo's profiler timers as
-the env runs its own (off by default: `fawtgym/envs/mujoco_timers.py`); the bare body below runs with them as the
-Python bindings set them up (on), the unit the reference machine's figure was measured in.
+that physics, so ``ratio - 1`` is the env's overhead.  Every MuJoCo baseline (raw, bare, batched) runs with MuJoCo's
+profiler timers as the env runs its own physics (off by default: `fawtgym/envs/mujoco_timers.py`).  The reference
+machine's bare figure below was measured with the Python bindings' timers on: with them off here, the projection to
+that machine is conservative (the bare step it divides by is cheaper by the clock's share).
 
 The absolute target (>= 10,000 env steps/s) was set on a machine where a bare 4-rotor free body steps at
 about 350k ``mj_step``/s; this machine's speed varies with its load, so the same rounds also time that
@@ -70,13 +71,14 @@ def _bare_model() -> tuple[mujoco.MjModel, mujoco.MjData]:
     return model, mujoco.MjData(model)
 
 
-def _time_bare(model: mujoco.MjModel, data: mujoco.MjData, steps: int) -> float:
+def _time_bare(model: mujoco.MjModel, data: mujoco.MjData, steps: int, timers: bool) -> float:
     mujoco.mj_resetData(model, data)
     data.ctrl[:] = 4.34 * 9.81 / 4
-    t0 = time.perf_counter()
-    for _ in range(steps):
-        mujoco.mj_step(model, data)
-    return time.perf_counter() - t0
+    with mujoco_timers.suspended(not timers):  # the env's own physics setting
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            mujoco.mj_step(model, data)
+        return time.perf_counter() - t0
 
 
 def measure(control_rate: float = 100.0, physics_rate: float = 1000.0, steps: int = 2000, rounds: int = 5,
@@ -90,7 +92,7 @@ def measure(control_rate: float = 100.0, physics_rate: float = 1000.0, steps: in
     for _ in range(rounds):
         env_t.append(_time_env(env, steps))
         raw_t.append(_time_raw(env, steps))
-        bare_t.append(_time_bare(bare_m, bare_d, steps * env.n_substeps))
+        bare_t.append(_time_bare(bare_m, bare_d, steps * env.n_substeps, env.mujoco_timers))
     te, tr = min(env_t), min(raw_t)
     t_bare = min(bare_t) / (steps * env.n_substeps)  # one bare mj_step [s]
     bare_units = te / steps / t_bare  # one env step in bare mj_steps
