@@ -227,6 +227,12 @@ class HoverOptions:
     render_height: int
 
 
+def episode_steps(episode_seconds: float, dt: float) -> int:
+    """Control steps per episode: ``episode_seconds`` rounded up to whole control steps ``dt`` (a part-step counts as
+    a step), and at least one (an episode shorter than a step, down to 5e-324 s, is one step: never zero)."""
+    return max(1, int(math.ceil(episode_seconds / dt - 1e-9)))
+
+
 def hover_options(vehicle: Any = "s500", wind: Any = "calm", action_type: Any = "motors", sensors: Any = "none",
                   control_rate: Any = 100.0, physics_rate: Any = 1000.0, episode_seconds: Any = 10.0,
                   setpoint: ArrayLike | None = None, init_noise: Any = 1.0, reward_weights: Any = None,
@@ -262,7 +268,7 @@ def hover_options(vehicle: Any = "s500", wind: Any = "calm", action_type: Any = 
     return HoverOptions(
         preset=preset, wind=make_wind(wind), action_type=action_type, sensors=check_sensors(sensors),
         control_rate=control_rate, physics_rate=physics_rate, n_substeps=n_substeps, physics_dt=physics_dt, dt=dt,
-        episode_seconds=episode_seconds, max_steps=int(math.ceil(episode_seconds / dt - 1e-9)), setpoint=sp,
+        episode_seconds=episode_seconds, max_steps=episode_steps(episode_seconds, dt), setpoint=sp,
         init_noise=check_init_noise(init_noise), reward_weights=check_reward_weights(reward_weights),
         max_position_error=max_position_error, integrator=integrator, render_mode=render_mode,
         render_width=_render_size(render_width, "render_width"),

@@ -226,3 +226,16 @@ def test_docs_list_the_ranges_the_code_checks():
             key = next(k for k in rows if f"`{field}`" in k)
             assert rows[key].startswith(f"[{lo:g}, {hi:g}] {unit}"), (field, rows[key])
     assert rows["`inertia` principal moments"] == f"[{INERTIA_RANGE[0]:g}, {INERTIA_RANGE[1]:g}] kg m^2"
+
+
+@pytest.mark.parametrize(("seconds", "steps"), [(5e-324, 1), (1e-12, 1), (0.001, 1), (0.01, 1), (0.0100001, 2),
+                                                (0.03, 3), (10.0, 1000)])
+def test_an_episode_is_whole_control_steps_and_never_zero(seconds, steps):
+    """episode_seconds rounds up to whole control steps (100 Hz here), at least one: the tiniest episode is one
+    step, which ends truncated (max_steps was 0 for 5e-324 s, below the setter's own minimum of 1)."""
+    env = gym.make("fawtgym/Hover-v0", episode_seconds=seconds, init_noise=0.0)
+    assert env.unwrapped.max_steps == steps
+    env.reset(seed=0)
+    for k in range(steps):
+        _, _, terminated, truncated, _ = env.step(env.unwrapped.hover_action())
+        assert not terminated and truncated == (k == steps - 1)
