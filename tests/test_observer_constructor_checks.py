@@ -144,5 +144,13 @@ def test_the_shared_helper():
     assert check_number(0, "x", minimum=0.0, inclusive_minimum=True) == 0.0
     with pytest.raises(ValueError, match=re.escape("x must be a finite real number < 2, got 2 (int)")):
         check_number(2, "x", maximum=2.0, inclusive_maximum=False)
-    with pytest.raises(ValueError, match=re.escape("x must be a finite real number > 0, got 10000")):
+    with pytest.raises(ValueError, match=re.escape("x must be a finite real number > 0, got an int of about 401 digits "
+                                                   "(int)")):
         check_positive(10**400, "x")
+    # an int beyond Python's 4300-digit str limit, a long str: shown by their length, not a second error
+    with pytest.raises(ValueError, match=re.escape("x must be a finite real number > 0, got an int of about 5001 "
+                                                   "digits (int)")):
+        check_positive(10**5000, "x")
+    with pytest.raises(ValueError, match=re.escape(f"x must be a finite real number > 0, got '{'a' * 199}... (502 "
+                                                   "characters) (str)")):
+        check_positive("a" * 500, "x")

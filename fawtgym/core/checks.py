@@ -38,7 +38,18 @@ def check_number(value: Any, name: str, *, minimum: float = -math.inf, maximum: 
         return v
     bounds = _range_text(minimum, maximum, inclusive_minimum, inclusive_maximum)
     raise ValueError(f"{name} must be a finite real number{bounds}"
-                     f"{' ' + note if note else ''}, got {value!r} ({type(value).__name__})")
+                     f"{' ' + note if note else ''}, got {shown(value)} ({type(value).__name__})")
+
+
+def shown(value: Any, limit: int = 200) -> str:
+    """``repr(value)`` for an error message, at most ``limit`` characters: a longer one (e.g. an int of thousands of
+    digits, whose full repr Python refuses beyond 4300 digits) is cut, with its length stated."""
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+        bits = abs(int(value)).bit_length()
+        if bits > 3 * limit:  # more than ~0.9 limit digits
+            return f"an int of about {int(bits * math.log10(2)) + 1} digits"
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 
 def check_positive(value: Any, name: str, *, maximum: float = math.inf, note: str = "") -> float:
