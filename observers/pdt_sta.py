@@ -205,6 +205,8 @@ class PdtStaAttitudeObserver(Observer):
         self.anchor: NDArray[np.float64] = np.eye(3)[None]
         #: False where the last update's vectors gave no attitude (N,)
         self.quest_valid: NDArray[np.bool_] = np.ones(1, dtype=bool)
+        #: the last estimate's buffer (N, 30) (:meth:`estimate`): the kernel's, or the reset's; None before reset
+        self._last: NDArray[np.float64] | None = None
 
     def _vectors(self, meas: Mapping[str, NDArray[np.float64]]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The accelerometer and magnetometer rows (N, 3), C-contiguous (checked by :meth:`Observer.update` /
@@ -226,6 +228,10 @@ class PdtStaAttitudeObserver(Observer):
         self.core.reset(np.zeros((n, 3)), rows=rows)
         self.anchor = np.ascontiguousarray(write_rows(self.anchor, R_q, rows))
         self.quest_valid = write_rows(self.quest_valid, valid, rows)
+        # the estimate at the anchor: attitude R_a (g_hat = 0), omega_hat = 0, the QUEST attitude, no wrench
+        start = np.zeros((n, 30))
+        start[:, 6:15] = start[:, 18:27] = R_q.reshape(n, 9)
+        self._last = write_rows(self._last, start, rows)
         return n
 
     def _update(self, meas: dict[str, NDArray[np.float64]], thrust: NDArray[np.float64],
@@ -240,13 +246,21 @@ class PdtStaAttitudeObserver(Observer):
         # views of two buffers: the new state (no update writes into a stored state) and the estimate
         anchor, x1, x2, t = state[:, 0:9].reshape(n, 3, 3), state[:, 9:12], state[:, 12:15], state[:, 15]
         est = ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6], states=BufferStates(out, _STATES))
-        return est, (anchor, x1, x2, t, valid)
+        return est, (anchor, x1, x2, t, valid, out)
 
     def _commit(self, state: Any) -> None:
-        self.anchor, self.core.x1, self.core.x2, self.core.t, self.quest_valid = state
+        self.anchor, self.core.x1, self.core.x2, self.core.t, self.quest_valid, self._last = state
 
     def snapshot(self) -> Any:
-        return self.anchor, self.core.x1, self.core.x2, self.core.t, self.quest_valid
+        return self.anchor, self.core.x1, self.core.x2, self.core.t, self.quest_valid, self._last
+
+    def estimate(self) -> ObserverEstimate:
+        """The last update's estimate (after a reset: the anchor's, omega_hat = 0), in a fresh buffer: the estimate
+        needs the step's QUEST attitude, so the update's own is kept rather than recomputed from the state."""
+        if self._last is None:
+            raise RuntimeError("pdt_sta: estimate() before reset(); call reset(measurement) first")
+        out = self._last.copy()
+        return ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6], states=BufferStates(out, _STATES))
 
     def params(self) -> dict[str, Any]:
         c = self.core

@@ -284,3 +284,34 @@ def test_env_estimator_in_hover_env() -> None:
     assert max(att_err[late]) < 0.1 and np.median(att_err[late]) < max(tilt) + 0.01  # rad
     assert np.median(att_err[late]) <= np.median(quest_err[late])  # it filters QUEST's noise
     assert np.median(rate_err[late]) < 0.3  # rad/s, gyroless
+
+
+def test_env_estimator_estimate_is_the_last_updates_and_the_anchors_after_reset() -> None:
+    """pdt_sta had no estimate() (its estimate needs the step's QUEST attitude, not in the state): it returns the last
+    update's estimate bitwise, in a fresh buffer; after a reset (of every row or some) the anchor's: attitude = the
+    QUEST attitude at reset, omega_hat = 0, no wrench."""
+    obs = make_observer("pdt_sta", 1.0, [0.03, 0.03, 0.06])
+    with pytest.raises(RuntimeError, match=r"^pdt_sta: estimate\(\) before reset\(\); call reset\(measurement\) "
+                                           r"first$"):
+        obs.estimate()
+    R = exp_so3(np.random.default_rng(3).normal(size=(3, 3)))
+    obs.reset(_imu(R))
+    start = obs.estimate()
+    assert np.all(start.force == 0) and np.all(start.torque == 0) and np.all(start.states["angular_velocity"] == 0)
+    np.testing.assert_array_equal(start.states["attitude"], start.states["attitude_quest"])
+    assert_same_law(start.states["attitude"], R, scale=1.0, what="anchor attitude (QUEST of exact vectors)")
+    est = None
+    for k in range(4):
+        R = R @ exp_so3(np.tile([0.01, -0.02, 0.03], (3, 1)) * (k + 1))
+        est = obs.update(_imu(R), np.full(3, 10.0), np.zeros((3, 3)), 0.005)
+    again = obs.estimate()
+    for key in est.states:
+        np.testing.assert_array_equal(again.states[key], est.states[key])
+    again.states["attitude"][...] = 0.0  # a fresh buffer: writing it changes no later estimate
+    np.testing.assert_array_equal(obs.estimate().states["attitude"], est.states["attitude"])
+    rows = np.array([False, True, False])
+    obs.reset(_imu(R), rows=rows)
+    after = obs.estimate()
+    np.testing.assert_array_equal(after.states["attitude"][~rows], est.states["attitude"][~rows])
+    np.testing.assert_array_equal(after.states["angular_velocity"][rows], np.zeros((1, 3)))
+    np.testing.assert_array_equal(after.states["attitude"][rows], after.states["attitude_quest"][rows])
