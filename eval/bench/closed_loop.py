@@ -31,7 +31,8 @@ calling thread); the "per CPU s" column counts every thread of the process):
   physics, env kernels and agents alike, with no hand-off inside a step;
 * ``env alone``: the same batch env stepped with the hover action;
 * ``physics only``: the ``mujoco.rollout`` call the env makes (same model, N x substeps, same control
-  layout, same threads) and nothing else: the ceiling for any env built on this physics;
+  layout, same threads, MuJoCo's profiler timers off as in the env: ``fawtgym/envs/mujoco_timers.py``) and nothing
+  else: the ceiling for any env built on this physics;
 * ``calm env`` / ``fawt env``: vehicle-steps per second of the batch env alone (calm air, exact
   sensors, 100 Hz control; FAWT-50 + mocap_imu at the closed loop's control rate).
 
