@@ -883,16 +883,15 @@ class HoverBatchEnv(VectorEnv):
         env's state there) with controls ``ctrl`` (N, nstep, 10) into ``out`` (N, nstep, 14) (all C-contiguous float64:
         the checks are skipped); returns ``out``: the final states ``out[:, -1]`` are at MuJoCo time
         ``_MJ_T0 + nstep physics_dt`` unless MuJoCo reset a diverging row."""
-        if self._timers:
-            self._rollout.rollout(self._models, self._datas, state, ctrl, control_spec=_CONTROL_SPEC,
-                                  skip_checks=True, nstep=ctrl.shape[1], state=out, chunk_size=self._chunk)
-            return out
-        timers_off()  # MuJoCo's profiler timers (:mod:`.mujoco_timers`)
+        off = not self._timers  # MuJoCo's profiler timers off during the rollout (:mod:`.mujoco_timers`; the calls
+        if off:                 # themselves, not its ``suspended`` context manager: ~1 us less per step)
+            timers_off()
         try:
             self._rollout.rollout(self._models, self._datas, state, ctrl, control_spec=_CONTROL_SPEC,
                                   skip_checks=True, nstep=ctrl.shape[1], state=out, chunk_size=self._chunk)
         finally:
-            timers_on()
+            if off:
+                timers_on()
         return out
 
     def _run_ctbr(self, a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
