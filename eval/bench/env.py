@@ -46,15 +46,20 @@ def _time_env(env: HoverEnv, steps: int) -> float:
     return time.perf_counter() - t0
 
 
-def _time_raw(env: HoverEnv, steps: int) -> float:
-    m, d = env.model, env.data
-    thrust = env.preset.mass * GRAVITY / 4
-    d.ctrl[:4] = thrust
-    with mujoco_timers.suspended(not env.mujoco_timers):  # the env's own physics setting
+def _time_mj_steps(model: mujoco.MjModel, data: mujoco.MjData, steps: int, timers: bool) -> float:
+    """Wall seconds of ``steps`` bare ``mj_step`` calls, with MuJoCo's profiler timers as an env with
+    ``mujoco_timers=timers`` runs its physics."""
+    with mujoco_timers.suspended(not timers):
         t0 = time.perf_counter()
-        for _ in range(steps * env.n_substeps):
-            mujoco.mj_step(m, d)
+        for _ in range(steps):
+            mujoco.mj_step(model, data)
         return time.perf_counter() - t0
+
+
+def _time_raw(env: HoverEnv, steps: int) -> float:
+    d = env.data
+    d.ctrl[:4] = env.preset.mass * GRAVITY / 4
+    return _time_mj_steps(env.model, d, steps * env.n_substeps, env.mujoco_timers)
 
 
 #: bare-body mj_step/s of the machine the issue's absolute target was set on
@@ -74,11 +79,7 @@ def _bare_model() -> tuple[mujoco.MjModel, mujoco.MjData]:
 def _time_bare(model: mujoco.MjModel, data: mujoco.MjData, steps: int, timers: bool) -> float:
     mujoco.mj_resetData(model, data)
     data.ctrl[:] = 4.34 * 9.81 / 4
-    with mujoco_timers.suspended(not timers):  # the env's own physics setting
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            mujoco.mj_step(model, data)
-        return time.perf_counter() - t0
+    return _time_mj_steps(model, data, steps, timers)
 
 
 def measure(control_rate: float = 100.0, physics_rate: float = 1000.0, steps: int = 2000, rounds: int = 5,
