@@ -65,12 +65,20 @@ CASES = [
                                           f"got {BIG}"),
     ({"sensors": {**IMU, "gyro_density": HUGE}}, "sensor field 'gyro_density' must be a finite real number in "
                                                  f"[0, 10] (rad/s)/sqrt(Hz), got {BIG}"),
-    ({"wind": {"name": "fawt-50", "on_time": HUGE}}, f"on_time must be a finite time in [0, 1e+09] s or None, got "
-                                                     f"{HUGE!r}"),
-    ({"wind": {"name": "dryden-light", "mean_wind": HUGE}}, "mean_wind must be False, True or a speed in [0, 100] m/s, "
-                                                            f"got {HUGE!r}"),
-    ({"wind": {"name": "dryden-light", "direction_deg": HUGE}}, f"direction_deg must be a finite heading in degrees, "
-                                                                f"got {HUGE!r}"),
+    ({"wind": {"name": "fawt-50", "on_time": HUGE}}, f"on_time must be a finite real number in [0, 1e+09] s or None, "
+                                                     f"got {BIG}"),
+    ({"wind": {"name": "dryden-light", "mean_wind": HUGE}}, "mean_wind must be a finite real number in [0, 100] m/s, "
+                                                            "True (the log-profile speed) or False (none), "
+                                                            f"got {BIG}"),
+    ({"wind": {"name": "dryden-light", "direction_deg": HUGE}}, "direction_deg must be a finite real number in "
+                                                                f"[-360, 360] degrees (a heading), got {BIG}"),
+    ({"wind": {"name": "gust-1cos", "direction_deg": 1e300}}, "direction_deg must be a finite real number in "
+                                                              "[-360, 360] degrees (a heading), got 1e+300 (float)"),
+    ({"wind": {"name": "dryden-light", "altitude": 1e300}}, "altitude must be a finite real number in (0, 304.8] m "
+                                                            "(the low-altitude model, up to 1000 ft), got 1e+300 "
+                                                            "(float)"),
+    ({"wind": {"name": "fawt-50", "spin_down_tau": 1e300}}, "spin_down_tau must be a finite real number in "
+                                                            "[0.0001, 10000] s, got 1e+300 (float)"),
     ({"wind": {"name": "gust-1cos", "start_time": HUGE}}, f"start_time must be a finite real number in [0, 1e+09] s, "
                                                           f"got {BIG}"),
     # A8: float overflow, division by zero, scipy and MuJoCo errors
@@ -90,8 +98,9 @@ CASES = [
                                                       "in [0, 10] m/sqrt(Hz), got 1e+300 (float)"),
     ({"vehicle": {**S500, "arm_length": 1e300}}, "vehicle field 'arm_length' must be a finite real number in "
                                                  "[0.001, 100] m, got 1e+300 (float)"),
-    ({"wind": {"name": "dryden-light", "mean_wind": 1e300}}, "mean_wind must be False, True or a speed in [0, 100] "
-                                                             "m/s, got 1e+300"),
+    ({"wind": {"name": "dryden-light", "mean_wind": 1e300}}, "mean_wind must be a finite real number in [0, 100] "
+                                                             "m/s, True (the log-profile speed) or False (none), "
+                                                             "got 1e+300 (float)"),
     ({"sensors": {**IMU, "attitude_sigma": 1e300}}, "sensor field 'attitude_sigma' must be a finite real number in "
                                                     "[0, 3.14159] rad, got 1e+300 (float)"),
     ({"sensors": {**IMU, "gyro_density": 1e308}}, "sensor field 'gyro_density' must be a finite real number in "
@@ -118,8 +127,8 @@ CASES = [
                                                      "[1e-07, 100000] kg m^2, got [1e-12, 1e-12, 1e-12]"),
     ({"vehicle": {**S500, "tau_up": 5e-324}}, "vehicle field 'tau_up' must be a finite real number in [0.0001, 10] "
                                               "s, got 5e-324 (float)"),
-    ({"wind": {"name": "fawt-50", "spin_tau": 5e-324}}, "spin_tau must be a finite time constant in [0.0001, 10000] "
-                                                        "s, got 5e-324"),
+    ({"wind": {"name": "fawt-50", "spin_tau": 5e-324}}, "spin_tau must be a finite real number in [0.0001, 10000] "
+                                                        "s, got 5e-324 (float)"),
 ]
 
 

@@ -240,7 +240,8 @@ def test_bad_step_input_gives_the_same_error_at_every_n(name):
     one, three = _step_errors(name, 1), _step_errors(name, 3)
     assert one == three
     text = " ".join(m for _, m in one)
-    for word in ("dt must be a wind step in (0, 1] s, got 2.0", "'0.01'", "None", "t must be a finite time",
+    for word in ("dt must be a finite real number in (0, 1] s (a wind step), got 2.0 (float)", "'0.01'", "None",
+                 "t must be a finite real number (the time in s)",
                  "points_ned must be finite", "vehicle_velocity_ned must be finite", "points_ned must have shape",
                  "vehicle_velocity_ned must have shape", "real numbers"):
         assert word in text, word

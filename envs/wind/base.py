@@ -17,6 +17,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core.arrays import as_f64
+from fawtgym.core.checks import check_number
 
 #: Longest wind step [s].  The gust filters are exact at any step, but their step-matrix table holds air
 #: travel ``V dt`` up to 200 m (:mod:`.dryden_discrete`): 1 s covers airspeeds up to 200 m/s.  A step of
@@ -24,22 +25,16 @@ from fawtgym.core.arrays import as_f64
 DT_MAX = 1.0
 
 
-def is_real(value: Any) -> bool:
-    """A finite real number (Python or numpy scalar), never a boolean: what every numeric wind option must be."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        return False
-    try:
-        return math.isfinite(value)
-    except OverflowError:  # an int beyond float range (10**400)
-        return False
+def check_dt(dt: Any) -> float:
+    """A wind step ``0 < dt <=`` :data:`DT_MAX` [s] as a float (:func:`~fawtgym.core.checks.check_number`'s
+    ValueError naming it otherwise)."""
+    return check_number(dt, "dt", maximum=DT_MAX, minimum=0.0, note="s (a wind step)")
 
 
 def check_step(t: float, dt: float) -> None:
-    """ValueError naming the value unless ``t`` is a finite time [s] and ``0 < dt <= DT_MAX`` [s]."""
-    if not is_real(dt) or not 0.0 < dt <= DT_MAX:
-        raise ValueError(f"dt must be a wind step in (0, {DT_MAX:g}] s, got {dt!r}")
-    if not is_real(t):
-        raise ValueError(f"t must be a finite time [s], got {t!r}")
+    """ValueError naming the value unless ``t`` is a finite time [s] and ``dt`` a wind step (:func:`check_dt`)."""
+    check_dt(dt)
+    check_number(t, "t", note="(the time in s)")
 
 
 def check_points(points_ned: Any, velocity_ned: Any, n: int, finite: bool = True

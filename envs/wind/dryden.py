@@ -43,9 +43,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
-from fawtgym.core.checks import check_number
-
-from .base import is_real
+from fawtgym.core.checks import check_number, check_positive
 
 FORMS = ("8785c", "1797")
 #: Lower bound of the frozen-turbulence speed [m/s].  Below ~1 m/s Taylor's hypothesis does not hold
@@ -67,18 +65,6 @@ def check_length_scale(name: str, value: float) -> float:
                         inclusive_minimum=True, note="m")
 
 
-def _check_positive(name: str, value: float) -> float:
-    if not (is_real(value) and value > 0):
-        raise ValueError(f"{name} must be a finite positive number, got {value!r}")
-    return float(value)
-
-
-def _check_nonneg(name: str, value: float) -> float:
-    if not (is_real(value) and value >= 0):
-        raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-    return float(value)
-
-
 @dataclass(frozen=True)
 class DrydenParams:
     """Intensities [m/s] and length scales [m] of the three gust components, in one spec form.
@@ -96,7 +82,8 @@ class DrydenParams:
     def __post_init__(self) -> None:
         if self.form not in FORMS:
             raise ValueError(f"Dryden form must be one of {FORMS}, got {self.form!r}")
-        sig = tuple(_check_nonneg(f"turbulence intensity sigma_{c}", s) for c, s in zip("uvw", self.sigma, strict=True))
+        sig = tuple(check_number(s, f"turbulence intensity sigma_{c}", minimum=0.0, inclusive_minimum=True, note="m/s")
+                    for c, s in zip("uvw", self.sigma, strict=True))
         lens = tuple(check_length_scale(f"length scale L_{c}", s) for c, s in zip("uvw", self.length, strict=True))
         object.__setattr__(self, "sigma", sig)
         object.__setattr__(self, "length", lens)
@@ -112,7 +99,7 @@ def dryden_psd(params: DrydenParams, component: str, freq_hz: NDArray[np.float64
     ``scipy.signal.welch`` (``scaling="density"``, one-sided) estimates.
     """
     f = np.asarray(freq_hz, dtype=float)
-    v = _check_positive("airspeed", airspeed)
+    v = check_positive(airspeed, "airspeed", note="m/s")
     i = "uvw".index(component)
     sig, length = params.sigma[i], params.length[i]
     om = 2.0 * math.pi * f / v

@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from .base import DT_MAX, WindModel, check_n, is_real
+from .base import WindModel, check_dt, check_n
 from .dryden import V_FLOOR, DrydenParams, spatial_state_space
 from .dryden_discrete import BIN, D_MAX, D_MIN, StepTable, psd_sqrt, stationary_covariance
 
@@ -256,8 +256,7 @@ class DrydenProcess:
         """
         if self.n == 0:
             raise RuntimeError("DrydenProcess.step before reset(n, seed)")
-        if not is_real(dt) or not 0.0 < dt <= DT_MAX:
-            raise ValueError(f"dt must be a wind step in (0, {DT_MAX:g}] s, got {dt!r}")
+        dt = check_dt(dt)
         speed = np.array(airspeed, dtype=float, ndmin=1)
         if speed.shape not in ((1,), (self.n,)) or not np.all(np.isfinite(speed)):
             raise ValueError(f"airspeed must be a finite scalar or shape ({self.n},) [m/s], got {airspeed!r}")

@@ -52,10 +52,10 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from fawtgym.core.checks import check_flag
+from fawtgym.core.checks import check_flag, check_number
 from fawtgym.core.frames import FAWT_ORIGIN_NED, R_FAWT_TO_NED
 
-from .base import check_points, check_step, is_real, raise_not_finite, row_inputs_finite
+from .base import check_points, check_step, raise_not_finite, row_inputs_finite
 from .dryden import FORMS, V_FLOOR, DrydenParams, check_length_scale
 from .dryden_process import DrydenProcess, GustWind, Seed, bin_filled, gust_row_step, step_bin
 from .schedule import DEFAULT_SPIN_TAU, FanSchedule
@@ -88,10 +88,9 @@ def length_scale_from_table3(duty_row: float) -> float:
 
 
 def check_duty(duty: float) -> float:
-    """Validate a duty fraction: finite and in [0, 1] (ValueError naming it otherwise)."""
-    if not is_real(duty) or not 0.0 <= duty <= 1.0:
-        raise ValueError(f"FAWT duty must be a fraction in [0, 1] (Table 3 covers 0.3-0.7), got {duty!r}")
-    return float(duty)
+    """A duty fraction in [0, 1] as a float (ValueError naming it otherwise)."""
+    return check_number(duty, "FAWT duty", minimum=0.0, maximum=1.0, inclusive_minimum=True,
+                        note="(a fraction; Table 3 covers 0.3-0.7)")
 
 
 def fawt_statistics(duty: float) -> dict[str, float]:

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from fawtgym.core.checks import check_flag, check_number
 
-from .base import WindModel, check_n, check_points, check_step, is_real, raise_not_finite, row_inputs_finite
+from .base import WindModel, check_n, check_points, check_step, raise_not_finite, row_inputs_finite
 from .dryden import FORMS, V_FLOOR, DrydenParams, check_length_scale
 from .dryden_process import DrydenProcess, GustWind, Seed, bin_filled, gust_row_step, step_bin
 
@@ -60,9 +60,8 @@ def low_altitude_params(intensity: str, altitude: float, form: str = "8785c") ->
         raise ValueError(f"turbulence intensity must be one of {list(W20_KNOTS)}, got {intensity!r}")
     if form not in FORMS:
         raise ValueError(f"form must be one of {FORMS}, got {form!r}")
-    if not is_real(altitude) or not 0.0 < altitude <= LOW_ALTITUDE_MAX:
-        raise ValueError(f"altitude must be in (0, {LOW_ALTITUDE_MAX:.1f}] m (low-altitude model, 1000 ft), "
-                         f"got {altitude!r}")
+    altitude = check_number(altitude, "altitude", minimum=0.0, maximum=LOW_ALTITUDE_MAX,
+                            note="m (the low-altitude model, up to 1000 ft)")
     h = max(altitude / FT, 10.0)
     k = 0.177 + 0.000823 * h
     sig_w = 0.1 * W20_KNOTS[intensity] * KNOT
@@ -80,9 +79,10 @@ def log_profile_speed(intensity: str, altitude: float) -> float:
 
 
 def _direction(direction_deg: float) -> NDArray[np.float64]:
-    if not is_real(direction_deg):
-        raise ValueError(f"direction_deg must be a finite heading in degrees, got {direction_deg!r}")
-    a = math.radians(direction_deg)
+    """The horizontal NED unit vector toward the heading ``direction_deg`` (degrees in [-360, 360], clockwise from
+    north)."""
+    a = math.radians(check_number(direction_deg, "direction_deg", minimum=-360.0, maximum=360.0,
+                                  inclusive_minimum=True, note="degrees (a heading)"))
     return np.array([math.cos(a), math.sin(a), 0.0])
 
 
@@ -155,11 +155,9 @@ class DrydenWind(GustWind):
             speed = log_profile_speed(intensity, altitude) if mean_wind else 0.0
         elif mean_wind is None:
             speed = 0.0
-        elif is_real(mean_wind) and 0 <= mean_wind <= MAX_MEAN_WIND:
-            speed = float(mean_wind)
         else:
-            raise ValueError(f"mean_wind must be False, True or a speed in [0, {MAX_MEAN_WIND:g}] m/s, "
-                             f"got {mean_wind!r}")
+            speed = check_number(mean_wind, "mean_wind", minimum=0.0, maximum=MAX_MEAN_WIND, inclusive_minimum=True,
+                                 note="m/s, True (the log-profile speed) or False (none)")
         d = _direction(direction_deg)
         self.mean = speed * d  # NED
         # the air mass carrying the turbulence moves at the mean wind; without a mean-wind output it still

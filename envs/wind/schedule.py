@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 
-from .base import is_real
+from fawtgym.core.checks import check_number
 
 DEFAULT_SPIN_TAU = 1.0  #: [s] first-order fan spin-up time constant (assumption, see module docstring)
 #: the latest on/off time [s] (about 32 years, the env's longest episode)
@@ -30,11 +30,16 @@ SPIN_TAU_RANGE = (1e-4, 1e4)
 
 
 def _check_time(name: str, value: float | None) -> float | None:
+    """A switch time in [0, :data:`MAX_TIME`] s as a float, or None (no such switch)."""
     if value is None:
         return None
-    if not (is_real(value) and 0 <= value <= MAX_TIME):
-        raise ValueError(f"{name} must be a finite time in [0, {MAX_TIME:g}] s or None, got {value!r}")
-    return float(value)
+    return check_number(value, name, minimum=0.0, maximum=MAX_TIME, inclusive_minimum=True, note="s or None")
+
+
+def _check_tau(name: str, value: float) -> float:
+    """A fan time constant in :data:`SPIN_TAU_RANGE` [s] as a float."""
+    return check_number(value, name, minimum=SPIN_TAU_RANGE[0], maximum=SPIN_TAU_RANGE[1], inclusive_minimum=True,
+                        note="s")
 
 
 class FanSchedule:
@@ -49,16 +54,11 @@ class FanSchedule:
                  spin_tau: float = DEFAULT_SPIN_TAU, spin_down_tau: float | None = None) -> None:
         self.on_time = _check_time("on_time", on_time)
         self.off_time = _check_time("off_time", off_time)
-        for name, val in (("spin_tau", spin_tau), ("spin_down_tau", spin_down_tau)):
-            if val is None and name == "spin_down_tau":  # None: the spin-up time constant
-                continue
-            if not (is_real(val) and val is not None and SPIN_TAU_RANGE[0] <= val <= SPIN_TAU_RANGE[1]):
-                raise ValueError(f"{name} must be a finite time constant in [{SPIN_TAU_RANGE[0]:g}, "
-                                 f"{SPIN_TAU_RANGE[1]:g}] s, got {val!r}")
+        self.spin_tau = _check_tau("spin_tau", spin_tau)
+        # None: the spin-up time constant
+        self.spin_down_tau = self.spin_tau if spin_down_tau is None else _check_tau("spin_down_tau", spin_down_tau)
         if self.on_time is not None and self.off_time is not None and self.off_time <= self.on_time:
             raise ValueError(f"off_time ({self.off_time}) must be after on_time ({self.on_time})")
-        self.spin_tau = float(spin_tau)
-        self.spin_down_tau = float(spin_down_tau) if spin_down_tau is not None else self.spin_tau
         self.steady = self.on_time is None and self.off_time is None
 
     def target(self, t: float) -> float:
