@@ -130,14 +130,15 @@ def test_rendering_rgb_array_shape():
 
 def test_record_video(tmp_path):
     pytest.importorskip("moviepy", reason="RecordVideo needs moviepy (gymnasium[other])")
-    env = gym.wrappers.RecordVideo(make(render_mode="rgb_array", episode_seconds=0.2), str(tmp_path))
+    folder = tmp_path / "videos"  # a folder RecordVideo makes itself (an existing one makes it warn)
+    env = gym.wrappers.RecordVideo(make(render_mode="rgb_array", episode_seconds=0.2), str(folder))
     env.reset(seed=0)
     done = False
     while not done:
         *_, term, trunc, _ = env.step(env.unwrapped.hover_action())
         done = term or trunc
     env.close()
-    assert list(tmp_path.glob("*.mp4"))
+    assert list(folder.glob("*.mp4"))
 
 
 def test_observation_is_built_from_measurements_not_truth():
