@@ -25,7 +25,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.checks import check_number
+from fawtgym.core.checks import check_number, shown
 from fawtgym.core.rows import masked
 
 #: the measurement keys the motion-capture link delivers (the rest comes from the onboard IMU)
@@ -59,7 +59,7 @@ class PoseDelay:
 
     def __init__(self, steps: int) -> None:
         if not (isinstance(steps, int) and steps >= 0):
-            raise ValueError(f"steps must be an int >= 0, got {steps!r}")
+            raise ValueError(f"steps must be an int >= 0, got {shown(steps)}")
         self.steps = steps
         self._buf: dict[str, NDArray[np.float64]] = {}
         self._head = 0

@@ -48,7 +48,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.arrays import REAL_KINDS, as_array
-from fawtgym.core.checks import check_flag, check_number
+from fawtgym.core.checks import check_flag, check_number, shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED
 from fawtgym.core.rows import check_row_mask
@@ -129,7 +129,7 @@ def _setpoint_rows(sp: Any, n: int, who: str) -> NDArray[np.float64]:
     if a is not None and a.shape in ((1, 3), (n, 3)):
         return np.ascontiguousarray(a)
     shapes = "(3,) or (1, 3)" if n == 1 else f"(3,), (1, 3) or ({n}, 3)"
-    raise ValueError(f"{who}: info['setpoint'] must be real NED coordinates [m] of shape {shapes}, got {sp!r}")
+    raise ValueError(f"{who}: info['setpoint'] must be real NED coordinates [m] of shape {shapes}, got {shown(sp)}")
 
 
 def _bad_setpoint_row(who: str, row: int, setpoint: NDArray[np.float64]) -> ValueError:
@@ -271,7 +271,7 @@ class PX4Agent(Agent):
         """
         if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer))
                                  or seed < 0):
-            raise ValueError(f"{type(self).__name__}.reset: seed must be None or an int >= 0, got {seed!r}")
+            raise ValueError(f"{type(self).__name__}.reset: seed must be None or an int >= 0, got {shown(seed)}")
         meas, _ = measurement_from_info(info)
         n = meas["position"].shape[0]
         if rows is not None and n != self._n:

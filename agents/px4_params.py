@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from fawtgym.core.checks import shown
+
 #: MAVLink parameter types used in QGroundControl files.
 _MAV_PARAM_TYPE_INT32 = 6
 _MAV_PARAM_TYPE_REAL32 = 9
@@ -149,7 +151,7 @@ def _check_value(name: str, value: Any) -> float:
         raise ValueError(f"PX4 parameter {name}={v:g} must be 0 (filter off) or in [{MIN_CUTOFF:g}, {spec.max:g}] "
                          f"{spec.unit}")
     if spec.integer and v != int(v):
-        raise ValueError(f"PX4 parameter {name} must be an integer, got {value!r}")
+        raise ValueError(f"PX4 parameter {name} must be an integer, got {shown(value)}")
     return v
 
 

@@ -135,7 +135,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
 from fawtgym.core.arrays import REAL_KINDS, ReadOnlyState, as_array, as_f64, read_only
-from fawtgym.core.checks import check_flag
+from fawtgym.core.checks import check_flag, shown
 from fawtgym.core.frames import SIGN_MJ_NED, rot_ned_to_quat_mj
 from fawtgym.core.so3 import exp_so3
 
@@ -229,7 +229,7 @@ def _check_physics_threads(threads: Any) -> int | None:
                            and 0 <= threads <= MAX_PHYSICS_THREADS):
         return None if threads is None else int(threads)
     raise ValueError(f"physics_threads must be None (one per core) or an int in [0, {MAX_PHYSICS_THREADS}] "
-                     f"(0: on the calling thread), got {threads!r}")
+                     f"(0: on the calling thread), got {shown(threads)}")
 
 
 def _check_seeds(seed: Any, n: int) -> list[int | None]:
@@ -244,7 +244,8 @@ def _check_seeds(seed: Any, n: int) -> list[int | None]:
     if isinstance(seed, Sequence) and not isinstance(seed, str) and len(seed) == n and all(
             x is None or ok(x) for x in seed):
         return [None if x is None else int(x) for x in seed]
-    raise ValueError(f"seed must be None, an int >= 0 or a list of {n} ints >= 0 / None (one per row), got {seed!r}")
+    raise ValueError(f"seed must be None, an int >= 0 or a list of {n} ints >= 0 / None (one per row), "
+                     f"got {shown(seed)}")
 
 
 def _with_masks(info: Mapping[str, Any], mask: NDArray[np.bool_]) -> dict[str, Any]:
@@ -290,7 +291,7 @@ class HoverBatchEnv(VectorEnv):
                  physics_threads: int | None = None, mujoco_timers: bool = False) -> None:
         if (isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer))
                 or not 1 <= num_envs <= MAX_NUM_ENVS):
-            raise ValueError(f"num_envs must be an int in [1, {MAX_NUM_ENVS}], got {num_envs!r}")
+            raise ValueError(f"num_envs must be an int in [1, {MAX_NUM_ENVS}], got {shown(num_envs)}")
         modes: dict[str | AutoresetMode, AutoresetMode] = {k: v for k, v in AUTORESET_MODES.items()}
         modes.update({m: m for m in AUTORESET_MODES.values()})
         if not isinstance(autoreset_mode, (str, AutoresetMode)) or autoreset_mode not in modes:
@@ -462,7 +463,7 @@ class HoverBatchEnv(VectorEnv):
         self._check_idle("setting max_steps")
         if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1 \
                 or value > 2**52:
-            raise ValueError(f"max_steps must be an int >= 1, got {value!r}")
+            raise ValueError(f"max_steps must be an int in [1, 2**52] (exact as a float64), got {shown(value)}")
         self._params[STEP_PARAM_START["max_steps"]] = int(value)
 
     @property

@@ -159,6 +159,7 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import shown
 from fawtgym.core.frames import rot_ned_to_quat_mj, vec_ned_to_mj
 
 from .aero import AeroModel
@@ -345,7 +346,7 @@ class HoverEnv(gym.Env):
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32], dict]:
         if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer))
                                  or seed < 0):
-            raise ValueError(f"seed must be None or an int >= 0, got {seed!r}")
+            raise ValueError(f"seed must be None or an int >= 0, got {shown(seed)}")
         check_reset_options(options)  # one vehicle: a (3,) set point
         obs, info = self._batch._reset(seed, options, single=True)
         rngs = self._batch._row_rngs

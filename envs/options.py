@@ -18,7 +18,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.checks import check_number
+from fawtgym.core.checks import check_number, shown
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED
 
 from .mjcf import INTEGRATORS
@@ -90,9 +90,9 @@ def _real_array(value: Any, name: str, what: str) -> NDArray[np.float64]:
     try:
         a = np.asarray(value)
     except ValueError as exc:  # ragged nested sequences
-        raise ValueError(f"{name} must be {what}, got {value!r}") from exc
+        raise ValueError(f"{name} must be {what}, got {shown(value)}") from exc
     if a.dtype.kind not in "iuf":
-        raise ValueError(f"{name} must be {what} (real numbers), got {value!r} (dtype {a.dtype})")
+        raise ValueError(f"{name} must be {what} (real numbers), got {shown(value)} (dtype {a.dtype})")
     return a.astype(np.float64)
 
 
@@ -110,9 +110,9 @@ def check_setpoint(value: Any, n: int | None = None) -> NDArray[np.float64]:
     if sp.shape == (1, 3) and n != 1:
         sp = sp[0]
     if sp.shape != (3,) and (n is None or sp.shape != (n, 3)) or not np.all(np.isfinite(sp)):
-        raise ValueError(f"setpoint must be 3 finite NED coordinates [m] of shape {shapes}, got {value!r}")
+        raise ValueError(f"setpoint must be 3 finite NED coordinates [m] of shape {shapes}, got {shown(value)}")
     if np.any(sp[..., 2] >= 0.0):
-        raise ValueError(f"setpoint z must be above the floor (z_NED < 0: NED z points down), got {value!r}")
+        raise ValueError(f"setpoint z must be above the floor (z_NED < 0: NED z points down), got {shown(value)}")
     if np.any(np.abs(sp) > MAX_SETPOINT):
         raise ValueError(f"setpoint coordinates must be at most {MAX_SETPOINT:g} m in magnitude (10 km from the "
                          f"origin), got {value!r}")
@@ -175,7 +175,7 @@ def check_sensors(spec: Any) -> SensorSpec:
 def _render_size(value: Any, name: str) -> int:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or not (
             1 <= int(value) <= MAX_RENDER_SIZE):
-        raise ValueError(f"{name} must be an int in [1, {MAX_RENDER_SIZE}] pixels, got {value!r}")
+        raise ValueError(f"{name} must be an int in [1, {MAX_RENDER_SIZE}] pixels, got {shown(value)}")
     return int(value)
 
 

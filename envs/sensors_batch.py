@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from fawtgym.core import measurement as M
 from fawtgym.core.arrays import ReadOnlyState, as_f64, read_only
+from fawtgym.core.checks import shown
 from fawtgym.core.so3_kernels import exp_so3_row, mat_mul_row
 
 from .sensors import SensorSpec, make_sensor_spec, pose_rate_error
@@ -130,7 +131,7 @@ class BatchSensorModel:
 
     def __init__(self, spec: SensorSpec | str, control_dt: float, n: int, physics_dt: float | None = None) -> None:
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-            raise ValueError(f"number of vehicles n must be a positive int, got {n!r}")
+            raise ValueError(f"number of vehicles n must be a positive int, got {shown(n)}")
         self.spec = spec = make_sensor_spec(spec)
         self.dt = control_dt
         self.n = int(n)

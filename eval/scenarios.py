@@ -39,6 +39,8 @@ from typing import Any
 
 import numpy as np
 
+from fawtgym.core.checks import shown
+
 #: the compressed Table 4 schedule (hover, fan on, fan off) [s], as ``fawtgym reproduce table4 --quick`` flies it
 TABLE4_SCHEDULE = (75.0, 5.0, 50.0)
 TABLE4_DUTIES = (30, 40, 50, 60, 70)
@@ -163,7 +165,7 @@ def scenario_from_mapping(name: str, fields: Mapping[str, Any]) -> Scenario:
     if "setpoint" in kw and kw["setpoint"] is not None:
         sp = kw["setpoint"]
         if not (isinstance(sp, Sequence) and len(sp) == 3 and all(isinstance(v, (int, float)) for v in sp)):
-            raise ValueError(f"scenario {name!r}: setpoint must be 3 NED coordinates [m], got {sp!r}")
+            raise ValueError(f"scenario {name!r}: setpoint must be 3 NED coordinates [m], got {shown(sp)}")
         kw["setpoint"] = tuple(float(v) for v in sp)
     for key in ("seconds", "control_rate"):
         if key in kw and not (isinstance(kw[key], (int, float)) and math.isfinite(kw[key]) and kw[key] > 0):

@@ -35,13 +35,15 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
+from fawtgym.core.checks import shown
+
 
 def shard_sizes(n: int, shards: int) -> list[int]:
     """Rows of each of ``shards`` envs flying ``n`` vehicles (as even as can be; the larger ones first)."""
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"n must be an int >= 1 (the number of vehicles), got {n!r}")
+        raise ValueError(f"n must be an int >= 1 (the number of vehicles), got {shown(n)}")
     if isinstance(shards, bool) or not isinstance(shards, (int, np.integer)) or not 1 <= shards <= n:
-        raise ValueError(f"shards must be an int in [1, n = {n}] (envs of at least one row each), got {shards!r}")
+        raise ValueError(f"shards must be an int in [1, n = {n}] (envs of at least one row each), got {shown(shards)}")
     return [int(n // shards + (1 if k < n % shards else 0)) for k in range(shards)]
 
 
@@ -91,7 +93,7 @@ class ShardedLoop:
         """Reset every shard (shard k with seed ``seed + offsets[k]``: row i of the N vehicles gets ``seed + i``)
         and its agent."""
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise ValueError(f"seed must be an int >= 0, got {seed!r}")
+            raise ValueError(f"seed must be an int >= 0, got {shown(seed)}")
         if self._closed:
             raise RuntimeError("ShardedLoop.reset() called after close(): build a new loop")
         for k, (env, agent) in enumerate(zip(self.envs, self.agents, strict=True)):
@@ -125,7 +127,7 @@ class ShardedLoop:
         error of the first shard (in shard order) that raised, once every shard has stopped.  Ended episodes restart
         (the env's autoreset, and the agent's per-row reset: :meth:`_fly`)."""
         if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
-            raise ValueError(f"steps must be an int >= 0, got {steps!r}")
+            raise ValueError(f"steps must be an int >= 0, got {shown(steps)}")
         if self._closed:
             raise RuntimeError("ShardedLoop.step() called after close(): build a new loop")
         if any(s is None for s in self._state):

@@ -28,6 +28,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import shown
+
 from .qb_design import QBProblem
 
 #: Sec. 4 vehicle (AscTec Hummingbird): m [kg] and body inertia [kg m^2]
@@ -79,7 +81,7 @@ def scaled_q2(mass: float, inertia: ArrayLike) -> NDArray[np.float64]:
 def disturbance_model(r: int) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """(F, G, H) of eqs. 43-46 for the r-th order disturbance model d^(r) = eta1 (eq. 41)."""
     if not (isinstance(r, (int, np.integer)) and r >= 1):
-        raise ValueError(f"disturbance order r must be an integer >= 1, got {r!r}")
+        raise ValueError(f"disturbance order r must be an integer >= 1, got {shown(r)}")
     nd = 6 * r
     F = np.zeros((nd, nd))
     F[: nd - 6, 6:] = np.eye(nd - 6)  # eq. 44

@@ -158,9 +158,10 @@ def test_max_steps_and_box_of_hover_env_take_effect():
 
 
 @pytest.mark.parametrize(("attr", "value", "match"), [
-    ("max_steps", 0, r"max_steps must be an int >= 1, got 0"),
-    ("max_steps", 2.5, r"max_steps must be an int >= 1, got 2.5"),
-    ("max_steps", True, r"max_steps must be an int >= 1, got True"),
+    ("max_steps", 0, r"max_steps must be an int in \[1, 2\*\*52\] \(exact as a float64\), got 0"),
+    ("max_steps", 2.5, r"max_steps must be an int in \[1, 2\*\*52\] .*, got 2.5"),
+    ("max_steps", True, r"max_steps must be an int in \[1, 2\*\*52\] .*, got True"),
+    ("max_steps", 2**52 + 1, r"max_steps must be an int in \[1, 2\*\*52\] .*, got 4503599627370497"),
     ("max_position_error", -1.0, r"max_position_error must be a finite real number in \(0, 1e\+09\] m .*, got -1.0 "
                                  r"\(float\)"),
     ("max_position_error", float("inf"), r"max_position_error must be a finite real number in \(0, 1e\+09\] m .*, "

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from fawtgym.agents.px4_agent import PX4ObserverAgent
+from fawtgym.core.checks import shown
 from fawtgym.envs.hover_batch_env import HoverBatchEnv
 from fawtgym.eval.sharded import ShardedLoop, shard_sizes
 
@@ -160,4 +161,4 @@ def test_num_envs_is_bounded():
     for bad in (0, 10**400, 10**6 + 1, True, 2.0):
         with pytest.raises(ValueError) as exc:
             HoverBatchEnv(bad)
-        assert str(exc.value) == f"num_envs must be an int in [1, 1000000], got {bad!r}"
+        assert str(exc.value) == f"num_envs must be an int in [1, 1000000], got {shown(bad)}"

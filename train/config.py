@@ -19,6 +19,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from fawtgym.core.checks import shown
+
 ALGOS = ("ppo", "sac", "td3")
 OBS_MODES = ("state", "state+eso")
 ACTION_MODES = ("ctbr", "motors", "residual")
@@ -112,7 +114,7 @@ class TrainConfig:
         if not (isinstance(self.steps, int) and self.steps >= 1):
             raise ValueError(f"--steps must be a positive integer, got {self.steps!r}")
         if not (isinstance(self.seed, int) and self.seed >= 0):
-            raise ValueError(f"--seed must be an integer >= 0, got {self.seed!r}")
+            raise ValueError(f"--seed must be an integer >= 0, got {shown(self.seed)}")
 
     @property
     def hp(self) -> dict[str, Any]:

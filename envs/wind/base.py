@@ -17,7 +17,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core.arrays import as_f64
-from fawtgym.core.checks import check_number
+from fawtgym.core.checks import check_number, shown
 
 #: Longest wind step [s].  The gust filters are exact at any step, but their step-matrix table holds air
 #: travel ``V dt`` up to 200 m (:mod:`.dryden_discrete`): 1 s covers airspeeds up to 200 m/s.  A step of
@@ -93,7 +93,7 @@ class WindModel(abc.ABC):
 def check_n(n: Any) -> int:
     """The number of fields of ``reset``: a positive int (ValueError naming it otherwise)."""
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"number of fields n must be a positive int, got {n!r}")
+        raise ValueError(f"number of fields n must be a positive int, got {shown(n)}")
     return int(n)
 
 

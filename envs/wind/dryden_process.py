@@ -28,6 +28,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from fawtgym.core.checks import shown
+
 from .base import WindModel, check_dt, check_n
 from .dryden import V_FLOOR, DrydenParams, spatial_state_space
 from .dryden_discrete import BIN, D_MAX, D_MIN, StepTable, psd_sqrt, stationary_covariance
@@ -139,7 +141,7 @@ class DrydenProcess:
     def __init__(self, params: DrydenParams, rates: bool = False, discretization: str = "exact",
                  block: int = 256) -> None:
         if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1:
-            raise ValueError(f"block must be a positive int, got {block!r}")
+            raise ValueError(f"block must be a positive int, got {shown(block)}")
         self.params = params
         self.rates = rates
         self.block = int(block)
@@ -165,7 +167,7 @@ class DrydenProcess:
         SeedSequences (field ``i`` draws from the ``i``-th).
         """
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-            raise ValueError(f"number of fields n must be a positive int, got {n!r}")
+            raise ValueError(f"number of fields n must be a positive int, got {shown(n)}")
         n = int(n)
         seeds = field_seeds(n, seed)
         self.n = n

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import sys
 from typing import Any
 
 import numpy as np
@@ -43,12 +44,16 @@ def check_number(value: Any, name: str, *, minimum: float = -math.inf, maximum: 
 
 def shown(value: Any, limit: int = 200) -> str:
     """``repr(value)`` for an error message, at most ``limit`` characters: a longer one (e.g. an int of thousands of
-    digits, whose full repr Python refuses beyond 4300 digits) is cut, with its length stated."""
+    digits, whose full repr Python refuses beyond 4300 digits) is cut, with its length (and sign) stated; a container
+    holding such an int is named by its type."""
     if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
         bits = abs(int(value)).bit_length()
         if bits > 3 * limit:  # more than ~0.9 limit digits
-            return f"an int of about {int(bits * math.log10(2)) + 1} digits"
-    text = repr(value)
+            return f"{'a negative' if value < 0 else 'an'} int of about {int(bits * math.log10(2)) + 1} digits"
+    try:
+        text = repr(value)
+    except ValueError:  # it holds an int beyond Python's int-to-str limit (e.g. a list with 10**5000 in it)
+        return f"a {type(value).__name__} holding an int of more than {sys.get_int_max_str_digits()} digits"
     return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 

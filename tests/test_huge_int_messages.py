@@ -1,0 +1,76 @@
+"""An int too long for Python's int-to-str limit (4300 digits) in a bad argument gets the package's own one-line error.
+
+Before, ``reset(seed=-10**5000)`` or ``HoverBatchEnv(10**5000)`` raised Python's "Exceeds the limit (4300 digits)
+for integer string conversion" from inside our message (its ``{value!r}``), naming neither the argument nor what
+is allowed.  Every such message words the value with :func:`fawtgym.core.checks.shown`.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import gymnasium as gym
+import pytest
+
+import fawtgym  # noqa: F401  (registers the env)
+from fawtgym.core.checks import shown
+from fawtgym.envs.hover_batch_env import HoverBatchEnv
+from fawtgym.eval.sharded import ShardedLoop, shard_sizes
+
+HUGE = 10**5000
+
+
+def test_shown_words_huge_ints_and_containers_holding_them():
+    assert shown(HUGE) == "an int of about 5001 digits"
+    assert shown(-HUGE) == "a negative int of about 5001 digits"
+    if sys.get_int_max_str_digits():  # the limit is on (Python's default): repr of the list itself raises
+        assert shown([1, HUGE]) == f"a list holding an int of more than {sys.get_int_max_str_digits()} digits"
+    assert shown(12) == "12" and shown("x") == "'x'"
+    assert shown("y" * 300) == "'" + "y" * 199 + "... (302 characters)"
+
+
+def _single() -> gym.Env:
+    return gym.make("fawtgym/Hover-v0")
+
+
+CASES = [
+    ("num_envs", lambda: HoverBatchEnv(HUGE), "num_envs must be an int in [1, 1000000], got an int of about 5001 "
+                                              "digits"),
+    ("physics_threads", lambda: HoverBatchEnv(2, physics_threads=HUGE), "physics_threads must be None (one per core) "
+                                                                        "or an int in [0, 256] (0: on the calling "
+                                                                        "thread), got an int of about 5001 digits"),
+    ("render_width", lambda: HoverBatchEnv(1, render_width=HUGE), "render_width must be an int in [1, 8192] pixels, "
+                                                                  "got an int of about 5001 digits"),
+    ("single seed", lambda: _single().reset(seed=-HUGE), "seed must be None or an int >= 0, got a negative int of "
+                                                         "about 5001 digits"),
+    ("batch seed", lambda: HoverBatchEnv(2).reset(seed=-HUGE), "seed must be None, an int >= 0 or a list of 2 ints "
+                                                               ">= 0 / None (one per row), got a negative int of "
+                                                               "about 5001 digits"),
+    ("batch seed list", lambda: HoverBatchEnv(2).reset(seed=[1, -HUGE]), "seed must be None, an int >= 0 or a list "
+                                                                         "of 2 ints >= 0 / None (one per row), got a "
+                                                                         "list holding an int of more than"),
+    ("setpoint", lambda: HoverBatchEnv(2).reset(options={"setpoint": [HUGE, 0, -1]}), "setpoint must be 3 finite NED "
+                                                                                      "coordinates [m] of shape"),
+    ("single setpoint", lambda: _single().reset(options={"setpoint": [-HUGE, 0, -1]}), "setpoint must be 3 finite "
+                                                                                       "NED coordinates [m] of shape"),
+    ("shards", lambda: shard_sizes(4, HUGE), "shards must be an int in [1, n = 4] (envs of at least one row each), "
+                                             "got an int of about 5001 digits"),
+]
+
+
+@pytest.mark.parametrize(("what", "call", "start"), CASES, ids=[c[0] for c in CASES])
+def test_a_huge_int_gets_our_one_line_error(what, call, start):
+    with pytest.raises(ValueError) as err:
+        call()
+    text = str(err.value)
+    assert text.startswith(start), text
+    assert "\n" not in text and "Exceeds the limit" not in text and len(text) < 400
+
+
+def test_max_steps_and_sharded_loop_words_huge_ints():
+    env = HoverBatchEnv(2)
+    with pytest.raises(ValueError, match=r"max_steps must be an int in \[1, 2\*\*52\] .*, got an int of about 5001 "
+                                         r"digits$"):
+        env.max_steps = HUGE
+    with pytest.raises(ValueError, match=r"^seed must be an int >= 0, got a negative int of about 5001 digits$"):
+        ShardedLoop([HoverBatchEnv(1, physics_threads=0)], [object()]).reset(seed=-HUGE)
