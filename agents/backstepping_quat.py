@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import shown
 from fawtgym.core.frames import quat_to_rot
 from fawtgym.core.so3 import cross, hat
 
@@ -75,7 +76,7 @@ def _gain(value: ArrayLike, name: str) -> NDArray[np.float64]:
     g = np.full(3, float(g)) if g.ndim == 0 else (np.diag(g) if g.shape == (3, 3) else g)
     if g.shape != (3,) or not np.all(np.isfinite(g)) or np.any(g <= 0):
         raise ValueError(f"{name} must be a positive scalar, 3 diagonal entries or a diagonal 3x3 matrix, "
-                         f"got {value!r}")
+                         f"got {shown(value)}")
     return g
 
 
@@ -87,7 +88,7 @@ class QuaternionBackstepping:
         j = np.asarray(inertia, dtype=float)
         j = np.diag(j) if j.shape == (3,) else j
         if j.shape != (3, 3) or not np.all(np.isfinite(j)) or np.linalg.eigvalsh((j + j.T) / 2).min() <= 0:
-            raise ValueError(f"inertia must be positive definite (3 diagonal entries or 3x3), got {inertia!r}")
+            raise ValueError(f"inertia must be positive definite (3 diagonal entries or 3x3), got {shown(inertia)}")
         self.inertia = j
         self.k1 = _gain(k1, "K1")
         self.k2 = _gain(k2, "K2")

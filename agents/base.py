@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.arrays import REAL_KINDS, as_array
+from fawtgym.core.checks import shown
 from fawtgym.core.measurement import batch_measurement
 
 
@@ -125,7 +126,7 @@ def applied_from_info(info: Mapping[str, Any], n: int, default_thrust: float) ->
         thrust = torque = _MISSING
     else:
         raise ValueError(f"info['applied'] must be a mapping with 'thrust' (N,) [N] and 'torque' (N, 3) [N m], got "
-                         f"{applied!r}")
+                         f"{shown(applied)}")
     if thrust is _MISSING or torque is _MISSING:
         return np.full(n, float(default_thrust)), np.zeros((n, 3))
     if n == 1 and type(thrust) is float and type(torque) is np.ndarray and torque.dtype is _F64 \
@@ -142,7 +143,7 @@ def _applied_array(value: Any, key: str, n: int, trailing: tuple[int, ...]) -> N
     it already holds n rows); ValueError / TypeError naming it if it is not real numbers of such a shape."""
     a = as_array(value)
     if a.dtype.kind not in REAL_KINDS:
-        raise TypeError(f"info['applied'][{key!r}] must hold real numbers, got {value!r}")
+        raise TypeError(f"info['applied'][{shown(key)}] must hold real numbers, got {shown(value)}")
     a = a.astype(float, copy=False)
     size = math.prod(trailing)
     if a.size == n * size:
@@ -151,7 +152,7 @@ def _applied_array(value: Any, key: str, n: int, trailing: tuple[int, ...]) -> N
         return np.broadcast_to(a.reshape(trailing), (n, *trailing)).copy()
     what = "one value per vehicle (N = {n}) or one for all" if not trailing else \
         "3 values per vehicle (N = {n}) or 3 for all"
-    raise ValueError(f"info['applied'][{key!r}] must hold {what.format(n=n)}, got shape {a.shape}")
+    raise ValueError(f"info['applied'][{shown(key)}] must hold {what.format(n=n)}, got shape {a.shape}")
 
 
 def observer_step(observer: Any, meas: Mapping[str, NDArray[np.float64]], info: Mapping[str, Any], dt: float,
@@ -167,7 +168,7 @@ def observer_step(observer: Any, meas: Mapping[str, NDArray[np.float64]], info: 
     force = np.asarray(est.force, dtype=float).reshape(n, 3)
     tau = np.asarray(est.torque, dtype=float).reshape(n, 3)
     if not (np.all(np.isfinite(force)) and np.all(np.isfinite(tau))):
-        raise FloatingPointError(f"observer {observer.name!r} returned a non-finite estimate")
+        raise FloatingPointError(f"observer {shown(observer.name)} returned a non-finite estimate")
     return force, tau
 
 

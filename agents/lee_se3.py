@@ -26,6 +26,7 @@ import dataclasses
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.so3 import cross, hat, log_so3, vee
 
@@ -71,7 +72,7 @@ class LeeSE3Controller:
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.mass) and self.mass > 0):
-            raise ValueError(f"mass must be finite and positive, got {self.mass!r}")
+            raise ValueError(f"mass must be finite and positive, got {shown(self.mass)}")
         j = np.asarray(self.inertia, dtype=float)
         self.inertia = np.diag(j) if j.shape == (3,) else j
         if self.inertia.shape != (3, 3) or np.linalg.eigvalsh(self.inertia).min() <= 0:
@@ -81,7 +82,7 @@ class LeeSE3Controller:
         for k in ("kx", "kv", "kr", "kw"):
             v = getattr(self, k)
             if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"gain {k} must be finite and positive, got {v!r}")
+                raise ValueError(f"gain {k} must be finite and positive, got {shown(v)}")
 
     def control(self, position: ArrayLike, velocity: ArrayLike, attitude: ArrayLike, angular_velocity: ArrayLike,
                 b_d: ArrayLike, v_d: ArrayLike, a_d: ArrayLike, b1d: ArrayLike = (1.0, 0.0, 0.0),
@@ -127,7 +128,7 @@ class DesiredRateFilter:
 
     def __init__(self, time_constant: float = 0.02) -> None:
         if not (np.isfinite(time_constant) and time_constant > 0):
-            raise ValueError(f"time_constant must be a positive number of seconds, got {time_constant!r}")
+            raise ValueError(f"time_constant must be a positive number of seconds, got {shown(time_constant)}")
         self.time_constant = float(time_constant)
         self._rd: NDArray[np.float64] | None = None
         self._w = self._wdot = np.zeros((1, 3))
@@ -138,7 +139,7 @@ class DesiredRateFilter:
     def __call__(self, rd: NDArray[np.float64], dt: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Feed R_d (N, 3, 3) of this step; returns (W_d, W_d') (N, 3) for the *next* control call."""
         if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be positive, got {dt!r}")
+            raise ValueError(f"dt must be positive, got {shown(dt)}")
         if self._rd is None or self._rd.shape != rd.shape:
             self._rd = rd.copy()
             self._w = np.zeros(rd.shape[:-2] + (3,))

@@ -20,6 +20,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.envs.motors import allocation_matrix
 from fawtgym.envs.vehicles import VehiclePreset
@@ -70,7 +71,7 @@ class ResidualScale:
     def __init__(self, low: ArrayLike, high: ArrayLike, bound: float) -> None:
         if isinstance(bound, bool) or not isinstance(bound, (int, float)) or not 0.0 < bound <= 2.0:
             raise ValueError(f"residual bound must be a number in (0, 2] (a fraction of the action range), "
-                             f"got {bound!r}")
+                             f"got {shown(bound)}")
         self.low, self.high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
         self.bound = float(bound)
         self.scale = self.bound * (self.high - self.low) / 2.0
@@ -114,7 +115,7 @@ def build_observer(name: Any, preset: VehiclePreset, observer_kwargs: Mapping[st
 
         gains = [k for k in inspect.signature(observer_class(name).__init__).parameters
                  if k not in ("self", "mass", "inertia", "args", "kwargs")]
-        raise ValueError(f"observer {name!r}: {str(exc).splitlines()[0]}; its gains: {', '.join(gains)}") from exc
+        raise ValueError(f"observer {shown(name)}: {str(exc).splitlines()[0]}; its gains: {', '.join(gains)}") from exc
 
 
 class EstimateFeatures:

@@ -113,7 +113,7 @@ def _checked_setpoint(value: Any, given: Any) -> NDArray[np.float64]:
     if a.dtype.kind in REAL_KINDS and a.shape[-1:] == (3,) and a.ndim <= 2 and bool(np.all(np.abs(a) <= MAX_SETPOINT)):
         return a.astype(float)
     raise ValueError(f"setpoint must be real NED coordinates [m] of shape (3,) or (N, 3), each within "
-                     f"{MAX_SETPOINT:g} m, got {given!r}")
+                     f"{MAX_SETPOINT:g} m, got {shown(given)}")
 
 
 def _setpoint_rows(sp: Any, n: int, who: str) -> NDArray[np.float64]:
@@ -185,7 +185,7 @@ class PX4Agent(Agent):
         self.position_rate = _rate("position_rate", position_rate, min(100.0, self.control_rate), self.control_rate)
         self.allocation = QuadXAllocation(self.preset)
         if observer_inputs not in OBSERVER_INPUTS:
-            raise ValueError(f"observer_inputs must be one of {list(OBSERVER_INPUTS)}, got {observer_inputs!r}")
+            raise ValueError(f"observer_inputs must be one of {list(OBSERVER_INPUTS)}, got {shown(observer_inputs)}")
         self.observer_inputs = observer_inputs
         self.thrust_model_error = check_thrust_model_error(thrust_model_error)
         self._pose_delay = PoseDelay(latency_steps(pose_latency, self.dt))
@@ -202,7 +202,7 @@ class PX4Agent(Agent):
         self.setpoint = _checked_setpoint(FAWT_HOVER_POINT_NED if setpoint is None else setpoint, setpoint)
         self.yaw_setpoint = _yaw(yaw_setpoint)
         if not (isinstance(gyro_key, str) and gyro_key in GYRO_KEYS):
-            raise ValueError(f"gyro_key must be one of {list(GYRO_KEYS)}, got {gyro_key!r}")
+            raise ValueError(f"gyro_key must be one of {list(GYRO_KEYS)}, got {shown(gyro_key)}")
         self.gyro_key = gyro_key
         fs = self.control_rate
         self._config = C.configuration(
@@ -473,7 +473,7 @@ class PX4ObserverAgent(PX4Agent):
 
         if observer_kwargs is not None and not isinstance(observer_kwargs, Mapping):
             raise ValueError(f"observer_kwargs must be None or a mapping of the observer's options, got "
-                             f"{observer_kwargs!r}")
+                             f"{shown(observer_kwargs)}")
         if isinstance(observer, str):
             import fawtgym.observers  # noqa: F401  (registers every observer)
 

@@ -28,6 +28,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
+from fawtgym.core.checks import shown
 from fawtgym.core.rows import check_dt, masked
 
 #: layout of a biquad's coefficient vector (``a0`` normalized to 1); ``ENABLED`` 0 makes it a pass-through
@@ -37,9 +38,9 @@ N_BIQUAD = 6
 
 def _check_rates(sample_rate: float, cutoff: float) -> None:
     if not (math.isfinite(sample_rate) and sample_rate > 0):
-        raise ValueError(f"sample_rate must be a finite positive frequency [Hz], got {sample_rate!r}")
+        raise ValueError(f"sample_rate must be a finite positive frequency [Hz], got {shown(sample_rate)}")
     if not (math.isfinite(cutoff) and cutoff >= 0):
-        raise ValueError(f"cutoff must be a finite frequency >= 0 [Hz] (0 disables the filter), got {cutoff!r}")
+        raise ValueError(f"cutoff must be a finite frequency >= 0 [Hz] (0 disables the filter), got {shown(cutoff)}")
 
 
 def butterworth_coefficients(sample_rate: float, cutoff: float) -> NDArray[np.float64]:

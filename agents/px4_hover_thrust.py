@@ -47,6 +47,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import check_dt
 
@@ -134,7 +135,8 @@ class HoverThrustEstimator:
     def __init__(self, params: PX4Params | None = None, hover_thrust: float = 0.5) -> None:
         p = params if params is not None else PX4Params.s500()
         if not (math.isfinite(hover_thrust) and 0.0 < hover_thrust < 1.0):
-            raise ValueError(f"hover_thrust must be in (0, 1) (normalized collective thrust), got {hover_thrust!r}")
+            raise ValueError(f"hover_thrust must be in (0, 1) (normalized collective thrust), got "
+                             f"{shown(hover_thrust)}")
         self.process_var = p["HTE_HT_NOISE"] ** 2
         self.gate = p["HTE_ACC_GATE"]
         self.init_var = p["HTE_HT_ERR_INIT"] ** 2
@@ -156,7 +158,7 @@ class HoverThrustEstimator:
     @variance_bump.setter
     def variance_bump(self, value: float) -> None:
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0.0):
-            raise ValueError(f"variance_bump must be a finite number >= 0, got {value!r}")
+            raise ValueError(f"variance_bump must be a finite number >= 0, got {shown(value)}")
         self.params[BUMP] = float(value)
 
     def fresh_state(self) -> NDArray[np.float64]:

@@ -129,22 +129,22 @@ def _check_name(name: str) -> str:
     if not isinstance(name, str) or name not in PARAM_SPECS:
         close = difflib.get_close_matches(str(name).upper(), PARAM_SPECS, n=3, cutoff=0.5)
         hint = f"; did you mean {', '.join(close)}?" if close else f"; valid names: {sorted(PARAM_SPECS)}"
-        raise ValueError(f"unknown PX4 parameter {name!r}{hint}")
+        raise ValueError(f"unknown PX4 parameter {shown(name)}{hint}")
     return name
 
 
 def _check_value(name: str, value: Any) -> float:
     spec = PARAM_SPECS[name]
     if isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"PX4 parameter {name} must be a number, got {value!r}")
+        raise ValueError(f"PX4 parameter {name} must be a number, got {shown(value)}")
     try:
         v = float(value)
     except OverflowError:  # an int beyond float range
         v = math.inf
     except (TypeError, ValueError):
-        raise ValueError(f"PX4 parameter {name} must be a number, got {value!r}") from None
+        raise ValueError(f"PX4 parameter {name} must be a number, got {shown(value)}") from None
     if not math.isfinite(v):
-        raise ValueError(f"PX4 parameter {name} must be finite, got {value!r}")
+        raise ValueError(f"PX4 parameter {name} must be finite, got {shown(value)}")
     if not spec.min <= v <= spec.max:
         raise ValueError(f"PX4 parameter {name}={v:g} is out of range [{spec.min:g}, {spec.max:g}] {spec.unit}")
     if name in _CUTOFFS and 0.0 < v < MIN_CUTOFF:
@@ -258,7 +258,7 @@ class PX4Params(Mapping[str, float]):
                 name, value = fields
             else:
                 raise ValueError(f"{path}:{lineno}: expected 'NAME value' or QGroundControl's "
-                                 f"'vehicle component NAME value type', got {raw!r}")
+                                 f"'vehicle component NAME value type', got {shown(raw)}")
             try:
                 out.set(name, value)
             except ValueError as exc:

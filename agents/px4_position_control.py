@@ -41,6 +41,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import check_dt
 
@@ -358,7 +359,7 @@ class PositionControl:
                  px4_version: str = "1.13") -> None:
         p = params if params is not None else PX4Params.s500()
         if px4_version not in PX4_VERSIONS:
-            raise ValueError(f"px4_version must be one of {sorted(PX4_VERSIONS)}, got {px4_version!r}")
+            raise ValueError(f"px4_version must be one of {sorted(PX4_VERSIONS)}, got {shown(px4_version)}")
         self.px4_version = px4_version
         self.hover_thrust_bounds, self.clamp_before = PX4_VERSIONS[px4_version]
         self.gain_pos_p = np.array([p["MPC_XY_P"], p["MPC_XY_P"], p["MPC_Z_P"]])
@@ -374,7 +375,7 @@ class PositionControl:
         self.lim_thr_xy_margin = p["MPC_THR_XY_MARG"]
         ht = p["MPC_THR_HOVER"] if hover_thrust is None else hover_thrust
         if not (math.isfinite(ht) and 0.0 < ht < 1.0):
-            raise ValueError(f"hover_thrust must be in (0, 1) (normalized collective thrust), got {ht!r}")
+            raise ValueError(f"hover_thrust must be in (0, 1) (normalized collective thrust), got {shown(ht)}")
         self.initial_hover_thrust = float(np.clip(ht, *self.hover_thrust_bounds))
         self.params = self.parameters()
         self.state: NDArray[np.float64] = np.zeros((0, N_STATE))

@@ -27,6 +27,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import shown
+
 from .base import Agent, match_batch, measurement_from_info
 from .policy_io import ActionScale, EstimateFeatures, ResidualScale, shares_observer
 
@@ -85,8 +87,8 @@ class SB3Agent(Agent):
         self.action_type = "ctbr" if cfg["action"] == "ctbr" else "motors"
         base_env = getattr(env, "unwrapped", env)
         if getattr(base_env, "action_type", self.action_type) != self.action_type:
-            raise ValueError(f"sb3 agent {str(path)!r} flies {self.action_type!r} actions; the env takes "
-                             f"{base_env.action_type!r} (build it with action_type={self.action_type!r})")
+            raise ValueError(f"sb3 agent {str(path)!r} flies {shown(self.action_type)} actions; the env takes "
+                             f"{shown(base_env.action_type)} (build it with action_type={shown(self.action_type)})")
         try:
             self.model = algo_class(cfg["algo"]).load(self.folder / "model.zip", device="cpu")
         except Exception as exc:  # a truncated or foreign zip

@@ -30,6 +30,8 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
+from fawtgym.core.checks import shown
+
 from .base import Agent
 
 #: FFTS-ESO gains of the flight experiment, Wang et al. (2024) Sec. 7.2 (the paper's "k_r" are k_t here)
@@ -80,10 +82,10 @@ def split_agents(text: str) -> list[str]:
             continue
         depth += (ch == "(") - (ch == ")")
         if depth < 0:
-            raise ValueError(f"unbalanced ')' in agent list {text!r}")
+            raise ValueError(f"unbalanced ')' in agent list {shown(text)}")
         cur.append(ch)
     if depth:
-        raise ValueError(f"unbalanced '(' in agent list {text!r}")
+        raise ValueError(f"unbalanced '(' in agent list {shown(text)}")
     out.append("".join(cur).strip())
     return [s for s in out if s]
 
@@ -92,19 +94,19 @@ def _parse_kwargs(text: str, where: str) -> tuple[tuple[str, Any], ...]:
     try:
         call = ast.parse(f"f({text})", mode="eval").body
     except SyntaxError:
-        raise ValueError(f"agent {where!r}: cannot read the keyword overrides ({text}); write key=value, ... with "
+        raise ValueError(f"agent {shown(where)}: cannot read the keyword overrides ({text}); write key=value, ... with "
                          "Python literals") from None
     if not isinstance(call, ast.Call) or call.args:
-        raise ValueError(f"agent {where!r}: overrides must be key=value pairs, got ({text})")
+        raise ValueError(f"agent {shown(where)}: overrides must be key=value pairs, got ({text})")
     out = {}
     for kw in call.keywords:
         if kw.arg is None:
-            raise ValueError(f"agent {where!r}: overrides must be key=value pairs, got ({text})")
+            raise ValueError(f"agent {shown(where)}: overrides must be key=value pairs, got ({text})")
         try:
             out[kw.arg] = ast.literal_eval(kw.value)
         except ValueError:
-            raise ValueError(f"agent {where!r}: the value of {kw.arg} must be a Python literal (number, True/False, "
-                             f"'string', list), got {ast.unparse(kw.value)}") from None
+            raise ValueError(f"agent {shown(where)}: the value of {kw.arg} must be a Python literal (number, "
+                             f"True/False, 'string', list), got {ast.unparse(kw.value)}") from None
     return tuple(sorted(out.items()))
 
 
@@ -113,33 +115,33 @@ def parse_agent(text: str) -> AgentSpec:
     from fawtgym.observers import observer_names
 
     if not isinstance(text, str) or not text.strip():
-        raise ValueError(f"agent name must be a non-empty string ({GRAMMAR}), got {text!r}")
+        raise ValueError(f"agent name must be a non-empty string ({GRAMMAR}), got {shown(text)}")
     text = text.strip()
     if text.startswith("sb3:"):
         path = text[4:].strip()
         if not path:
-            raise ValueError(f"agent {text!r}: sb3:PATH needs the path of a saved policy")
+            raise ValueError(f"agent {shown(text)}: sb3:PATH needs the path of a saved policy")
         return AgentSpec("sb3", target=path)
     m = _HEAD.fullmatch(text)
     if m is None:
-        raise ValueError(f"agent {text!r} does not follow the grammar: {GRAMMAR}")
+        raise ValueError(f"agent {shown(text)} does not follow the grammar: {GRAMMAR}")
     head, args = m.group(1), m.group(2)
     kwargs = _parse_kwargs(args, text) if args is not None and args.strip() else ()
     if ":" in head:
         module, _, cls = head.partition(":")
         if not (module and cls.isidentifier() and all(p.isidentifier() for p in module.split("."))):
-            raise ValueError(f"agent {text!r}: a plugin is module:Class (e.g. mypkg.agents:MyAgent)")
+            raise ValueError(f"agent {shown(text)}: a plugin is module:Class (e.g. mypkg.agents:MyAgent)")
         return AgentSpec("plugin", target=head, kwargs=kwargs)
     if head == "px4":
         return AgentSpec("px4", kwargs=kwargs)
     if head.startswith("px4+"):
         obs = head[4:]
         if obs not in observer_names():
-            raise ValueError(f"agent {text!r}: unknown observer {obs!r}; registered observers: "
+            raise ValueError(f"agent {shown(text)}: unknown observer {shown(obs)}; registered observers: "
                              f"{', '.join(observer_names())}")
         return AgentSpec("px4+observer", observer=obs, kwargs=kwargs)
     valid = ["px4"] + [f"px4+{o}" for o in observer_names()]
-    raise ValueError(f"unknown agent {text!r}; valid: {', '.join(valid)}, module:Class, sb3:PATH")
+    raise ValueError(f"unknown agent {shown(text)}; valid: {', '.join(valid)}, module:Class, sb3:PATH")
 
 
 def parse_agents(text: str) -> list[AgentSpec]:
@@ -165,10 +167,11 @@ def _split_px4_kwargs(spec: AgentSpec) -> tuple[dict[str, Any], dict[str, Any], 
         elif spec.kind == "px4+observer":
             observer[k] = v
         else:
-            raise ValueError(f"agent {spec.name!r}: unknown option {k!r}; px4 takes PX4 parameters (upper-case names, "
+            raise ValueError(f"agent {shown(spec.name)}: unknown option {shown(k)}; px4 takes PX4 parameters "
+                             f"(upper-case names, "
                              f"e.g. MPC_XY_P) and {', '.join(_AGENT_OPTIONS[:6])}")
     if spec.kind == "px4" and ({"force_ff", "torque_ff"} & set(options)):
-        raise ValueError(f"agent {spec.name!r}: force_ff/torque_ff need an observer (px4+<observer>)")
+        raise ValueError(f"agent {shown(spec.name)}: force_ff/torque_ff need an observer (px4+<observer>)")
     return params, options, observer
 
 
@@ -186,18 +189,19 @@ def make_agent(spec: AgentSpec | str, env: Any) -> Agent:
         try:
             return SB3Agent.for_env(env, spec.target, **dict(spec.kwargs))
         except ImportError as exc:
-            raise ValueError(f"agent {spec.name!r} needs Stable-Baselines3: pip install 'fawtgym[rl]' ({exc})") from exc
+            raise ValueError(f"agent {shown(spec.name)} needs Stable-Baselines3: pip install 'fawtgym[rl]' "
+                             f"({exc})") from exc
         except ValueError as exc:
             msg = str(exc).removeprefix("sb3 agent: ")
-            raise ValueError(f"agent {spec.name!r}: {msg}") from exc
+            raise ValueError(f"agent {shown(spec.name)}: {msg}") from exc
     if spec.kind == "plugin":
         cls = _import_plugin(spec)
         try:
             agent = cls.for_env(env, **dict(spec.kwargs))
         except TypeError as exc:
-            raise ValueError(f"agent {spec.name!r}: cannot build it: {exc}") from exc
+            raise ValueError(f"agent {shown(spec.name)}: cannot build it: {exc}") from exc
         if not isinstance(agent, Agent):
-            raise ValueError(f"agent {spec.name!r}: {cls.__name__}.for_env returned {type(agent).__name__}, "
+            raise ValueError(f"agent {shown(spec.name)}: {cls.__name__}.for_env returned {type(agent).__name__}, "
                              "not an Agent")
         return agent
     from .px4_agent import PX4Agent, PX4ObserverAgent
@@ -215,7 +219,7 @@ def make_agent(spec: AgentSpec | str, env: Any) -> Agent:
                                         params=px4_params, **options)
     except (ValueError, TypeError, KeyError) as exc:
         msg = (exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)).splitlines()[0]
-        raise ValueError(f"agent {spec.name!r}: {msg}") from exc
+        raise ValueError(f"agent {shown(spec.name)}: {msg}") from exc
 
 
 def _check_observer_kwargs(spec: AgentSpec, kwargs: Mapping[str, Any]) -> None:
@@ -231,8 +235,8 @@ def _check_observer_kwargs(spec: AgentSpec, kwargs: Mapping[str, Any]) -> None:
     valid = [k for k in params if k not in ("self", "mass", "inertia")]
     unknown = sorted(set(kwargs) - set(valid))
     if unknown:
-        raise ValueError(f"agent {spec.name!r}: unknown option(s) {unknown} for observer {spec.observer}; its gains: "
-                         f"{', '.join(valid)}; PX4 parameters are upper case; agent options: "
+        raise ValueError(f"agent {shown(spec.name)}: unknown option(s) {unknown} for observer {spec.observer}; its "
+                         f"gains: {', '.join(valid)}; PX4 parameters are upper case; agent options: "
                          f"{', '.join(_AGENT_OPTIONS)}")
 
 
@@ -248,7 +252,7 @@ def agent_action_type(spec: AgentSpec | str) -> str:
         try:
             return run_action_type(spec.target)
         except ValueError as exc:
-            raise ValueError(f"agent {spec.name!r}: {str(exc).removeprefix('sb3 agent: ')}") from exc
+            raise ValueError(f"agent {shown(spec.name)}: {str(exc).removeprefix('sb3 agent: ')}") from exc
     if spec.kind == "plugin":
         return getattr(_import_plugin(spec), "action_type", "motors")
     return "motors"
@@ -259,16 +263,16 @@ def _import_plugin(spec: AgentSpec) -> type[Agent]:
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:
-        raise ValueError(f"agent {spec.name!r}: cannot import module {module_name!r} ({exc}); is it installed or on "
-                         "PYTHONPATH?") from exc
+        raise ValueError(f"agent {shown(spec.name)}: cannot import module {shown(module_name)} ({exc}); is it "
+                         f"installed or on PYTHONPATH?") from exc
     cls = getattr(module, cls_name, None)
     if cls is None:
         found = sorted(k for k, v in vars(module).items() if isinstance(v, type) and issubclass(v, Agent)
                        and v is not Agent)
-        raise ValueError(f"agent {spec.name!r}: module {module_name!r} has no {cls_name!r}; Agent classes in it: "
-                         f"{found or 'none'}")
+        raise ValueError(f"agent {shown(spec.name)}: module {shown(module_name)} has no {shown(cls_name)}; Agent "
+                         f"classes in it: {found or 'none'}")
     if not (isinstance(cls, type) and issubclass(cls, Agent)):
-        raise ValueError(f"agent {spec.name!r}: {cls_name} is not a subclass of fawtgym.agents.Agent")
+        raise ValueError(f"agent {shown(spec.name)}: {cls_name} is not a subclass of fawtgym.agents.Agent")
     return cls
 
 

@@ -36,6 +36,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core.arrays import as_f64
+from fawtgym.core.checks import shown
 from fawtgym.core.so3_kernels import cross_entries
 
 from .vehicles import GRAVITY, VehiclePreset
@@ -234,7 +235,7 @@ def _coefficient(name: str, value: object, shape: tuple[int, ...], nonnegative: 
     v = raw.astype(np.float64) if raw.dtype.kind in "iuf" else np.array(np.nan)  # bool/complex/str refused
     if v.shape != shape or not np.all(np.isfinite(v)) or (nonnegative and np.any(v < 0)):
         what = "a finite number" if not shape else f"{shape[0]} finite numbers"
-        raise ValueError(f"AeroModel.{name} must be {what}{' >= 0' if nonnegative else ''}, got {value!r}")
+        raise ValueError(f"AeroModel.{name} must be {what}{' >= 0' if nonnegative else ''}, got {shown(value)}")
     return v
 
 

@@ -295,14 +295,14 @@ class HoverBatchEnv(VectorEnv):
         modes: dict[str | AutoresetMode, AutoresetMode] = {k: v for k, v in AUTORESET_MODES.items()}
         modes.update({m: m for m in AUTORESET_MODES.values()})
         if not isinstance(autoreset_mode, (str, AutoresetMode)) or autoreset_mode not in modes:
-            raise ValueError(f"autoreset_mode must be one of {list(AUTORESET_MODES)}, got {autoreset_mode!r}")
+            raise ValueError(f"autoreset_mode must be one of {list(AUTORESET_MODES)}, got {shown(autoreset_mode)}")
         if randomizer is not None and not callable(randomizer):
             raise ValueError(f"randomizer must be None or a callable (rows, rngs) -> draws, got "
                              f"{type(randomizer).__name__}")
         threads = _check_physics_threads(physics_threads)
         self._timers = check_flag(mujoco_timers, "mujoco_timers")
         if render_mode is not None:
-            raise ValueError(f"HoverBatchEnv does not render; render_mode must be None, got {render_mode!r} "
+            raise ValueError(f"HoverBatchEnv does not render; render_mode must be None, got {shown(render_mode)} "
                              "(render a single fawtgym/Hover-v0 instead)")
         opts = hover_options(vehicle=vehicle, wind=wind, action_type=action_type, sensors=sensors,
                              control_rate=control_rate, physics_rate=physics_rate, episode_seconds=episode_seconds,
@@ -622,20 +622,21 @@ class HoverBatchEnv(VectorEnv):
                 raw = draws[key]
                 v = as_array(raw)
                 if v.dtype.kind not in REAL_KINDS:  # bool, complex, str, objects: no silent conversion
-                    raise ValueError(f"randomizer draw {key!r} must be {need} with shape {shape} (one per starting "
+                    raise ValueError(f"randomizer draw {shown(key)} must be {need} with shape {shape} (one per "
+                                     f"starting "
                                      f"row) of real numbers, got {raw!r:.80} ({type(raw).__name__}, dtype {v.dtype})")
                 v = v.astype(np.float64)
                 if v.shape != shape or not np.all(np.isfinite(v)) or (ok is not None and not np.all(ok(v, 0.0))):
-                    raise ValueError(f"randomizer draw {key!r} must be {need} with shape {shape} (one per starting "
-                                     f"row), got shape {v.shape}: {v.ravel()[:6].tolist()}")
+                    raise ValueError(f"randomizer draw {shown(key)} must be {need} with shape {shape} (one per "
+                                     f"starting row), got shape {v.shape}: {v.ravel()[:6].tolist()}")
                 values[key] = v
         if "mass_scale" in values:  # the row must still hover: weight between the rotors' idle and maximum thrust
             lo, hi = hover_mass_scales(self.preset)
             bad = np.flatnonzero(~((values["mass_scale"] > lo) & (values["mass_scale"] < hi)))
             if bad.size:
                 raise ValueError(f"randomizer draw 'mass_scale' must be in ({lo:.4g}, {hi:.4g}) for vehicle "
-                                 f"{self.preset.name!r} to hover (weight between the rotors' idle and maximum "
-                                 f"thrust), got {values['mass_scale'][bad[0]]!r} for starting row {int(bad[0])}")
+                                 f"{shown(self.preset.name)} to hover (weight between the rotors' idle and maximum "
+                                 f"thrust), got {shown(values['mass_scale'][bad[0]])} for starting row {int(bad[0])}")
         if ("gyro_bias" in values or "accel_bias" in values) and not self.sensor.noisy:
             raise ValueError("randomizer draws IMU biases but the sensors are exact (sensors='none' has no biases); "
                              "use a noisy preset such as 'mocap_imu'")

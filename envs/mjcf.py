@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fawtgym.core.checks import shown
 from fawtgym.core.frames import vec_ned_to_mj
 
 from .vehicles import GRAVITY, VehiclePreset
@@ -49,7 +50,7 @@ def vehicle_mjcf(preset: VehiclePreset, physics_dt: float = 0.001, integrator: s
                  render_width: int = 640, render_height: int = 480) -> str:
     """Return the MJCF text for ``preset``."""
     if integrator not in INTEGRATORS:
-        raise ValueError(f"unknown integrator {integrator!r}; valid: {list(INTEGRATORS)}")
+        raise ValueError(f"unknown integrator {shown(integrator)}; valid: {list(INTEGRATORS)}")
     j = preset.inertia_matrix
     full = " ".join(f"{x:.9g}" for x in (j[0, 0], j[1, 1], j[2, 2], j[0, 1], j[0, 2], j[1, 2]))
     r = preset.rotor_radius

@@ -115,7 +115,7 @@ def check_setpoint(value: Any, n: int | None = None) -> NDArray[np.float64]:
         raise ValueError(f"setpoint z must be above the floor (z_NED < 0: NED z points down), got {shown(value)}")
     if np.any(np.abs(sp) > MAX_SETPOINT):
         raise ValueError(f"setpoint coordinates must be at most {MAX_SETPOINT:g} m in magnitude (10 km from the "
-                         f"origin), got {value!r}")
+                         f"origin), got {shown(value)}")
     return sp
 
 
@@ -151,10 +151,10 @@ def check_reward_weights(value: Any) -> dict[str, float]:
         return weights
     if not isinstance(value, Mapping):
         raise ValueError(f"reward_weights must be a mapping of {list(DEFAULT_REWARD_WEIGHTS)} to numbers >= 0, "
-                         f"got {value!r}")
+                         f"got {shown(value)}")
     for key, w in value.items():
         if key not in DEFAULT_REWARD_WEIGHTS:
-            raise ValueError(f"unknown reward weight {key!r}; valid: {list(DEFAULT_REWARD_WEIGHTS)}")
+            raise ValueError(f"unknown reward weight {shown(key)}; valid: {list(DEFAULT_REWARD_WEIGHTS)}")
         weights[key] = check_number(w, f"reward weight {key!r}", minimum=0.0, inclusive_minimum=True,
                                     maximum=MAX_REWARD_WEIGHT)
     return weights
@@ -197,7 +197,7 @@ def check_can_hover(preset: VehiclePreset) -> None:
     ratio = hover_thrust_ratio(preset)
     idle = preset.k_thrust * preset.omega_min**2 * 4.0 / (preset.mass * GRAVITY)
     if not (idle < 1.0 < 1.0 / ratio):
-        raise ValueError(f"vehicle {preset.name!r} cannot hover: hover thrust ratio m g / (4 T_max) = {ratio:.4g} "
+        raise ValueError(f"vehicle {shown(preset.name)} cannot hover: hover thrust ratio m g / (4 T_max) = {ratio:.4g} "
                          f"(mass {preset.mass:g} kg) must be in ({idle * ratio:.4g}, 1), i.e. its weight between the "
                          "four rotors' idle and maximum thrust")
 
@@ -242,14 +242,14 @@ def hover_options(vehicle: Any = "s500", wind: Any = "calm", action_type: Any = 
     preset = make_vehicle(vehicle)
     check_can_hover(preset)
     if not isinstance(action_type, str) or action_type not in ACTION_TYPES:
-        raise ValueError(f"unknown action_type {action_type!r}; valid: {list(ACTION_TYPES)}")
+        raise ValueError(f"unknown action_type {shown(action_type)}; valid: {list(ACTION_TYPES)}")
     if render_mode == "human":
         raise ValueError("render_mode 'human' is not supported: fawtgym renders off screen only; valid: None, "
                          "'rgb_array' (record a video with gymnasium.wrappers.RecordVideo)")
     if render_mode is not None and (not isinstance(render_mode, str) or render_mode not in RENDER_MODES):
-        raise ValueError(f"unknown render_mode {render_mode!r}; valid: {[None, *RENDER_MODES]}")
+        raise ValueError(f"unknown render_mode {shown(render_mode)}; valid: {[None, *RENDER_MODES]}")
     if not isinstance(integrator, str) or integrator not in INTEGRATORS:
-        raise ValueError(f"unknown integrator {integrator!r}; valid: {list(INTEGRATORS)}")
+        raise ValueError(f"unknown integrator {shown(integrator)}; valid: {list(INTEGRATORS)}")
     control_rate = check_number(control_rate, "control_rate", minimum=CONTROL_RATE_RANGE[0], inclusive_minimum=True,
                                 maximum=CONTROL_RATE_RANGE[1], note="Hz")
     physics_rate = check_number(physics_rate, "physics_rate", minimum=PHYSICS_RATE_RANGE[0], inclusive_minimum=True,
@@ -282,7 +282,7 @@ def check_reset_options(options: Any, n: int | None = None
     if options is None:
         return None, None
     if not isinstance(options, Mapping):
-        raise ValueError(f"reset options must be None or a dict with keys {list(RESET_OPTIONS)}, got {options!r}")
+        raise ValueError(f"reset options must be None or a dict with keys {list(RESET_OPTIONS)}, got {shown(options)}")
     unknown = sorted(set(options) - set(RESET_OPTIONS), key=str)
     if unknown:
         raise ValueError(f"unknown reset option(s) {unknown}; valid: {list(RESET_OPTIONS)}")

@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.checks import check_number
+from fawtgym.core.checks import check_number, shown
 
 #: The physical range of each :class:`SensorSpec` field: (lowest, highest, unit), lowest inclusive.  Every range spans
 #: orders of magnitude beyond the presets (a consumer IMU's gyro density is ~1e-3 (rad/s)/sqrt(Hz)); beyond it a value
@@ -118,7 +118,7 @@ def make_sensor_spec(spec: str | SensorSpec | Mapping[str, Any]) -> SensorSpec:
         return dataclasses.replace(make_sensor_spec(base), **data)
     if isinstance(spec, str) and spec in SENSOR_PRESETS:
         return SENSOR_PRESETS[spec]
-    raise ValueError(f"unknown sensor preset {spec!r}; valid: {list(SENSOR_PRESETS)} (or a SensorSpec/mapping)")
+    raise ValueError(f"unknown sensor preset {shown(spec)}; valid: {list(SENSOR_PRESETS)} (or a SensorSpec/mapping)")
 
 
 def allowed_control_rates(pose_rate: float, physics_rate: float) -> list[float]:
@@ -136,7 +136,7 @@ def pose_rate_error(spec: SensorSpec, control_rate: float, physics_rate: float |
     and the control rates allowed with it (given the physics rate when known)."""
     pose = spec.pose_rate
     if pose is None:
-        raise ValueError(f"sensor preset {spec.name!r} has no pose_rate: every control rate is allowed")
+        raise ValueError(f"sensor preset {shown(spec.name)} has no pose_rate: every control rate is allowed")
     head = (f"sensor preset {spec.name!r}: sensor pose_rate {pose} Hz must divide the control rate "
             f"{control_rate:g} Hz; allowed: ")
     if physics_rate is None:
@@ -232,5 +232,5 @@ def _bias(name: str, value: Any) -> NDArray[np.float64]:
         raw = np.asarray(None)
     b = raw.astype(np.float64) if raw.dtype.kind in "iuf" else np.full(1, np.nan)  # bool/complex/str refused
     if b.shape != (3,) or not np.all(np.isfinite(b)):
-        raise ValueError(f"{name} must be 3 finite real numbers, got {value!r}")
+        raise ValueError(f"{name} must be 3 finite real numbers, got {shown(value)}")
     return b

@@ -244,7 +244,7 @@ class BatchSensorModel:
             raw = np.asarray(None)
         b = raw.astype(np.float64) if raw.dtype.kind in "iuf" else np.full(1, np.nan)  # bool/complex/str refused
         if b.shape not in ((3,), (self.n, 3)) or not np.all(np.isfinite(b)):
-            raise ValueError(f"{name} must be 3 finite real numbers or ({self.n}, 3), got {value!r}")
+            raise ValueError(f"{name} must be 3 finite real numbers or ({self.n}, 3), got {shown(value)}")
         return np.broadcast_to(b, (self.n, 3)).copy()
 
     def set_noise_rng(self, rng: np.random.Generator) -> None:

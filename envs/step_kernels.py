@@ -28,6 +28,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from fawtgym.core.checks import shown
 from fawtgym.core.so3_kernels import quat_to_rot_entries
 
 from .aero import aero_wrench_rows
@@ -400,7 +401,7 @@ def step_params(**values: object) -> NDArray[np.float64]:
     for name, size in STEP_PARAMS:
         v = np.asarray(values[name], dtype=float).ravel()
         if v.size != size:
-            raise ValueError(f"step parameter {name!r} must have {size} numbers, got {v.size}")
+            raise ValueError(f"step parameter {shown(name)} must have {size} numbers, got {v.size}")
         out[_P[name]:_P[name] + size] = v
     return out
 

@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fawtgym.core.arrays import REAL_KINDS, as_array
-from fawtgym.core.checks import check_number
+from fawtgym.core.checks import check_number, shown
 from fawtgym.core.constants import GRAVITY  # defined in core; importable from here too (compatibility)
 
 AIR_DENSITY = 1.225  #: ISA sea-level air density [kg/m^3]
@@ -125,11 +125,11 @@ class VehiclePreset:
         for field in ("body_drag", "cop_offset"):
             vec = _real_vector(field, getattr(self, field))
             if vec.shape != (3,) or not np.all(np.isfinite(vec)):
-                raise ValueError(f"vehicle field {field!r} must be 3 finite numbers, got {getattr(self, field)!r}")
+                raise ValueError(f"vehicle field {shown(field)} must be 3 finite numbers, got {getattr(self, field)!r}")
             (lowest, highest), unit = ((BODY_DRAG_RANGE, "N/(m/s)^2") if field == "body_drag"
                                        else (COP_OFFSET_RANGE, "m"))
             if np.any(vec < lowest) or np.any(vec > highest):
-                raise ValueError(f"vehicle field {field!r} entries must be in [{lowest:g}, {highest:g}] {unit}, "
+                raise ValueError(f"vehicle field {shown(field)} entries must be in [{lowest:g}, {highest:g}] {unit}, "
                                  f"got {vec.tolist()}")
             object.__setattr__(self, field, tuple(float(x) for x in vec))
 
@@ -176,7 +176,8 @@ def _real_vector(field: str, value: Any) -> NDArray[np.float64]:
     None and ragged nestings are refused with a ValueError naming the field (as the scalar fields are)."""
     raw = as_array(value)
     if raw.dtype.kind not in REAL_KINDS:
-        raise ValueError(f"vehicle field {field!r} must be real numbers (not bool, complex or str), got {value!r}")
+        raise ValueError(f"vehicle field {shown(field)} must be real numbers (not bool, complex or str), got "
+                         f"{shown(value)}")
     return raw.astype(np.float64)
 
 
@@ -326,5 +327,5 @@ def make_vehicle(spec: str | VehiclePreset | Mapping[str, Any] | Path) -> Vehicl
             return vehicle_from_mapping(yaml.safe_load(text))
         raise ValueError(f"unknown vehicle {str(spec)!r}; valid presets: {list(VEHICLE_NAMES)} "
                          "(or a VehiclePreset, a mapping, or a .yaml/.json file)")
-    raise ValueError(f"vehicle must be a preset name, a VehiclePreset, a mapping or a .yaml/.json path, got {spec!r} "
-                     f"({type(spec).__name__})")
+    raise ValueError(f"vehicle must be a preset name, a VehiclePreset, a mapping or a .yaml/.json path, got "
+                     f"{shown(spec)} ({type(spec).__name__})")

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from fawtgym.cli_parser import ArgumentParser
+from fawtgym.core.checks import shown
 
 from .metrics import METRIC_LABELS, NUMERIC_METRICS
 from .runner import iter_missing, load_run
@@ -79,7 +80,7 @@ def build(run: Mapping[str, Any], cells: Mapping[tuple[str, str], Mapping[str, A
     agents = list(run["agents"])
     scenario = scenario or scenarios[0]
     if scenario not in scenarios:
-        raise ValueError(f"scenario {scenario!r} is not in this run; its scenarios: {', '.join(scenarios)}")
+        raise ValueError(f"scenario {shown(scenario)} is not in this run; its scenarios: {', '.join(scenarios)}")
     baseline = baseline if baseline is not None else run.get("baseline", DEFAULT_BASELINE)
     if baseline not in agents:
         baseline = None
@@ -88,7 +89,7 @@ def build(run: Mapping[str, Any], cells: Mapping[tuple[str, str], Mapping[str, A
         base_cell = cells.get((baseline, sc)) if baseline else None
         per[sc] = {a: summarize_cell(cells[(a, sc)], base_cell) for a in agents if (a, sc) in cells}
     if not per[scenario]:
-        raise ValueError(f"no finished cell for scenario {scenario!r} yet")
+        raise ValueError(f"no finished cell for scenario {shown(scenario)} yet")
     ranked = sorted(per[scenario].values(), key=_rank_key)
     order = [s["agent"] for s in ranked]
     beats: dict[str, bool | None] = {}

@@ -40,6 +40,8 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from fawtgym.core.checks import shown
+
 from .scenarios import Scenario, scenario_from_mapping, table4_duty
 
 FORMAT = 1
@@ -231,7 +233,7 @@ def update_run_file(out: Path, agents: Sequence[str], scenarios: Sequence[Scenar
     known = {s["name"]: s for s in run["scenarios"]}
     for sc in scenarios:
         if sc.name in known and known[sc.name] != sc.to_dict():
-            raise ValueError(f"{out} already has a different scenario named {sc.name!r}; rename yours or use "
+            raise ValueError(f"{out} already has a different scenario named {shown(sc.name)}; rename yours or use "
                              "another --out")
         known[sc.name] = sc.to_dict()
     run["scenarios"] = list(known.values())
@@ -258,9 +260,9 @@ def run_cells(out: Path, agents: Sequence[str], scenarios: Sequence[Scenario], s
     "wall_seconds": float}``.
     """
     if backend not in ("local", "ray"):
-        raise ValueError(f"backend must be 'local' or 'ray', got {backend!r}")
+        raise ValueError(f"backend must be 'local' or 'ray', got {shown(backend)}")
     if not (isinstance(workers, int) and workers >= 1):
-        raise ValueError(f"workers must be a positive integer, got {workers!r}")
+        raise ValueError(f"workers must be a positive integer, got {shown(workers)}")
     out = Path(out)
     seeds = [int(s) for s in seeds]
     jobs, skipped = [], []

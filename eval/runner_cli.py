@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from fawtgym.cli_parser import ArgumentParser
+from fawtgym.core.checks import shown
 
 from .runner import DEFAULT_RECORD_HZ
 from .scenarios import Scenario
@@ -37,9 +38,9 @@ def _positive_int(text: str) -> int:
     try:
         v = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {shown(text)}") from None
     if v < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {shown(text)}")
     return v
 
 
@@ -55,9 +56,9 @@ def _seeds(text: str) -> list[int]:
             seeds = list(range(_positive_int(text)))
     except (ValueError, argparse.ArgumentTypeError):
         raise argparse.ArgumentTypeError(f"must be a count (5), a range (10:15) or a list (1,4,9) of seeds >= 0, "
-                                         f"got {text!r}") from None
+                                         f"got {shown(text)}") from None
     if not seeds or min(seeds) < 0 or len(set(seeds)) != len(seeds):
-        raise argparse.ArgumentTypeError(f"must give distinct seeds >= 0, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must give distinct seeds >= 0, got {shown(text)}")
     return seeds
 
 
@@ -65,9 +66,9 @@ def _positive_float(text: str) -> float:
     try:
         v = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {shown(text)}") from None
     if not (v > 0 and v < float("inf")):
-        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {shown(text)}")
     return v
 
 
@@ -131,7 +132,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             check_scenario(sc)
         check_agents(agents, scenarios[0])
         if ns.rank_on is not None and ns.rank_on not in [s.name for s in scenarios]:
-            raise ValueError(f"--rank-on {ns.rank_on!r} is not one of the scenarios: "
+            raise ValueError(f"--rank-on {shown(ns.rank_on)} is not one of the scenarios: "
                              f"{', '.join(s.name for s in scenarios)}")
         if ns.backend == "ray":
             try:
@@ -181,7 +182,7 @@ def check_agents(agents: Sequence[str], scenario: Scenario) -> None:
             try:
                 agent.reset(info)
             except (ValueError, TypeError, KeyError) as exc:
-                raise ValueError(f"agent {name!r} cannot start on scenario {scenario.name!r}: {exc}") from exc
+                raise ValueError(f"agent {shown(name)} cannot start on scenario {shown(scenario.name)}: {exc}") from exc
         finally:
             env.close()
 

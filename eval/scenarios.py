@@ -155,21 +155,22 @@ _FIELDS = [f.name for f in dataclasses.fields(Scenario)]
 def scenario_from_mapping(name: str, fields: Mapping[str, Any]) -> Scenario:
     """A scenario from plain fields (a user file); ValueError naming a bad field and what is allowed."""
     if not isinstance(fields, Mapping):
-        raise ValueError(f"scenario {name!r} must be a mapping of fields {_FIELDS[1:]}, got {type(fields).__name__}")
+        raise ValueError(f"scenario {shown(name)} must be a mapping of fields {_FIELDS[1:]}, got "
+                         f"{type(fields).__name__}")
     unknown = sorted(set(fields) - set(_FIELDS))
     if unknown:
-        raise ValueError(f"scenario {name!r}: unknown field(s) {unknown}; valid fields: {_FIELDS[1:]}")
+        raise ValueError(f"scenario {shown(name)}: unknown field(s) {unknown}; valid fields: {_FIELDS[1:]}")
     if "wind" not in fields:
-        raise ValueError(f"scenario {name!r} needs a 'wind' field (a wind name or a mapping with 'name')")
+        raise ValueError(f"scenario {shown(name)} needs a 'wind' field (a wind name or a mapping with 'name')")
     kw = {k: v for k, v in fields.items() if k != "name"}
     if "setpoint" in kw and kw["setpoint"] is not None:
         sp = kw["setpoint"]
         if not (isinstance(sp, Sequence) and len(sp) == 3 and all(isinstance(v, (int, float)) for v in sp)):
-            raise ValueError(f"scenario {name!r}: setpoint must be 3 NED coordinates [m], got {shown(sp)}")
+            raise ValueError(f"scenario {shown(name)}: setpoint must be 3 NED coordinates [m], got {shown(sp)}")
         kw["setpoint"] = tuple(float(v) for v in sp)
     for key in ("seconds", "control_rate"):
         if key in kw and not (isinstance(kw[key], (int, float)) and math.isfinite(kw[key]) and kw[key] > 0):
-            raise ValueError(f"scenario {name!r}: {key} must be a positive number, got {kw[key]!r}")
+            raise ValueError(f"scenario {shown(name)}: {key} must be a positive number, got {shown(kw[key])}")
     return Scenario(name=str(fields.get("name", name)), **kw)
 
 
@@ -201,8 +202,8 @@ def load_scenarios(path: str | Path) -> list[Scenario]:
         return [scenario_from_mapping(str(data.get("name", p.stem)), data)]
     for key, fields in data.items():
         if isinstance(fields, Mapping) and "name" in fields and fields["name"] != key:
-            raise ValueError(f"scenario file {p}: entry {key!r} has name {fields['name']!r}; drop 'name' (the key "
-                             "names the scenario) or make them equal")
+            raise ValueError(f"scenario file {p}: entry {shown(key)} has name {shown(fields['name'])}; drop 'name' "
+                             f"(the key names the scenario) or make them equal")
     return [scenario_from_mapping(str(k), v) for k, v in data.items()]
 
 
@@ -210,7 +211,7 @@ def get_scenario(name: str) -> Scenario:
     """A built-in scenario by name; ValueError listing the valid names otherwise."""
     sc = _builtin(name)
     if sc is None:
-        raise ValueError(f"unknown scenario {name!r}; valid: {', '.join(scenario_names())} "
+        raise ValueError(f"unknown scenario {shown(name)}; valid: {', '.join(scenario_names())} "
                          "(fawt-<duty>-steady/-switching take any duty 30-70), or a .yaml/.json file")
     return sc
 
@@ -220,9 +221,9 @@ def adhoc_scenario(wind: str, seconds: float) -> Scenario:
     from fawtgym.envs.wind import wind_names
 
     if wind not in wind_names():
-        raise ValueError(f"unknown wind {wind!r}; valid: {', '.join(wind_names())}")
+        raise ValueError(f"unknown wind {shown(wind)}; valid: {', '.join(wind_names())}")
     if not (math.isfinite(seconds) and seconds > 0):
-        raise ValueError(f"--duration must be a positive number of seconds, got {seconds!r}")
+        raise ValueError(f"--duration must be a positive number of seconds, got {shown(seconds)}")
     return Scenario(f"{wind}-{seconds:g}s", wind, seconds=float(seconds),
                     description=f"ad hoc: wind {wind} for {seconds:g} s")
 
@@ -252,7 +253,7 @@ def check_scenario(sc: Scenario) -> None:
     try:
         HoverEnv(**sc.env_options()).close()
     except (ValueError, TypeError) as exc:
-        raise ValueError(f"scenario {sc.name!r}: {exc}") from exc
+        raise ValueError(f"scenario {shown(sc.name)}: {exc}") from exc
 
 
 def table4_duty(scenario: Scenario | Mapping[str, Any]) -> int | None:

@@ -63,7 +63,7 @@ class ShardedLoop:
         for k, env in enumerate(envs):
             threads = getattr(env, "physics_threads", None)
             if threads != 0:
-                raise ValueError(f"ShardedLoop: env {k} runs its physics on {threads!r} threads; build each shard "
+                raise ValueError(f"ShardedLoop: env {k} runs its physics on {shown(threads)} threads; build each shard "
                                  "with HoverBatchEnv(..., physics_threads=0) (its physics on the shard's own thread)")
         self.envs, self.agents = list(envs), list(agents)
         self.offsets: list[int] = np.cumsum([0] + [e.num_envs for e in self.envs[:-1]]).tolist()
@@ -83,7 +83,7 @@ class ShardedLoop:
 
         if "physics_threads" in env_options:
             raise ValueError("ShardedLoop.build sets physics_threads=0 itself (each shard's physics on its own "
-                             f"thread); got physics_threads={env_options['physics_threads']!r}")
+                             f"thread); got physics_threads={shown(env_options['physics_threads'])}")
         k = min(usable_cores(), n) if shards is None and isinstance(n, (int, np.integer)) and n >= 1 else shards
         sizes = shard_sizes(n, k)  # type: ignore[arg-type]  # checked there
         envs = [HoverBatchEnv(m, physics_threads=0, **env_options) for m in sizes]

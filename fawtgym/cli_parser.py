@@ -20,6 +20,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn
 
+from fawtgym.core.checks import shown
+
 
 class ArgumentParser(argparse.ArgumentParser):
     """argparse with one-line errors (exit code 2, nothing on stdout) and help in plain text.
@@ -40,9 +42,9 @@ def _number(text: str, kind: type, what: str) -> float | int:
     try:
         value = kind(text)
     except (TypeError, ValueError):
-        raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        raise argparse.ArgumentTypeError(f"{shown(text)} is not {what}") from None
     if isinstance(value, float) and not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{text!r} is not {what}")
+        raise argparse.ArgumentTypeError(f"{shown(text)} is not {what}")
     return value
 
 
@@ -50,7 +52,7 @@ def positive_float(text: str) -> float:
     """A finite number > 0 (a duration, a step, a rate)."""
     v = _number(text, float, "a positive number")
     if v <= 0:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a positive number")
+        raise argparse.ArgumentTypeError(f"{shown(text)} is not a positive number")
     return float(v)
 
 
@@ -58,7 +60,7 @@ def nonnegative_float(text: str) -> float:
     """A finite number >= 0 (a switch-on time)."""
     v = _number(text, float, "a number >= 0")
     if v < 0:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number >= 0")
+        raise argparse.ArgumentTypeError(f"{shown(text)} is not a number >= 0")
     return float(v)
 
 
@@ -66,7 +68,7 @@ def positive_int(text: str) -> int:
     """An integer >= 1 (a count)."""
     v = _number(text, int, "a positive integer")
     if v < 1:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a positive integer")
+        raise argparse.ArgumentTypeError(f"{shown(text)} is not a positive integer")
     return int(v)
 
 
@@ -74,7 +76,7 @@ def seed(text: str) -> int:
     """A random seed: an integer in [0, 2**32) (what numpy's generators accept)."""
     v = _number(text, int, "a seed (an integer 0 to 4294967295)")
     if not 0 <= v < 2**32:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a seed (an integer 0 to 4294967295)")
+        raise argparse.ArgumentTypeError(f"{shown(text)} is not a seed (an integer 0 to 4294967295)")
     return int(v)
 
 
@@ -84,7 +86,7 @@ def bounded_int(lo: int, hi: int) -> Callable[[str], int]:
     def parse(text: str) -> int:
         v = _number(text, int, f"an integer from {lo} to {hi}")
         if not lo <= v <= hi:
-            raise argparse.ArgumentTypeError(f"{text!r} is not an integer from {lo} to {hi}")
+            raise argparse.ArgumentTypeError(f"{shown(text)} is not an integer from {lo} to {hi}")
         return int(v)
 
     parse.__name__ = f"int_{lo}_{hi}"
@@ -102,12 +104,12 @@ def duty_percent(lo: float = 0.0, hi: float = 100.0) -> Callable[[str], float]:
         has_pct = t.endswith("%")
         v = _number(t.rstrip("%"), float, f"a duty in percent ({lo:g}-{hi:g})")
         if not has_pct and 0 < v < 1:
-            raise argparse.ArgumentTypeError(f"{text!r}: the duty is given in percent ({lo:g}-{hi:g}); "
+            raise argparse.ArgumentTypeError(f"{shown(text)}: the duty is given in percent ({lo:g}-{hi:g}); "
                                              f"for {100 * v:g} % write {100 * v:g}")
         inside = (lo < v <= hi) if lo == 0 else (lo <= v <= hi)
         if not inside:
             rng = f"above 0 and at most {hi:g}" if lo == 0 else f"from {lo:g} to {hi:g}"
-            raise argparse.ArgumentTypeError(f"{text!r} is not a duty in percent {rng}")
+            raise argparse.ArgumentTypeError(f"{shown(text)} is not a duty in percent {rng}")
         return float(v)
 
     parse.__name__ = "duty_percent"

@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.arrays import REAL_KINDS, as_array
-from fawtgym.core.checks import check_number
+from fawtgym.core.checks import check_number, shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.kernel_types import TYPED_DISPATCH, compile_only
 from fawtgym.core.measurement import ATTITUDE, TRAILING_SHAPES, batch_measurement
@@ -237,7 +237,7 @@ class Observer:
         for key, value in meas.items():
             if key in TRAILING_SHAPES and value.shape[0] != n:
                 raise ValueError(f"{who}: reset(rows=mask) needs the measurement of all {n} rows of the batch (the "
-                                 f"mask selects among them); measurement[{key!r}] has {value.shape[0]} rows")
+                                 f"mask selects among them); measurement[{shown(key)}] has {value.shape[0]} rows")
         force_checked, torque_checked = self._check_guesses(force, torque, n, who)
         force_rows = _masked(force_checked, mask, 1)
         torque_rows = _masked(torque_checked, mask, 1)
@@ -489,22 +489,22 @@ def _inertia_matrix(inertia: object, who: str, mass: float) -> NDArray[np.float6
     allowed = "a 3x3 matrix or 3 diagonal entries of finite real numbers [kg m^2], positive definite"
     j = as_array(inertia)
     if j.dtype.kind not in REAL_KINDS:
-        raise ValueError(f"{who}: inertia must be {allowed}, got {inertia!r} (dtype {j.dtype})")
+        raise ValueError(f"{who}: inertia must be {allowed}, got {shown(inertia)} (dtype {j.dtype})")
     j = j.astype(np.float64)
     j = np.diag(j) if j.shape == (3,) else j
     if j.shape != (3, 3) or not np.all(np.isfinite(j)):
-        raise ValueError(f"{who}: inertia must be {allowed}, got {inertia!r}")
+        raise ValueError(f"{who}: inertia must be {allowed}, got {shown(inertia)}")
     moments = np.linalg.eigvalsh((j + j.T) / 2)
     if moments.min() <= 0:
-        raise ValueError(f"{who}: inertia must be {allowed}, got {inertia!r} (not positive definite)")
+        raise ValueError(f"{who}: inertia must be {allowed}, got {shown(inertia)} (not positive definite)")
     low, high = RADIUS_OF_GYRATION
     radii = np.sqrt(moments / mass)
     outside = (radii < low) | (radii > high)
     if outside.any():
         k = int(np.argmax(outside))
         raise ValueError(f"{who}: inertia must be {allowed}, with every radius of gyration sqrt(principal moment / "
-                         f"mass) in [{low:g}, {high:g}] m, got {inertia!r} (principal moment {moments[k]:.4g} kg m^2, "
-                         f"mass {mass:g} kg: radius {radii[k]:.4g} m)")
+                         f"mass) in [{low:g}, {high:g}] m, got {shown(inertia)} (principal moment {moments[k]:.4g} "
+                         f"kg m^2, mass {mass:g} kg: radius {radii[k]:.4g} m)")
     return j
 
 
@@ -515,19 +515,19 @@ def check_dt(dt: object, max_dt: float, who: str, min_dt: float = SMALLEST_DT, w
     ``min_dt``: the shortest step the law takes (:attr:`Observer.min_dt`); the default, the smallest positive float,
     makes the range (0, ``max_dt``].  ``why_min``: why a larger ``min_dt`` (:attr:`Observer.min_dt_reason`), named in
     the message."""
-    shown = None
+    given = None  # an int beyond float range, as given
     if type(dt) is not float:
         real = isinstance(dt, (int, float, np.integer, np.floating)) and not isinstance(dt, (bool, np.bool_))
         if not real and isinstance(dt, np.ndarray) and dt.ndim == 0 and dt.dtype.kind in REAL_KINDS:
             real = True
         if not real:
-            raise TypeError(f"{who}: dt must be a real number of seconds, got {dt!r} ({type(dt).__name__})")
+            raise TypeError(f"{who}: dt must be a real number of seconds, got {shown(dt)} ({type(dt).__name__})")
         try:
             dt = float(dt)  # type: ignore[arg-type]
         except OverflowError:   # an int beyond float range: named as given
-            shown, dt = dt, math.inf
+            given, dt = dt, math.inf
     if not (min_dt <= dt <= max_dt):         # NaN fails too
-        got = repr(dt if shown is None else shown)
+        got = shown(dt if given is None else given)
         if min_dt <= SMALLEST_DT:
             raise ValueError(f"{who}: dt must be a finite number of seconds in (0, {max_dt:g}] (max_dt, the bound of "
                              f"its discretisation), got {got}")
@@ -566,7 +566,7 @@ def check_measurement(measurement: Mapping[str, ArrayLike], keys: tuple[str, ...
         if kind == _ROWS:
             row = first_nonfinite_row(a)
             if row >= 0:
-                raise ValueError(f"{who}: measurement[{key!r}] has a non-finite entry in row {row}: "
+                raise ValueError(f"{who}: measurement[{shown(key)}] has a non-finite entry in row {row}: "
                                  f"{a[row].tolist()}")
         elif kind == _ROTATION:
             row = first_non_rotation(a, ROTATION_TOL)
@@ -582,7 +582,7 @@ def check_measurement(measurement: Mapping[str, ArrayLike], keys: tuple[str, ...
         else:
             row = first_nonfinite_row(a.reshape(n, -1))
             if row >= 0:
-                raise ValueError(f"{who}: measurement[{key!r}] has a non-finite entry in row {row}: "
+                raise ValueError(f"{who}: measurement[{shown(key)}] has a non-finite entry in row {row}: "
                                  f"{a[row].tolist()}")
         out[key] = a
     return out
@@ -643,7 +643,7 @@ def check_inputs(thrust: ArrayLike, torque: ArrayLike, n: int,
     if code >= 0:
         row = code // 2
         label, value = ("thrust", f[row]) if code % 2 == 0 else ("torque", tau[row].tolist())
-        raise ValueError(f"{who}: {label} has a non-finite entry in row {row}: {value!r}")
+        raise ValueError(f"{who}: {label} has a non-finite entry in row {row}: {shown(value)}")
     return f, tau
 
 
@@ -739,7 +739,7 @@ def register_observer(name: str) -> Callable[[type[Observer]], type[Observer]]:
 
     def deco(cls: type[Observer]) -> type[Observer]:
         if name in _REGISTRY and _REGISTRY[name] is not cls:
-            raise ValueError(f"observer name {name!r} is already registered to {_REGISTRY[name].__name__}")
+            raise ValueError(f"observer name {shown(name)} is already registered to {_REGISTRY[name].__name__}")
         cls.name = name
         _REGISTRY[name] = cls
         return cls
@@ -750,7 +750,7 @@ def register_observer(name: str) -> Callable[[type[Observer]], type[Observer]]:
 def observer_class(name: str) -> type[Observer]:
     """The class registered under ``name``; ValueError listing the valid names otherwise."""
     if name not in _REGISTRY:
-        raise ValueError(f"unknown observer {name!r}; valid names: {observer_names()}")
+        raise ValueError(f"unknown observer {shown(name)}; valid names: {observer_names()}")
     return _REGISTRY[name]
 
 
@@ -762,5 +762,5 @@ def observer_names() -> list[str]:
 def make_observer(name: str, mass: float, inertia: ArrayLike, **kwargs: Any) -> Observer:
     """Build a registered observer by name; unknown names raise ValueError listing the valid ones."""
     if name not in _REGISTRY:
-        raise ValueError(f"unknown observer {name!r}; valid names: {observer_names()}")
+        raise ValueError(f"unknown observer {shown(name)}; valid names: {observer_names()}")
     return _REGISTRY[name](mass, inertia, **kwargs)

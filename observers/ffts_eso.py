@@ -59,7 +59,7 @@ import numpy as np
 from numba import float64, int64, njit
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.checks import check_number, check_positive
+from fawtgym.core.checks import check_number, check_positive, shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.kernel_types import ROTATIONS, ROWS, TYPED_DISPATCH, VALUES, compile_only
 from fawtgym.core.rows import write_rows
@@ -183,7 +183,7 @@ def validate_gains(p: float, kt1: float, kt2: float, kt3: float, kappa_t: float,
     kk = real_vector(morse_k, 3)
     if kk is None or not (kk[0] > kk[1] > kk[2] >= 1.0) or not kk[0] <= MAX_RATE_GAIN:
         raise ValueError(f"ffts_eso: Morse gains morse_k = (K1, K2, K3) must be 3 finite real numbers with "
-                         f"{MAX_RATE_GAIN:g} >= K1 > K2 > K3 >= 1 (Lemma 5, eq. 41), got {morse_k!r}")
+                         f"{MAX_RATE_GAIN:g} >= K1 > K2 > K3 >= 1 (Lemma 5, eq. 41), got {shown(morse_k)}")
     return tuple(out)
 
 

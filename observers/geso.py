@@ -47,7 +47,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
 from fawtgym.core.arrays import REAL_KINDS, as_array
-from fawtgym.core.checks import check_positive
+from fawtgym.core.checks import check_positive, shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import cross_row
@@ -67,7 +67,7 @@ _DER_NAME = {"force": "force_derivatives", "torque": "torque_derivatives"}
 
 def _check_order(order: object) -> int:
     if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or int(order) not in ORDERS:
-        raise ValueError(f"GESO order must be one of {ORDERS}, got {order!r}")
+        raise ValueError(f"GESO order must be one of {ORDERS}, got {shown(order)}")
     return int(order)
 
 
@@ -90,7 +90,8 @@ def geso_gains(order: int, bandwidth: float) -> NDArray[np.float64]:
 def _check_gains(gains: ArrayLike) -> NDArray[np.float64]:
     l = as_array(gains)
     if l.dtype.kind not in REAL_KINDS:
-        raise ValueError(f"GESO gains must be a vector [l_0..l_n] of real numbers, got {gains!r} (dtype {l.dtype})")
+        raise ValueError(f"GESO gains must be a vector [l_0..l_n] of real numbers, got {shown(gains)} (dtype "
+                         f"{l.dtype})")
     l = l.astype(np.float64)
     if l.ndim != 1 or l.size - 1 not in ORDERS:
         raise ValueError(f"GESO gains must be a vector [l_0..l_n] with n in {ORDERS}, got shape {l.shape}")
@@ -173,7 +174,7 @@ class GesoFilter:
             self.gains = _check_gains(gains)
             self.order = self.gains.size - 1
             if order is not None and _check_order(order) != self.order:
-                raise ValueError(f"GESO order {order!r} does not match the {self.gains.size} gains given "
+                raise ValueError(f"GESO order {shown(order)} does not match the {self.gains.size} gains given "
                                  f"(order = len(gains) - 1 = {self.order})")
             self.bandwidth = None
         a, b, _, c = chain_matrices(self.order)
@@ -192,9 +193,9 @@ class GesoFilter:
         ``x+ = Phi x + Gamma0 [u*, y_k] + Gamma1 [0, y_{k+1} - y_k]`` (expm of the augmented system).
         """
         if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
+            raise ValueError(f"dt must be a finite positive number of seconds, got {shown(dt)}")
         if hold not in HOLDS:
-            raise ValueError(f"hold must be one of {HOLDS}, got {hold!r}")
+            raise ValueError(f"hold must be one of {HOLDS}, got {shown(hold)}")
         key = (float(dt), hold)
         if key not in self._cache:
             m = self.order + 1
@@ -390,7 +391,7 @@ def _parse_channels(channels: str | Iterable[str]) -> tuple[str, ...]:
         items = (channels,)     # type: ignore[assignment]
     bad = [c for c in items if c not in CHANNELS]
     if bad or not items:
-        raise ValueError(f"GESO channels must be a non-empty subset of {CHANNELS}, got {channels!r}")
+        raise ValueError(f"GESO channels must be a non-empty subset of {CHANNELS}, got {shown(channels)}")
     return tuple(c for c in CHANNELS if c in items)
 
 
@@ -434,9 +435,9 @@ class GESO(Observer):
         super().__init__(mass, inertia, gravity)
         chans = _parse_channels(channels)
         if hold not in HOLDS:
-            raise ValueError(f"hold must be one of {HOLDS}, got {hold!r}")
+            raise ValueError(f"hold must be one of {HOLDS}, got {shown(hold)}")
         if rate_key not in (M.ANGULAR_VELOCITY, M.GYRO):
-            raise ValueError(f"rate_key must be {M.ANGULAR_VELOCITY!r} or {M.GYRO!r}, got {rate_key!r}")
+            raise ValueError(f"rate_key must be {shown(M.ANGULAR_VELOCITY)} or {shown(M.GYRO)}, got {shown(rate_key)}")
         orders = _per_channel(order, "order", chans)
         bws = _per_channel(bandwidth, "bandwidth", chans)
         self.channels = frozenset(chans)  # instance-level: which channels this instance estimates

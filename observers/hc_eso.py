@@ -39,7 +39,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.checks import check_number, check_positive
+from fawtgym.core.checks import check_number, check_positive, shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import exp_so3_row, known_angular_acceleration_entries, mat_mul_row
@@ -73,9 +73,9 @@ class HcEsoGains:
             g = math.inf
         if not (math.isfinite(g) and g.is_integer() and g >= 1):
             raise ValueError(f"hc_eso: gamma must be a positive integer (Prop. 3), finite as a float, got "
-                             f"{self.gamma!r}")
+                             f"{shown(self.gamma)}")
         if isinstance(self.alpha, bool) or not isinstance(self.alpha, number) or not (0.5 < self.alpha < 1.0):
-            raise ValueError(f"alpha must satisfy 1/2 < alpha < 1 (Prop. 3), got {self.alpha!r}")
+            raise ValueError(f"alpha must satisfy 1/2 < alpha < 1 (Prop. 3), got {shown(self.alpha)}")
         if self.gamma - 3.0 * self.alpha + 1.0 < 0:
             raise ValueError(f"gamma - 3 alpha + 1 must be >= 0 (Prop. 3), got gamma={self.gamma}, "
                              f"alpha={self.alpha}")
@@ -333,16 +333,16 @@ class HcEsoSO3(Observer):
         self.gains = HcEsoGains(alpha, gamma, kappa, k_sigma, k_psi)
         self.morse_gains = va.check_morse_gains(morse_gains)
         if vectors not in VECTOR_SOURCES:
-            raise ValueError(f"vectors must be one of {VECTOR_SOURCES}, got {vectors!r}")
+            raise ValueError(f"vectors must be one of {VECTOR_SOURCES}, got {shown(vectors)}")
         if rate_key not in (M.ANGULAR_VELOCITY, M.GYRO):
-            raise ValueError(f"rate_key must be {M.ANGULAR_VELOCITY!r} or {M.GYRO!r}, got {rate_key!r}")
+            raise ValueError(f"rate_key must be {shown(M.ANGULAR_VELOCITY)} or {shown(M.GYRO)}, got {shown(rate_key)}")
         max_step = check_number(max_step, "hc_eso: max_step", minimum=self.max_dt / MAX_SUBSTEPS,
                                 inclusive_minimum=True, note=f"s (>= max_dt / {MAX_SUBSTEPS})")
         self.vectors, self.rate_key, self.max_step = vectors, rate_key, max_step
         field = real_vector(field_ned, 3)
         if field is None:
             raise ValueError(f"hc_eso: field_ned must be 3 finite real numbers (the Earth field, NED), got "
-                             f"{field_ned!r}")
+                             f"{shown(field_ned)}")
         self.field_ned = field
         self._e = np.eye(3) if vectors == "attitude" else va.imu_inertial_vectors(self.field_ned)
         self._w = va.wahba_weight(self._e, self.morse_gains)

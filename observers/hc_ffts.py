@@ -34,7 +34,7 @@ import scipy.linalg
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.checks import check_number
+from fawtgym.core.checks import check_number, shown
 
 #: floor on e^T e in the *derivative* terms (frac_power_rate, phi1_jacobian); see module docstring
 DEFAULT_EPS = 1e-12
@@ -205,7 +205,7 @@ def frac_power_rate(e: ArrayLike, edot: ArrayLike, p: float, eps: float = DEFAUL
     The unregularised derivative is unbounded at e = 0, hence eps must be > 0.
     """
     if not (np.isfinite(eps) and eps > 0):
-        raise ValueError(f"eps must be > 0 (the exact derivative is unbounded at e = 0), got {eps!r}")
+        raise ValueError(f"eps must be > 0 (the exact derivative is unbounded at e = 0), got {shown(eps)}")
     e_arr, edot_arr = np.broadcast_arrays(np.asarray(e, dtype=float), np.asarray(edot, dtype=float))
     rows, shape = _rows_2d(e_arr)
     rates, _ = _rows_2d(edot_arr)
@@ -245,9 +245,9 @@ def euler_stable_eps(p: float, gain: float, dt: float, floor: float = DEFAULT_EP
     """
     check_p(p)
     if not (np.isfinite(gain) and gain > 0 and np.isfinite(dt) and dt > 0):
-        raise ValueError(f"gain and dt must be finite positive numbers, got gain={gain!r}, dt={dt!r}")
+        raise ValueError(f"gain and dt must be finite positive numbers, got gain={shown(gain)}, dt={shown(dt)}")
     if not (0.0 < margin < 2.0):
-        raise ValueError(f"margin must lie in (0, 2) (explicit Euler is unstable beyond 2), got {margin!r}")
+        raise ValueError(f"margin must lie in (0, 2) (explicit Euler is unstable beyond 2), got {shown(margin)}")
     return max(float(floor), (gain * dt / margin) ** (p / (p - 1.0)))
 
 
@@ -271,7 +271,7 @@ def hurwitz_matrix(k1: float, k2: float, label: str = "A*") -> NDArray[np.float6
     eig = np.linalg.eigvals(a)
     if not (np.all(np.isfinite(a)) and np.all(eig.real < 0)):
         raise ValueError(f"{label} = [[-k1, 1], [-k2, 0]] must be Hurwitz (needs k1 > 0 and k2 > 0); "
-                         f"got k1={k1!r}, k2={k2!r} with eigenvalues {eig}")
+                         f"got k1={shown(k1)}, k2={shown(k2)} with eigenvalues {eig}")
     return a
 
 
@@ -294,7 +294,7 @@ class HCFFTSD:
     def __post_init__(self) -> None:
         check_p(self.p)
         if not (np.isfinite(self.k3) and self.k3 > 0):
-            raise ValueError(f"k3 must be a finite positive number (Theorem 1), got k3={self.k3!r}")
+            raise ValueError(f"k3 must be a finite positive number (Theorem 1), got k3={shown(self.k3)}")
         hurwitz_matrix(self.k1, self.k2)
         pm = lyapunov_p(self.k1, self.k2, np.asarray(self.q))
         object.__setattr__(self, "_pm", pm)

@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.checks import check_number, check_positive
+from fawtgym.core.checks import check_number, check_positive, shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FORCE, batch_measurement
 from fawtgym.core.rows import write_rows
@@ -190,12 +190,12 @@ class PdtStaAttitudeObserver(Observer):
         w = real_vector(weights, 2)
         if w is None or np.any(w <= 0):
             raise ValueError(f"pdt_sta: weights must be two finite real numbers > 0 (accelerometer, magnetometer), "
-                             f"got {weights!r}")
+                             f"got {shown(weights)}")
         self.weights = w
         m = real_vector(magnetic_field, 3)
         if m is None or np.linalg.norm(np.cross(m, [0, 0, 1.0])) < 1e-6:
             raise ValueError("pdt_sta: magnetic_field must be 3 finite real numbers (NED) not parallel to gravity, "
-                             f"got {magnetic_field!r}")
+                             f"got {shown(magnetic_field)}")
         self.reanchor = check_positive(reanchor, "pdt_sta: reanchor", maximum=10.0, note="(a Gibbs-vector norm)")
         self.references = np.stack([np.array([0.0, 0.0, -self.gravity]), m])  # specific force at rest, field
         self._ref_unit = np.ascontiguousarray(self.references / np.linalg.norm(self.references, axis=1)[:, None])

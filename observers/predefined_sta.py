@@ -46,7 +46,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
-from fawtgym.core.checks import check_number
+from fawtgym.core.checks import check_number, shown
 
 
 # --------------------------------------------------------------------------------------------------
@@ -62,12 +62,12 @@ def check_params(t_c: float, eta: float, kappa2: float | None = None, kappa1: fl
     """Raise ValueError unless t_c > t0, eta >= 3 (Corollary 1), kappa1 > 0 and kappa2 > 0 (eqs. 16-22)."""
     t0 = _finite("t0", t0)
     if not _finite("t_c", t_c) > t0:
-        raise ValueError(f"t_c must be later than t0 = {t0}, got t_c = {t_c!r}")
+        raise ValueError(f"t_c must be later than t0 = {t0}, got t_c = {shown(t_c)}")
     if not _finite("eta", eta) >= 3.0:
-        raise ValueError(f"eta must be >= 3 (Corollary 1 of the paper), got {eta!r}")
+        raise ValueError(f"eta must be >= 3 (Corollary 1 of the paper), got {shown(eta)}")
     for name, val in (("kappa1", kappa1), ("kappa2", kappa2)):
         if val is not None and not _finite(name, val) > 0:
-            raise ValueError(f"{name} must be > 0, got {val!r}")
+            raise ValueError(f"{name} must be > 0, got {shown(val)}")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -76,10 +76,11 @@ def check_params(t_c: float, eta: float, kappa2: float | None = None, kappa1: fl
 def switch_and_gain_times(t_c: float, t_switch: float | None, early_form: str) -> tuple[float, float]:
     """(t_s, t_d): the switching instant and the instant in the gain eta/(t_d - t) (see module doc)."""
     if early_form not in ("tc", "eq44"):
-        raise ValueError(f"early_form must be 'tc' (the text of Sec. 3.1) or 'eq44' (as printed), got {early_form!r}")
+        raise ValueError(f"early_form must be 'tc' (the text of Sec. 3.1) or 'eq44' (as printed), got "
+                         f"{shown(early_form)}")
     t_s = t_c if t_switch is None else float(t_switch)
     if not t_s <= t_c:
-        raise ValueError(f"t_switch must be <= t_c = {t_c}, got {t_switch!r}")
+        raise ValueError(f"t_switch must be <= t_c = {t_c}, got {shown(t_switch)}")
     return t_s, (t_c if early_form == "tc" else t_s)
 
 
@@ -277,7 +278,7 @@ def kappa2_interval_36(x0: tuple[float, float], t1: float, t_c: float, t0: float
     x10, x20 = float(x0[0]), float(x0[1])
     T, T1 = t_c - t0, t1 - t0
     if not 0 < T1 < T:
-        raise ValueError(f"t1 must lie in (t0, t_c) = ({t0}, {t_c}), got {t1!r}")
+        raise ValueError(f"t1 must lie in (t0, t_c) = ({t0}, {t_c}), got {shown(t1)}")
     lo30 = abs(x20) / T
     if x20 == 0.0 or np.sign(x10) == np.sign(x20):
         hi = abs(x20) / (2 * T1 - T) if 2 * T1 > T else math.inf
@@ -320,7 +321,7 @@ def tune_algorithm1(x0: tuple[float, float], t_c: float, eta: float = 3.0, kappa
     Raises ValueError when no admissible pair is found within ``max_iter`` changes.
     """
     if strategy not in ("gain", "rate"):
-        raise ValueError(f"strategy must be 'gain' or 'rate', got {strategy!r}")
+        raise ValueError(f"strategy must be 'gain' or 'rate', got {shown(strategy)}")
     x20 = abs(float(x0[1]))
     k30 = x20 / (t_c - t0)
     kappa2 = float(max(1.0, math.ceil(k30))) if kappa2 is None else float(kappa2)

@@ -52,6 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import expm
 
 from fawtgym.core import measurement as M
+from fawtgym.core.checks import shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.rows import write_rows
 
@@ -100,7 +101,7 @@ class QBGain:
         """Write an ``.npz`` with all arrays, alpha, mu, log-volume and a JSON ``meta`` string."""
         path = Path(path)
         if path.suffix != ".npz":
-            raise ValueError(f"QB gain files are .npz, got {path.name!r}")
+            raise ValueError(f"QB gain files are .npz, got {shown(path.name)}")
         meta = dict(self.meta)
         meta.update(alpha=self.alpha, mu=self.mu, log_volume=self.log_volume)
         np.savez(path, meta=np.array(json.dumps(meta, sort_keys=True)),
@@ -114,7 +115,7 @@ def resolve_gain_path(gain_file: str | os.PathLike[str] | None) -> Path:
         gain_file = DEFAULT_GAIN
     if not isinstance(gain_file, (str, os.PathLike)):
         raise ValueError(f"gain_file must be None (the shipped gain for the vehicle), a path or a shipped gain's name, "
-                         f"got {gain_file!r} ({type(gain_file).__name__})")
+                         f"got {shown(gain_file)} ({type(gain_file).__name__})")
     p = Path(gain_file)
     if p.suffix == "" and not p.exists():
         p = GAIN_DIR / (p.name + ".npz")

@@ -35,6 +35,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import null_space
 
+from fawtgym.core.checks import shown
+
 __all__ = [
     "AlphaSweep", "ParetoAnchors", "QBInfeasibleError", "QBProblem", "QBSolution",
     "anchors_from_sweep", "ellipsoid_log_volume", "ellipsoid_volume", "j_mu", "lmi_residuals",
@@ -269,10 +271,10 @@ def solve_qb_lmi(problem: QBProblem, alpha: float, solver: str | None = None, p_
     except ImportError as exc:  # pragma: no cover - depends on the environment
         raise ImportError(f"QB observer design needs cvxpy and an SDP solver: {_DESIGN_HINT}") from exc
     if not (np.isfinite(alpha) and alpha > 0):
-        raise ValueError(f"alpha must be a finite positive number (eq. 7), got {alpha!r}")
+        raise ValueError(f"alpha must be a finite positive number (eq. 7), got {shown(alpha)}")
     solver = solver or "CLARABEL"
     if solver not in cp.installed_solvers():
-        raise ImportError(f"SDP solver {solver!r} is not installed (installed: {cp.installed_solvers()}); "
+        raise ImportError(f"SDP solver {shown(solver)} is not installed (installed: {cp.installed_solvers()}); "
                           f"{_DESIGN_HINT}")
     pr = problem
     n, p, q, l1 = pr.n, pr.C.shape[0], pr.q, pr.W1.shape[1]
@@ -310,7 +312,7 @@ def solve_qb_lmi(problem: QBProblem, alpha: float, solver: str | None = None, p_
     if status not in ("optimal", "optimal_inaccurate") or P.value is None or X.value is None:
         raise QBInfeasibleError(
             f"QB design LMI (7)+(30) at alpha={alpha:g} (n={n}, p={p}, q={q}) has no solution: "
-            f"solver {solver} returned status {status!r}. Check that (A, C) is detectable with decay "
+            f"solver {solver} returned status {shown(status)}. Check that (A, C) is detectable with decay "
             f"alpha/2 and that Q is the bound of (eta1, eta2).")
     # back to the original coordinates: P = T P_s T, Y = T Y_s, X = S X_s S with S = diag(s_z)
     Pv = t[:, None] * ((P.value + P.value.T) / 2) * t[None, :]
@@ -321,7 +323,7 @@ def solve_qb_lmi(problem: QBProblem, alpha: float, solver: str | None = None, p_
         log_vol = ellipsoid_log_volume(pz)
     except ValueError as exc:
         raise QBInfeasibleError(f"QB design at alpha={alpha:g}: solver {solver} returned a P that is not "
-                                f"positive definite (status {status!r})") from exc
+                                f"positive definite (status {shown(status)})") from exc
     L = np.linalg.solve(Pv, Yv)  # eq. 9
     sol = QBSolution(alpha=float(alpha), P=Pv, Y=Yv, X=Xv, L=L, Pz=pz, log_volume=log_vol, status=status,
                      solver=solver, solve_seconds=seconds)
@@ -398,7 +400,7 @@ def j_mu(mu: float, alpha: float | NDArray[np.float64], volume: float | NDArray[
          anchors: ParetoAnchors) -> NDArray[np.float64]:
     """J_mu = mu J1 + (1 - mu) J2 (Cayero et al. 2019, eqs. 21-23): J1 the normalized volume, J2 the alpha."""
     if not (0.0 <= mu <= 1.0):
-        raise ValueError(f"mu must be in [0, 1], got {mu!r}")
+        raise ValueError(f"mu must be in [0, 1], got {shown(mu)}")
     j1 = (np.asarray(volume) - anchors.vol_star) / (anchors.vol_nadir - anchors.vol_star)  # eq. 22
     j2 = (np.asarray(alpha) - anchors.alpha_star) / (anchors.alpha_nadir - anchors.alpha_star)  # eq. 23
     return mu * j1 + (1.0 - mu) * j2

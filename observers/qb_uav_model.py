@@ -69,9 +69,9 @@ def scaled_q2(mass: float, inertia: ArrayLike) -> NDArray[np.float64]:
     j = np.asarray(inertia, dtype=float)
     j = np.diag(j) if j.shape == (3,) else j
     if not (np.isfinite(mass) and mass > 0):
-        raise ValueError(f"mass must be a finite positive number, got {mass!r}")
+        raise ValueError(f"mass must be a finite positive number, got {shown(mass)}")
     if j.shape != (3, 3) or np.any(np.diag(j) <= 0):
-        raise ValueError(f"inertia must be 3 positive diagonal entries or a 3x3 matrix, got {inertia!r}")
+        raise ValueError(f"inertia must be 3 positive diagonal entries or a 3x3 matrix, got {shown(inertia)}")
     d = np.concatenate([np.full(3, mass / HUMMINGBIRD_MASS), np.diag(j) / np.diag(HUMMINGBIRD_INERTIA),
                         np.full(3, mass / HUMMINGBIRD_MASS)])
     dinv = np.diag(1.0 / d)
@@ -98,7 +98,7 @@ def uav_model(r: int = PAPER_ORDER, q1_scale: float = Q1_SCALE, q2: ArrayLike | 
     ``q2`` defaults to eq. 58 (Hummingbird); ``q1_scale`` is the 1e6 of Q1 = 1e6 I_6.
     """
     if not (np.isfinite(q1_scale) and q1_scale > 0):
-        raise ValueError(f"q1_scale must be a finite positive number, got {q1_scale!r}")
+        raise ValueError(f"q1_scale must be a finite positive number, got {shown(q1_scale)}")
     q2m = paper_q2() if q2 is None else np.asarray(q2, dtype=float)
     if q2m.shape != (9, 9):
         raise ValueError(f"q2 must be 9x9, got shape {q2m.shape}")

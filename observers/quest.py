@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import shown
 from fawtgym.core.so3 import cross
 from fawtgym.core.so3_kernels import cross_entries, quat_to_rot_row
 
@@ -261,7 +262,7 @@ def quest(body: ArrayLike, reference: ArrayLike, weights: ArrayLike | None = Non
         got = np.shape(np.asarray(weights))
         raise ValueError(f"weights must have shape ({n_obs},) or (N, {n_obs}), got {got}") from exc
     if not (np.isfinite(a) & (a > 0)).all():
-        raise ValueError(f"weights must be finite and > 0, got {weights!r}")
+        raise ValueError(f"weights must be finite and > 0, got {shown(weights)}")
     for name, v in (("body", b), ("reference", r)):
         c = cross(v[:, :, None, :], v[:, None, :, :])  # largest |v_i x v_j|^2 over the pairs
         s2 = (c * c).sum(axis=-1)

@@ -27,6 +27,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import shown
 from fawtgym.core.rows import check_row_mask, write_rows
 from fawtgym.core.so3_kernels import cross_entries, gyroscopic_entries, mat_vec_entries
 
@@ -128,16 +129,16 @@ class GibbsSTSMO:
                  kappa2: float = 1.5, mode: str = "predefined", t_switch: float | None = None,
                  integrator: str = "exact", early_form: str = "tc") -> None:
         if mode not in ("predefined", "conventional"):
-            raise ValueError(f"mode must be 'predefined' or 'conventional', got {mode!r}")
+            raise ValueError(f"mode must be 'predefined' or 'conventional', got {shown(mode)}")
         if integrator not in ("exact", "euler"):
-            raise ValueError(f"integrator must be 'exact' or 'euler', got {integrator!r}")
+            raise ValueError(f"integrator must be 'exact' or 'euler', got {shown(integrator)}")
         check_params(t_c, eta, kappa2, kappa1)
         if t_switch is not None and not (0.0 < float(t_switch) <= t_c):
-            raise ValueError(f"t_switch must lie in (0, t_c] = (0, {t_c}], got {t_switch!r}")
+            raise ValueError(f"t_switch must lie in (0, t_c] = (0, {t_c}], got {shown(t_switch)}")
         J = np.asarray(inertia, dtype=float)
         J = np.diag(J) if J.shape == (3,) else J
         if J.shape != (3, 3) or not np.all(np.isfinite(J)) or np.linalg.eigvalsh((J + J.T) / 2).min() <= 0:
-            raise ValueError(f"inertia must be positive definite 3x3 or 3 diagonal entries, got {inertia!r}")
+            raise ValueError(f"inertia must be positive definite 3x3 or 3 diagonal entries, got {shown(inertia)}")
         self.J = np.ascontiguousarray(J)
         self.J_inv = np.ascontiguousarray(np.linalg.inv(J))
         self.t_c, self.eta, self.kappa1, self.kappa2 = float(t_c), float(eta), float(kappa1), float(kappa2)
@@ -194,7 +195,7 @@ class GibbsSTSMO:
         Raises ValueError for a bad dt or input shape, FloatingPointError (the state unchanged) if the new state
         is not finite."""
         if isinstance(dt, bool) or not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a finite positive number of seconds, got {dt!r}")
+            raise ValueError(f"dt must be a finite positive number of seconds, got {shown(dt)}")
         shape = (self.n, 3)
         args = []
         for label, value in (("y", y), ("torque", torque), ("omega", omega)):

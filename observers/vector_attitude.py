@@ -30,6 +30,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.arrays import REAL_KINDS, as_array
+from fawtgym.core.checks import shown
 from fawtgym.core.measurement import EARTH_FIELD_NED
 from fawtgym.core.so3 import cross, hat, vee
 from fawtgym.core.so3_kernels import cross_entries
@@ -59,7 +60,7 @@ def check_morse_gains(k: ArrayLike) -> NDArray[np.float64]:
     given = k
     k = as_array(k)
     if k.dtype.kind not in REAL_KINDS:
-        raise ValueError(f"K = diag(k1, k2, k3) needs real numbers k1 > k2 > k3 >= 1 (Lemma 1), got {given!r}")
+        raise ValueError(f"K = diag(k1, k2, k3) needs real numbers k1 > k2 > k3 >= 1 (Lemma 1), got {shown(given)}")
     k = k.astype(np.float64)
     if k.shape == (3, 3):
         if np.any(k != np.diag(np.diag(k))):
@@ -146,7 +147,7 @@ def imu_inertial_vectors(field_ned: ArrayLike = EARTH_FIELD_NED) -> NDArray[np.f
     """Inertial unit vectors (3, 3) used by :func:`imu_vector_set`: down e3, field direction, e3 x field."""
     field = np.asarray(field_ned, float)
     if field.shape != (3,) or not np.all(np.isfinite(field)) or np.linalg.norm(field) == 0:
-        raise ValueError(f"field_ned must be a finite non-zero 3-vector, got {field_ned!r}")
+        raise ValueError(f"field_ned must be a finite non-zero 3-vector, got {shown(field_ned)}")
     g_i = np.array([0.0, 0.0, 1.0])
     m_i = field / np.linalg.norm(field)
     c_i = cross(g_i, m_i)

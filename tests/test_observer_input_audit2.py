@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from _tolerance import assert_same_law
 
+from fawtgym.core.checks import shown
 from fawtgym.eval.bench.observers import hover_measurement
 from fawtgym.observers import make_observer, observer_names
 from fawtgym.observers.base import Observer
@@ -87,7 +88,7 @@ def _dt_message(obs: Observer, got: str) -> str:
 def test_a_dt_beyond_float_range_is_the_dt_error(name: str, n: int, dt: int) -> None:
     """A4: float(10**400) raises OverflowError; it is the dt message (naming the int as given), not a bare one."""
     text = _refused(name, n, lambda o: o.update(_measurement(n), *_inputs(n), dt), ValueError)
-    assert text == _dt_message(_make(name), repr(dt))
+    assert text == _dt_message(_make(name), shown(dt))
 
 
 @pytest.mark.parametrize("gamma", [10**400, -(10**400), 2.5, 0, True, "2"], ids=str)
@@ -96,7 +97,7 @@ def test_hc_eso_gamma_beyond_float_range_is_the_gamma_error(gamma: object) -> No
     with pytest.raises(ValueError) as info:
         _make("hc_eso", gamma=gamma)
     assert str(info.value) == (f"hc_eso: gamma must be a positive integer (Prop. 3), finite as a float, got "
-                               f"{gamma!r}")
+                               f"{shown(gamma)}")
     assert _make("hc_eso", gamma=3).gains.gamma == 3
 
 

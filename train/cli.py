@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from fawtgym.cli_parser import ArgumentParser, check_output_dir
+from fawtgym.core.checks import shown
 
 from .config import ACTION_MODES, ALGOS, OBS_MODES, TrainConfig, freeze, load_hyperparams, parse_literal
 
@@ -69,7 +70,7 @@ def _pairs(items: Sequence[str], flag: str) -> dict[str, Any]:
     for text in items:
         key, sep, value = text.partition("=")
         if not sep or not key:
-            raise ValueError(f"{flag} takes KEY=VALUE, got {text!r}")
+            raise ValueError(f"{flag} takes KEY=VALUE, got {shown(text)}")
         out[key.strip()] = parse_literal(value.strip())
     return out
 
@@ -77,7 +78,7 @@ def _pairs(items: Sequence[str], flag: str) -> dict[str, Any]:
 def config_from_args(ns: Any) -> TrainConfig:
     """The TrainConfig of parsed arguments (ValueError with a one-line reason on bad values)."""
     if ns.algo not in ALGOS:
-        raise ValueError(f"unknown --algo {ns.algo!r}; valid: {', '.join(ALGOS)}")
+        raise ValueError(f"unknown --algo {shown(ns.algo)}; valid: {', '.join(ALGOS)}")
     hp = load_hyperparams(ns.algo, ns.hp)
     return make_config(algo=ns.algo, obs=ns.obs, observer=ns.observer, action=ns.action, scenario=ns.scenario,
                        episode_seconds=ns.episode_seconds, randomize=_pairs(ns.randomize, "--randomize"),

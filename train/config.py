@@ -34,7 +34,7 @@ def load_hyperparams(algo: str, overrides: Sequence[str] | Mapping[str, Any] = (
     import yaml
 
     if algo not in ALGOS:
-        raise ValueError(f"unknown algorithm {algo!r}; valid: {', '.join(ALGOS)}")
+        raise ValueError(f"unknown algorithm {shown(algo)}; valid: {', '.join(ALGOS)}")
     hp = yaml.safe_load((HYPERPARAMS_DIR / f"{algo}.yaml").read_text())
     items = overrides.items() if isinstance(overrides, Mapping) else [_split(o) for o in overrides]
     for key, value in items:
@@ -59,7 +59,7 @@ def load_hyperparams(algo: str, overrides: Sequence[str] | Mapping[str, Any] = (
 def _split(text: str) -> tuple[str, str]:
     key, sep, value = text.partition("=")
     if not sep or not key.strip():
-        raise ValueError(f"--hp takes key=value (e.g. learning_rate=1e-4), got {text!r}")
+        raise ValueError(f"--hp takes key=value (e.g. learning_rate=1e-4), got {shown(text)}")
     return key.strip(), value.strip()
 
 
@@ -74,7 +74,7 @@ def _check_hyperparams(algo: str, hp: Mapping[str, Any]) -> None:
         raise ValueError(f"unknown {algo} hyperparameter(s) {unknown}; valid: {', '.join(sorted(valid))}")
     n = hp.get("n_envs", 1)
     if not (isinstance(n, int) and n >= 1):
-        raise ValueError(f"n_envs must be a positive integer, got {n!r}")
+        raise ValueError(f"n_envs must be a positive integer, got {shown(n)}")
 
 
 def algo_class(algo: str) -> Any:
@@ -82,7 +82,7 @@ def algo_class(algo: str) -> Any:
     import stable_baselines3 as sb3
 
     if algo not in ALGOS:
-        raise ValueError(f"unknown algorithm {algo!r}; valid: {', '.join(ALGOS)}")
+        raise ValueError(f"unknown algorithm {shown(algo)}; valid: {', '.join(ALGOS)}")
     return {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}[algo]
 
 
@@ -110,9 +110,9 @@ class TrainConfig:
         for name, value, valid in (("algo", self.algo, ALGOS), ("obs", self.obs, OBS_MODES),
                                    ("action", self.action, ACTION_MODES)):
             if value not in valid:
-                raise ValueError(f"unknown --{name} {value!r}; valid: {', '.join(valid)}")
+                raise ValueError(f"unknown --{name} {shown(value)}; valid: {', '.join(valid)}")
         if not (isinstance(self.steps, int) and self.steps >= 1):
-            raise ValueError(f"--steps must be a positive integer, got {self.steps!r}")
+            raise ValueError(f"--steps must be a positive integer, got {shown(self.steps)}")
         if not (isinstance(self.seed, int) and self.seed >= 0):
             raise ValueError(f"--seed must be an integer >= 0, got {shown(self.seed)}")
 

@@ -32,6 +32,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from fawtgym.core.checks import shown
+
 #: the action modes: normalized collective thrust + body rates, normalized motors, a residual on a PX4 agent
 ACTIONS = ("ctbr", "motors", "residual")
 #: the observation modes: the env's state, or with an observer's scaled force/torque estimates
@@ -53,13 +55,13 @@ def _scenario(scenario: Any) -> Any:
                          f"{type(scenario).__name__}")
     found = resolve_scenarios([scenario])
     if len(found) != 1:
-        raise ValueError(f"scenario file {scenario!r} holds {len(found)} scenarios; make_train_env takes one")
+        raise ValueError(f"scenario file {shown(scenario)} holds {len(found)} scenarios; make_train_env takes one")
     return found[0]
 
 
 def _check_choice(what: str, value: Any, valid: tuple[str, ...]) -> None:
     if value not in valid:
-        raise ValueError(f"unknown {what} {value!r}; valid: {', '.join(valid)}")
+        raise ValueError(f"unknown {what} {shown(value)}; valid: {', '.join(valid)}")
 
 
 def _check_observer(name: Any) -> None:
@@ -67,7 +69,7 @@ def _check_observer(name: Any) -> None:
     from fawtgym.observers.base import observer_names
 
     if not isinstance(name, str) or name not in observer_names():
-        raise ValueError(f"unknown observer {name!r}; valid: {', '.join(observer_names())}")
+        raise ValueError(f"unknown observer {shown(name)}; valid: {', '.join(observer_names())}")
 
 
 def make_vector_env(scenario: Any = "table4-50", num_envs: int = 16, action: str = "ctbr", obs: str = "state",
@@ -97,7 +99,7 @@ def make_vector_env(scenario: Any = "table4-50", num_envs: int = 16, action: str
 
         spec = parse_agent(residual_base)
         if spec.kind not in ("px4", "px4+observer"):
-            raise ValueError(f"residual base must be px4 or px4+<observer>, got {residual_base!r}")
+            raise ValueError(f"residual base must be px4 or px4+<observer>, got {shown(residual_base)}")
         shared = shares_observer(residual_base, obs, observer, observer_kwargs)
         options["action_type"] = "motors"  # the PX4 agents fly motor commands
     else:

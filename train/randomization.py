@@ -48,6 +48,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from fawtgym.core.checks import shown
+
 #: the randomization options (module docstring)
 RANDOMIZE_KEYS = ("duty", "mass", "inertia", "drag", "gyro_bias", "accel_bias")
 _FRACTION_MAX = {"mass": 0.9, "inertia": 0.9, "drag": 1.0}
@@ -57,7 +59,7 @@ _FAWT = re.compile(r"fawt(-\d+)?")
 def _number(key: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
             or not math.isfinite(float(value)):
-        raise ValueError(f"randomize {key!r} must be a finite number, got {value!r}")
+        raise ValueError(f"randomize {shown(key)} must be a finite number, got {shown(value)}")
     return float(value)
 
 
@@ -76,7 +78,7 @@ class Randomization:
         if self.duty is not None:
             d = self.duty
             if isinstance(d, (str, bytes)) or not isinstance(d, Sequence) or len(d) != 2:
-                raise ValueError(f"randomize 'duty' must be [lo, hi] (fractions, e.g. [0.3, 0.7]), got {d!r}")
+                raise ValueError(f"randomize 'duty' must be [lo, hi] (fractions, e.g. [0.3, 0.7]), got {shown(d)}")
             lo, hi = _number("duty", d[0]), _number("duty", d[1])
             if not 0.0 <= lo <= hi <= 1.0:
                 raise ValueError(f"randomize 'duty' must be [lo, hi] with 0 <= lo <= hi <= 1 (fractions, e.g. "
@@ -85,13 +87,13 @@ class Randomization:
         for key, top in _FRACTION_MAX.items():
             v = _number(key, getattr(self, key))
             if not 0.0 <= v <= top:
-                raise ValueError(f"randomize {key!r} is a fraction f in [0, {top:g}] (scale ~ U(1 - f, 1 + f)), got "
-                                 f"{getattr(self, key)!r}")
+                raise ValueError(f"randomize {shown(key)} is a fraction f in [0, {top:g}] (scale ~ U(1 - f, 1 + "
+                                 f"f)), got {getattr(self, key)!r}")
             object.__setattr__(self, key, v)
         for key in ("gyro_bias", "accel_bias"):
             v = _number(key, getattr(self, key))
             if v < 0:
-                raise ValueError(f"randomize {key!r} is a half-range b >= 0 (bias ~ U(-b, b)), got {v!r}")
+                raise ValueError(f"randomize {shown(key)} is a half-range b >= 0 (bias ~ U(-b, b)), got {shown(v)}")
             object.__setattr__(self, key, v)
 
     @classmethod
@@ -177,7 +179,7 @@ def _fawt_options(wind: Any) -> dict[str, Any]:
     name = wind.get("name") if isinstance(wind, Mapping) else wind
     if not (isinstance(name, str) and _FAWT.fullmatch(name)):
         raise ValueError(f"randomize 'duty' needs a FAWT wind (fawt, fawt-30 ... fawt-70, with or without a fan "
-                         f"schedule); the scenario's wind is {wind!r}")
+                         f"schedule); the scenario's wind is {shown(wind)}")
     if not isinstance(wind, Mapping):
         return {}
     return {k: v for k, v in wind.items() if k not in ("name", "duty")}

@@ -39,6 +39,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from numpy.typing import NDArray
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
+from fawtgym.core.checks import shown
+
 
 def _layers(env: Any) -> Iterator[Any]:
     """The wrapper stack of a gymnasium vector env, outermost first, down to the base env."""
@@ -108,7 +110,7 @@ class SB3VecEnv(VecEnv):
         for layer in _layers(self.env):
             if hasattr(layer, name):
                 return layer
-        raise AttributeError(f"no layer of {self.env} has an attribute {name!r}")
+        raise AttributeError(f"no layer of {self.env} has an attribute {shown(name)}")
 
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
         value = getattr(self._owner(attr_name), attr_name)
@@ -138,8 +140,8 @@ def _merge_options(options: Sequence[dict[str, Any]], n: int) -> dict[str, Any]:
     merged: dict[str, Any] = {}
     for key in sorted({k for o in options for k in o}):
         if not all(key in o for o in options):
-            raise ValueError(f"reset option {key!r} is set for some rows only; the batched env takes each option for "
-                             f"all {n} rows (one value, or one per row)")
+            raise ValueError(f"reset option {shown(key)} is set for some rows only; the batched env takes each "
+                             f"option for all {n} rows (one value, or one per row)")
         merged[key] = np.stack([np.asarray(o[key]) for o in options])
     return merged
 

@@ -59,6 +59,7 @@ from fawtgym.agents.policy_io import (
     EstimateFeatures,
     ResidualScale,
 )
+from fawtgym.core.checks import shown
 
 
 # ---- helpers shared by the vector wrappers ------------------------------------------------------------------------
@@ -75,7 +76,7 @@ def _hover_env(env: Any) -> Any:
     base = env.unwrapped
     for attr in ("preset", "dt", "hover_action"):
         if not hasattr(base, attr):
-            raise ValueError(f"{type(base).__name__} is not a fawtgym hover env (it has no {attr!r})")
+            raise ValueError(f"{type(base).__name__} is not a fawtgym hover env (it has no {shown(attr)})")
     return base
 
 
@@ -239,8 +240,8 @@ def _build_agent(base: Any, env: Any) -> Any:
 
     agent = base if isinstance(base, Agent) else make_agent(base, env)
     if agent.action_type != env.action_type:
-        raise ValueError(f"residual base {base!r} emits {agent.action_type!r} actions but the env takes "
-                         f"{env.action_type!r}; build the env with action_type={agent.action_type!r}")
+        raise ValueError(f"residual base {shown(base)} emits {shown(agent.action_type)} actions but the env takes "
+                         f"{shown(env.action_type)}; build the env with action_type={shown(agent.action_type)}")
     return agent
 
 

@@ -19,6 +19,8 @@ import inspect
 from collections.abc import Callable
 from typing import Any
 
+from fawtgym.core.checks import shown
+
 from .base import CalmWind, WindModel, make_wind, register_wind, wind_names
 from .dryden import DrydenParams, dryden_psd
 from .dryden_process import DrydenProcess
@@ -35,7 +37,7 @@ def _checked(name: str, cls: Callable[..., WindModel], *fixed: Any) -> Callable[
         unknown = sorted(set(options) - set(params))
         if unknown:
             hint = " (its duty is fixed; use the 'fawt' wind with duty=...)" if "duty" in unknown and fixed else ""
-            raise ValueError(f"unknown option(s) {unknown} for wind {name!r}{hint}; valid options: {params}")
+            raise ValueError(f"unknown option(s) {unknown} for wind {shown(name)}{hint}; valid options: {params}")
         return cls(*fixed, **options)
 
     factory.__doc__ = f"{name}: {cls.__doc__}"

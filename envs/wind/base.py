@@ -136,13 +136,13 @@ def make_wind(spec: str | WindModel | Mapping[str, Any] | None) -> WindModel:
         options = dict(spec)
         name = options.pop("name", None)
         if not isinstance(name, str) or name not in _WIND_REGISTRY:
-            raise ValueError(f"unknown wind {name!r}; valid names: {wind_names()}")
+            raise ValueError(f"unknown wind {shown(name)}; valid names: {wind_names()}")
         return _WIND_REGISTRY[name](**options)
     if isinstance(spec, str):
         if spec not in _WIND_REGISTRY:
-            raise ValueError(f"unknown wind {spec!r}; valid names: {wind_names()}")
+            raise ValueError(f"unknown wind {shown(spec)}; valid names: {wind_names()}")
         return _WIND_REGISTRY[spec]()
-    raise ValueError(f"wind must be a name, a WindModel or a mapping, got {spec!r} ({type(spec).__name__})")
+    raise ValueError(f"wind must be a name, a WindModel or a mapping, got {shown(spec)} ({type(spec).__name__})")
 
 
 @njit(cache=True)

@@ -43,7 +43,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
-from fawtgym.core.checks import check_number, check_positive
+from fawtgym.core.checks import check_number, check_positive, shown
 
 FORMS = ("8785c", "1797")
 #: Lower bound of the frozen-turbulence speed [m/s].  Below ~1 m/s Taylor's hypothesis does not hold
@@ -81,7 +81,7 @@ class DrydenParams:
 
     def __post_init__(self) -> None:
         if self.form not in FORMS:
-            raise ValueError(f"Dryden form must be one of {FORMS}, got {self.form!r}")
+            raise ValueError(f"Dryden form must be one of {FORMS}, got {shown(self.form)}")
         sig = tuple(check_number(s, f"turbulence intensity sigma_{c}", minimum=0.0, inclusive_minimum=True, note="m/s")
                     for c, s in zip("uvw", self.sigma, strict=True))
         lens = tuple(check_length_scale(f"length scale L_{c}", s) for c, s in zip("uvw", self.length, strict=True))

@@ -28,6 +28,8 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from fawtgym.core.checks import shown
+
 BIN = 0.02  #: log-bin width of the tabulated step length d = V dt
 D_MIN, D_MAX = 1e-5, 200.0  #: [m] range of d = V dt held in the table (clipped outside)
 DISCRETIZATIONS = ("exact", "zoh")
@@ -75,7 +77,7 @@ class StepTable:
     def __init__(self, a: NDArray[np.float64], b: NDArray[np.float64], c: NDArray[np.float64],
                  p_stat: NDArray[np.float64], discretization: str = "exact") -> None:
         if discretization not in DISCRETIZATIONS:
-            raise ValueError(f"discretization must be one of {DISCRETIZATIONS}, got {discretization!r}")
+            raise ValueError(f"discretization must be one of {DISCRETIZATIONS}, got {shown(discretization)}")
         self.a, self.b, self.c, self.p_stat = a, b, c, p_stat
         self.discretization = discretization
         self.n_states = a.shape[0]

@@ -126,7 +126,7 @@ def field_seeds(n: int, seed: Seed) -> list[np.random.SeedSequence]:
     if isinstance(seed, Sequence) and len(seed) == n and all(isinstance(s, np.random.SeedSequence) for s in seed):
         return list(seed)
     raise ValueError(f"seed must be an int >= 0, a SeedSequence, None or a list of {n} SeedSequences (one per "
-                     f"field), got {seed!r}")
+                     f"field), got {shown(seed)}")
 
 
 class DrydenProcess:
@@ -261,7 +261,7 @@ class DrydenProcess:
         dt = check_dt(dt)
         speed = np.array(airspeed, dtype=float, ndmin=1)
         if speed.shape not in ((1,), (self.n,)) or not np.all(np.isfinite(speed)):
-            raise ValueError(f"airspeed must be a finite scalar or shape ({self.n},) [m/s], got {airspeed!r}")
+            raise ValueError(f"airspeed must be a finite scalar or shape ({self.n},) [m/s], got {shown(airspeed)}")
         self.ready()
         y = np.empty((self.n, self.n_out))
         table = self.table

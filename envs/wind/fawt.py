@@ -52,7 +52,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from fawtgym.core.checks import check_flag, check_number
+from fawtgym.core.checks import check_flag, check_number, shown
 from fawtgym.core.frames import FAWT_ORIGIN_NED, R_FAWT_TO_NED
 
 from .base import check_points, check_step, raise_not_finite, row_inputs_finite
@@ -269,7 +269,7 @@ class FawtWind(GustWind):
             length_scale = stats["length_scale"]
         length_scale = check_length_scale("length_scale", length_scale)
         if not isinstance(form, str) or form not in FORMS:
-            raise ValueError(f"form must be one of {FORMS}, got {form!r}")
+            raise ValueError(f"form must be one of {FORMS}, got {shown(form)}")
         self.length_scale = float(length_scale)
         self.form = form
         self.schedule = FanSchedule(on_time, off_time, spin_tau, spin_down_tau)

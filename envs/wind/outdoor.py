@@ -34,7 +34,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from fawtgym.core.checks import check_flag, check_number
+from fawtgym.core.checks import check_flag, check_number, shown
 
 from .base import WindModel, check_n, check_points, check_step, raise_not_finite, row_inputs_finite
 from .dryden import FORMS, V_FLOOR, DrydenParams, check_length_scale
@@ -57,9 +57,9 @@ Z0_FT = 0.15  #: roughness height of the MIL-F-8785C log wind profile (flight ph
 def low_altitude_params(intensity: str, altitude: float, form: str = "8785c") -> DrydenParams:
     """MIL-spec low-altitude Dryden intensities and scales (SI) for ``intensity`` at ``altitude`` [m]."""
     if intensity not in W20_KNOTS:
-        raise ValueError(f"turbulence intensity must be one of {list(W20_KNOTS)}, got {intensity!r}")
+        raise ValueError(f"turbulence intensity must be one of {list(W20_KNOTS)}, got {shown(intensity)}")
     if form not in FORMS:
-        raise ValueError(f"form must be one of {FORMS}, got {form!r}")
+        raise ValueError(f"form must be one of {FORMS}, got {shown(form)}")
     altitude = check_number(altitude, "altitude", minimum=0.0, maximum=LOW_ALTITUDE_MAX,
                             note="m (the low-altitude model, up to 1000 ft)")
     h = max(altitude / FT, 10.0)
@@ -212,7 +212,7 @@ class OneCosineGust(WindModel):
             amp = float(amp) * d
         if amp.shape != (3,) or not np.all(np.isfinite(amp)) or math.hypot(*amp) > MAX_GUST_AMPLITUDE:
             raise ValueError(f"amplitude must be a finite speed or NED 3-vector of magnitude at most "
-                             f"{MAX_GUST_AMPLITUDE:g} m/s, got {amplitude!r}")
+                             f"{MAX_GUST_AMPLITUDE:g} m/s, got {shown(amplitude)}")
         length = check_number(length, "length", minimum=GUST_LENGTH_RANGE[0], maximum=GUST_LENGTH_RANGE[1],
                               inclusive_minimum=True, note="m")
         speed = check_number(speed, "speed", minimum=GUST_SPEED_RANGE[0], maximum=GUST_SPEED_RANGE[1],
@@ -220,7 +220,7 @@ class OneCosineGust(WindModel):
         start_time = check_number(start_time, "start_time", minimum=0.0, maximum=MAX_START_TIME,
                                   inclusive_minimum=True, note="s")
         if not isinstance(shape, str) or shape not in ("rise", "full"):
-            raise ValueError(f"shape must be 'rise' or 'full', got {shape!r}")
+            raise ValueError(f"shape must be 'rise' or 'full', got {shown(shape)}")
         self.amplitude = amp
         self.length = float(length)
         self.speed = float(speed)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 
-from fawtgym.core.checks import check_number
+from fawtgym.core.checks import check_number, shown
 
 DEFAULT_SPIN_TAU = 1.0  #: [s] first-order fan spin-up time constant (assumption, see module docstring)
 #: the latest on/off time [s] (about 32 years, the env's longest episode)
@@ -89,5 +89,5 @@ class FanSchedule:
     def time_to_fraction(self, fraction: float = 0.95) -> float:
         """Time after switch-on to reach ``fraction`` of full speed: ``-tau ln(1 - fraction)``."""
         if not (0.0 < fraction < 1.0):
-            raise ValueError(f"fraction must be in (0, 1), got {fraction!r}")
+            raise ValueError(f"fraction must be in (0, 1), got {shown(fraction)}")
         return -self.spin_tau * math.log(1.0 - fraction)

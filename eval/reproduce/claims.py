@@ -21,6 +21,8 @@ import math
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
+from fawtgym.core.checks import shown
+
 REPRODUCED = "reproduced"
 PARTLY = "partly"
 NOT = "not"
@@ -68,7 +70,7 @@ class Claim:
 
     def __post_init__(self) -> None:
         if self.verdict not in VERDICTS:
-            raise ValueError(f"verdict must be one of {VERDICTS}, got {self.verdict!r}")
+            raise ValueError(f"verdict must be one of {VERDICTS}, got {shown(self.verdict)}")
 
     @property
     def holds(self) -> bool:

@@ -40,6 +40,7 @@ from fawtgym.agents.backstepping_quat import (
     quat_derivative,
 )
 from fawtgym.cli_parser import ArgumentParser, check_output_dir, nonnegative_float, positive_float
+from fawtgym.core.checks import shown
 from fawtgym.core.frames import quat_to_rot, rot_to_euler
 from fawtgym.core.so3 import cross
 from fawtgym.eval.reproduce import claims as C
@@ -78,7 +79,7 @@ def desired(case: int, t: ArrayLike) -> tuple[NDArray[np.float64], ...]:
         e = np.broadcast_to(np.array([30.0, 15.0, 25.0]) * _D2R, t.shape + (3,))
         return e, euler_to_quat(e), np.zeros(t.shape + (3,)), np.zeros(t.shape + (3,))
     if case != 2:
-        raise ValueError(f"case must be 1 or 2, got {case!r}")
+        raise ValueError(f"case must be 1 or 2, got {shown(case)}")
     w = 0.4 * np.pi
     ph = np.array([0.0, 0.5 * np.pi, 0.25 * np.pi])
     amp = np.array([15.0, 15.0, 25.0]) * _D2R
@@ -110,7 +111,7 @@ def simulate(t_end: float = 20.0, dt: float = 1e-3, substeps: int = 1, bandwidth
         raise ValueError(f"need t_end > 0, dt > 0, substeps >= 1 and >= 10 steps; got {t_end}, {dt}, {substeps}")
     for v in variants:
         if v not in VARIANTS:
-            raise ValueError(f"variant {v!r} unknown; valid: {VARIANTS}")
+            raise ValueError(f"variant {shown(v)} unknown; valid: {VARIANTS}")
     pairs = [(v, c) for v in variants for c in cases]
     nb = len(pairs)
     j_true = J_NOMINAL * (1.0 + inertia_error)

@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
+from fawtgym.core.checks import shown
 from fawtgym.core.so3 import exp_so3, log_so3, project_so3, vee
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce.progress import Progress, add_flag, bar, tick
@@ -308,7 +309,7 @@ def _seed_list(text: str) -> tuple[int, ...]:
     except ValueError:
         seeds = ()
     if not seeds or min(seeds) < 0:
-        raise argparse.ArgumentTypeError(f"--seeds must be comma-separated non-negative integers, got {text!r}")
+        raise argparse.ArgumentTypeError(f"--seeds must be comma-separated non-negative integers, got {shown(text)}")
     return seeds
 
 

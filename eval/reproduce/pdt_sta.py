@@ -41,6 +41,7 @@ from scipy.integrate import solve_ivp
 
 from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float
 from fawtgym.cli_parser import seed as seed_arg
+from fawtgym.core.checks import shown
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce.progress import Progress, add_flag, bar, tick
 from fawtgym.observers import predefined_sta as P
@@ -288,7 +289,7 @@ def claim_holds(name: str, m: dict[str, float]) -> bool:
         return m["departure"] > DEPARTURE
     if name in ("fig9", "fig8_exact"):
         return m["departure"] < DEPARTURE and bounded(m)
-    raise ValueError(f"no claim for {name!r}")
+    raise ValueError(f"no claim for {shown(name)}")
 
 
 def attitude_at_zero(m: dict[str, float]) -> bool:
@@ -607,7 +608,8 @@ def run_all(out: pathlib.Path, quick: bool = False, omega_source: str = "forcing
     ts = ts if ts is not None else (QUICK_TS if quick else PAPER_TS)
     t_f = t_f if t_f is not None else (2.0 if quick else 3.0)
     if not (ts > 0 and t_f > 1.5 + 0.25 and t_f / ts >= 100):
-        raise ValueError(f"need T_s > 0 and t_f > 1.75 s (past t_c + 0.25 s), got T_s = {ts!r}, t_f = {t_f!r}")
+        raise ValueError(f"need T_s > 0 and t_f > 1.75 s (past t_c + 0.25 s), got T_s = {shown(ts)}, t_f = "
+                         f"{shown(t_f)}")
     n = int(round(t_f / ts))
     t = np.arange(n + 1) * ts
     g, w = simulate_truth(t)

@@ -18,6 +18,7 @@ import dataclasses
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.so3 import cross, exp_so3
 
@@ -47,7 +48,7 @@ V0 = np.array([5.0 * np.pi, 0.0, 0.0])
 def noise_sigma(psd: float, step: float = STEP) -> float:
     """Per-sample standard deviation sqrt(P / h) of white noise with PSD P sampled every h seconds."""
     if not (psd >= 0 and step > 0):
-        raise ValueError(f"need psd >= 0 and step > 0, got psd={psd!r}, step={step!r}")
+        raise ValueError(f"need psd >= 0 and step > 0, got psd={shown(psd)}, step={shown(step)}")
     return float(np.sqrt(psd / step))
 
 

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from fawtgym.agents.lee_se3 import DesiredRateFilter, LeeSE3Controller
 from fawtgym.cli_parser import ArgumentParser, check_output_dir, positive_float, seed
+from fawtgym.core.checks import shown
 from fawtgym.core.frames import rot_to_euler
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce import seed000_plant as plant
@@ -67,7 +68,7 @@ def run_study(seconds: float = plant.DURATION, trajectories: Sequence[str] = tup
     ``progress``, if given, is called with 1 after every plant step (e.g. a progress bar's ``update``).
     """
     if seconds <= transient:
-        raise ValueError(f"seconds must exceed the {transient} s transient, got {seconds!r}")
+        raise ValueError(f"seconds must exceed the {transient} s transient, got {shown(seconds)}")
     trajs = [tr for nc in noise_cases for tr in trajectories]
     noisy = np.array([nc for nc in noise_cases for _ in trajectories], dtype=bool)
     names = [tr + ("+noise" if nz else "") for tr, nz in zip(trajs, noisy, strict=True)]

@@ -47,6 +47,7 @@ import numpy as np
 
 from fawtgym.agents.spec import FFTS_ESO_FLIGHT_GAINS
 from fawtgym.cli_parser import ArgumentParser
+from fawtgym.core.checks import shown
 from fawtgym.eval.reproduce import claims as C
 from fawtgym.eval.reproduce.progress import Progress, add_flag, bar
 from fawtgym.eval.reproduce.table4_flight import (
@@ -614,14 +615,14 @@ def parse_seeds(text: str) -> list[int]:
         part = part.strip()
         lo, sep, hi = part.partition("-")
         if not lo.isdigit() or (sep and not hi.isdigit()):
-            raise ValueError(f"--seeds {text!r}: expected a count (5), a range (1000-1004) or a comma list "
+            raise ValueError(f"--seeds {shown(text)}: expected a count (5), a range (1000-1004) or a comma list "
                              "(0,3,1000-1002) of non-negative integers")
         a, b = int(lo), int(hi) if sep else int(lo)
         if b < a:
-            raise ValueError(f"--seeds {text!r}: range {part} is empty (start > end)")
+            raise ValueError(f"--seeds {shown(text)}: range {part} is empty (start > end)")
         seeds.extend(range(a, b + 1))
     if len(set(seeds)) != len(seeds):
-        raise ValueError(f"--seeds {text!r}: a seed is listed twice")
+        raise ValueError(f"--seeds {shown(text)}: a seed is listed twice")
     return seeds
 
 
@@ -633,14 +634,14 @@ def parse_duties(text: str) -> list[float]:
         try:
             d = float(part)
         except ValueError:
-            raise ValueError(f"--duties {text!r}: {part!r} is not a number (a comma list of percentages in "
+            raise ValueError(f"--duties {shown(text)}: {shown(part)} is not a number (a comma list of percentages in "
                              f"[{DUTY_RANGE[0]:g}, {DUTY_RANGE[1]:g}], e.g. 30,45,65)") from None
         if not (math.isfinite(d) and DUTY_RANGE[0] <= d <= DUTY_RANGE[1]):
             raise ValueError(f"--duties {part}: each duty must be a percentage in [{DUTY_RANGE[0]:g}, "
                              f"{DUTY_RANGE[1]:g}] (Table 3's range)")
         out.append(int(d) if d == int(d) else d)
     if len(set(out)) != len(out):
-        raise ValueError(f"--duties {text!r}: a duty is listed twice")
+        raise ValueError(f"--duties {shown(text)}: a duty is listed twice")
     return out
 
 

@@ -37,6 +37,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from fawtgym.core.checks import shown
 from fawtgym.envs.vehicles import VehiclePreset
 
 #: PX4 airframe the preset matches (SYS_AUTOSTART) and its model name (PX4_SIM_MODEL)
@@ -64,7 +65,7 @@ class AirframePreset(VehiclePreset):
         super().__post_init__()
         xy = np.asarray(self.rotor_xy, dtype=float)
         if xy.shape != (4, 2) or not np.all(np.isfinite(xy)):
-            raise ValueError(f"vehicle field 'rotor_xy' must be 4 finite (x, y) pairs, got {self.rotor_xy!r}")
+            raise ValueError(f"vehicle field 'rotor_xy' must be 4 finite (x, y) pairs, got {shown(self.rotor_xy)}")
         object.__setattr__(self, "rotor_xy", tuple(tuple(float(v) for v in p) for p in xy))
 
     @property

@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from fawtgym.core import measurement as M
+from fawtgym.core.checks import shown
 from fawtgym.core.frames import rot_to_euler
 
 from . import convert as C
@@ -77,9 +78,9 @@ class Px4Bridge:
         for name, value in (("gps_rate", gps_rate), ("accept_timeout", accept_timeout),
                             ("actuator_timeout", actuator_timeout), ("boot_timeout", boot_timeout)):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive number, got {value!r}")
+                raise ValueError(f"{name} must be a positive number, got {shown(value)}")
         if not (isinstance(baro_noise, (int, float)) and math.isfinite(baro_noise) and baro_noise >= 0):
-            raise ValueError(f"baro_noise must be a number of Pa RMS >= 0, got {baro_noise!r}")
+            raise ValueError(f"baro_noise must be a number of Pa RMS >= 0, got {shown(baro_noise)}")
         self.vehicle = vehicle
         self.baro_noise = float(baro_noise)
         self._baro_rng = np.random.default_rng([int(seed), 0xBA20])
@@ -118,7 +119,7 @@ class Px4Bridge:
         Returns a summary (steps, simulated and wall seconds, lockstep reached, final true position).
         """
         if duration is not None and not (math.isfinite(duration) and duration > 0):
-            raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
+            raise ValueError(f"duration must be a positive number of seconds, got {shown(duration)}")
         self._server.settimeout(self.accept_timeout)
         try:
             conn, peer = self._server.accept()

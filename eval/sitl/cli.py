@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from fawtgym.cli_parser import ArgumentParser, bounded_int, nonnegative_float, seed
+from fawtgym.core.checks import shown
 
 from .mavio import SitlError
 
@@ -28,7 +29,7 @@ def _vector(text: str, what: str) -> list[float]:
     except ValueError:
         v = []
     if len(v) != 3 or not np.all(np.isfinite(v)):
-        raise ValueError(f"{what} must be three numbers N,E,D [m], got {text!r}")
+        raise ValueError(f"{what} must be three numbers N,E,D [m], got {shown(text)}")
     return v
 
 
@@ -41,7 +42,7 @@ def _wind_spec(name: str) -> Any:
         return name
     if name in scenario_names():
         return get_scenario(name).wind
-    raise ValueError(f"unknown --wind {name!r}; wind presets: {', '.join(wind_names())}; or a scenario: "
+    raise ValueError(f"unknown --wind {shown(name)}; wind presets: {', '.join(wind_names())}; or a scenario: "
                      f"{', '.join(scenario_names())}")
 
 
@@ -58,7 +59,7 @@ def connect_address(text: str) -> str:
     elif text.startswith("/dev/") or text.upper().startswith("COM"):
         return text
     raise argparse.ArgumentTypeError(f"expected {', '.join(k + ':HOST:PORT' for k in _LINK_KINDS)} or a serial device "
-                                     f"(/dev/..., COMn), got {text!r}")
+                                     f"(/dev/..., COMn), got {shown(text)}")
 
 
 def _replay_args(parser: ArgumentParser, connect_default: str | None) -> None:

@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
+from fawtgym.core.checks import shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.frames import quat_to_rot, rot_to_quat
 from fawtgym.envs.motors import command_to_thrust, rotor_wrench, thrust_to_command
@@ -88,14 +89,15 @@ class Home:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.lat) and -90.0 < self.lat < 90.0):
-            raise ValueError(f"home latitude must be in (-90, 90) deg, got {self.lat!r}")
+            raise ValueError(f"home latitude must be in (-90, 90) deg, got {shown(self.lat)}")
         if not (math.isfinite(self.lon) and -180.0 <= self.lon <= 180.0):
-            raise ValueError(f"home longitude must be in [-180, 180] deg, got {self.lon!r}")
+            raise ValueError(f"home longitude must be in [-180, 180] deg, got {shown(self.lon)}")
         if not (math.isfinite(self.alt) and -500.0 < self.alt < 9000.0):
-            raise ValueError(f"home altitude must be in (-500, 9000) m MSL, got {self.alt!r}")
+            raise ValueError(f"home altitude must be in (-500, 9000) m MSL, got {shown(self.alt)}")
         mag = np.asarray(self.mag_ned, dtype=float)
         if mag.shape != (3,) or not np.all(np.isfinite(mag)) or not 0.1 < np.linalg.norm(mag) < 1.0:
-            raise ValueError(f"home mag_ned must be 3 finite numbers with a norm of 0.1-1 gauss, got {self.mag_ned!r}")
+            raise ValueError(f"home mag_ned must be 3 finite numbers with a norm of 0.1-1 gauss, got "
+                             f"{shown(self.mag_ned)}")
         object.__setattr__(self, "mag_ned", tuple(float(x) for x in mag))
 
 
@@ -105,7 +107,7 @@ def parse_home(text: str) -> Home:
     try:
         lat, lon, alt = (float(p) for p in parts)
     except ValueError:
-        raise ValueError(f"home must be 'lat,lon,alt' (deg, deg, m MSL), got {text!r}") from None
+        raise ValueError(f"home must be 'lat,lon,alt' (deg, deg, m MSL), got {shown(text)}") from None
     return Home(lat, lon, alt)
 
 
@@ -172,7 +174,7 @@ def hil_sensor_fields(meas: Mapping[str, Any], mag: ArrayLike, alt_msl: float, t
     RMS); ``pressure_alt`` is the ISA altitude of the noisy pressure, as a barometer reports it.
     """
     if not math.isfinite(pressure_noise_pa):
-        raise ValueError(f"pressure_noise_pa must be finite, got {pressure_noise_pa!r}")
+        raise ValueError(f"pressure_noise_pa must be finite, got {shown(pressure_noise_pa)}")
     f, g, m = np.ravel(meas[M.SPECIFIC_FORCE]), np.ravel(meas[M.GYRO]), np.ravel(mag)
     pressure = isa_pressure_hpa(alt_msl) + float(pressure_noise_pa) / 100.0
     baro_alt = float(alt_msl) if pressure_noise_pa == 0.0 else isa_altitude(pressure)
@@ -295,7 +297,7 @@ def attitude_target_fields(*, attitude: ArrayLike | None = None, body_rates: Arr
     if (attitude is None) == (body_rates is None):
         raise ValueError("give exactly one of attitude and body_rates")
     if not (math.isfinite(thrust) and 0.0 <= thrust <= 1.0):
-        raise ValueError(f"thrust must be in [0, 1], got {thrust!r}")
+        raise ValueError(f"thrust must be in [0, 1], got {shown(thrust)}")
     if attitude is not None:
         q = rot_to_quat(np.asarray(attitude, dtype=float).reshape(3, 3))
         rates, mask = np.zeros(3), IGNORE_BODY_RATES

@@ -56,6 +56,7 @@ from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
+from fawtgym.core.checks import shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED, euler_to_rot, rot_to_euler
 from fawtgym.envs.ctbr import MAX_RATES
@@ -127,17 +128,17 @@ class Replay:
         from fawtgym.envs.vehicles import make_vehicle
 
         if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate >= 50.0):
-            raise ValueError(f"rate must be >= 50 Hz (SET_ATTITUDE_TARGET stream), got {rate!r}")
+            raise ValueError(f"rate must be >= 50 Hz (SET_ATTITUDE_TARGET stream), got {shown(rate)}")
         if not (math.isfinite(prestream) and prestream > 1.0):
             raise ValueError(f"prestream must be more than 1 s (PX4 wants setpoints before OFFBOARD), "
-                             f"got {prestream!r}")
+                             f"got {shown(prestream)}")
         for name, value in (("duration", duration), ("climb_speed", climb_speed), ("heartbeat_timeout",
                             heartbeat_timeout), ("telemetry_timeout", telemetry_timeout), ("connect_timeout",
                             connect_timeout), ("command_timeout", command_timeout), ("land_timeout", land_timeout)):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive number, got {value!r}")
+                raise ValueError(f"{name} must be a positive number, got {shown(value)}")
         if not (math.isfinite(settle) and settle >= 0):
-            raise ValueError(f"settle must be >= 0 s, got {settle!r}")
+            raise ValueError(f"settle must be >= 0 s, got {shown(settle)}")
         self.preset = iris() if vehicle in (None, "iris") else make_vehicle(vehicle)
         self.hover_point = np.array(FAWT_HOVER_POINT_NED if hover_point is None else hover_point, dtype=float)
         self.origin = np.array(ground_start(self.preset) if origin is None else origin, dtype=float)
@@ -152,12 +153,13 @@ class Replay:
             from fawtgym.agents.sb3_agent import run_scenario
 
             if spec.target is None:
-                raise ValueError(f"agent {spec.name!r} names no training run (sb3:RUN)")
+                raise ValueError(f"agent {shown(spec.name)} names no training run (sb3:RUN)")
             scenario = run_scenario(spec.target)
             trained, self.trained_rate = str(scenario.vehicle), float(scenario.control_rate)
             if trained != self.preset.name:
-                raise ValueError(f"agent {spec.name!r} was trained for vehicle {trained!r}; this replay flies "
-                                 f"{self.preset.name!r} (--vehicle {trained} with an autopilot flying that vehicle)")
+                raise ValueError(f"agent {shown(spec.name)} was trained for vehicle {shown(trained)}; this replay "
+                                 f"flies {shown(self.preset.name)} (--vehicle {trained} with an autopilot flying that "
+                                 f"vehicle)")
         self.env = HoverEnv(vehicle=self.preset, action_type=self.action_type, control_rate=rate,
                             setpoint=self.hover_point, sensors="none")
         self.agent = make_agent(spec, self.env)
@@ -168,8 +170,8 @@ class Replay:
             getattr(self.agent, "base", None)
         if self.action_type != "ctbr" and not (hasattr(type(self._attitude_agent), "attitude_setpoint")
                                                 and hasattr(type(self._attitude_agent), "collective_thrust")):
-            raise ValueError(f"agent {spec.name!r} commands motors and exposes no attitude set point; replay sends "
-                             "SET_ATTITUDE_TARGET, so it flies PX4-cascade agents (px4, px4+<observer>), ctbr "
+            raise ValueError(f"agent {shown(spec.name)} commands motors and exposes no attitude set point; replay "
+                             f"sends SET_ATTITUDE_TARGET, so it flies PX4-cascade agents (px4, px4+<observer>), ctbr "
                              "agents and policies (ctbr, or residual on a PX4 base)")
         obs_space = self.env.observation_space
         if not isinstance(obs_space, spaces.Box):
@@ -205,7 +207,7 @@ class Replay:
             self.conn = mavutil.mavlink_connection(self.connect, source_system=245, source_component=191,
                                                    dialect="common", autoreconnect=False)
         except Exception as exc:  # pymavlink raises bare Exceptions/OSErrors for bad addresses
-            raise SitlError(f"cannot open {self.connect!r}: {exc}") from None
+            raise SitlError(f"cannot open {shown(self.connect)}: {exc}") from None
         self.tlog = TlogWriter(self.tlog_path) if self.tlog_path else None
         self.last: dict[str, Any] = {}
         self.last_time: dict[str, float] = {}
@@ -462,7 +464,7 @@ class Replay:
         obs = self.observation(meas, setpoint_ned, self._last_action) if self.policy else None
         action = np.asarray(self.agent.act(obs, info), dtype=float).reshape(-1)
         if not np.all(np.isfinite(action)):
-            raise SitlError(f"agent {self.agent_name!r} returned a non-finite action {action.tolist()}")
+            raise SitlError(f"agent {shown(self.agent_name)} returned a non-finite action {action.tolist()}")
         self._last_action = action
         if self.action_type == "ctbr":
             collective = float(np.clip(action[0], 0.0, 1.0)) * 4.0 * self.preset.max_thrust_per_rotor

@@ -18,7 +18,7 @@ def check_flag(value: Any, name: str) -> bool:
     """
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
-    raise ValueError(f"{name} must be True or False, got {value!r} ({type(value).__name__})")
+    raise ValueError(f"{name} must be True or False, got {shown(value)} ({type(value).__name__})")
 
 
 def check_number(value: Any, name: str, *, minimum: float = -math.inf, maximum: float = math.inf,

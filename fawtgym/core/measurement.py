@@ -24,6 +24,8 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
+from fawtgym.core.checks import shown
+
 from .arrays import REAL_KINDS
 from .constants import EARTH_FIELD_NED as _EARTH_FIELD_NED
 
@@ -104,11 +106,11 @@ def _convert_entry(out: dict[str, NDArray[np.float64]], key: str, value: object,
     try:
         arr = np.asarray(value)
     except ValueError:  # ragged
-        raise ValueError(f"{prefix}measurement[{key!r}] must be an array of real numbers, got a ragged "
+        raise ValueError(f"{prefix}measurement[{shown(key)}] must be an array of real numbers, got a ragged "
                          f"{type(value).__name__}") from None
     if arr.dtype.kind not in REAL_KINDS:
-        raise TypeError(f"{prefix}measurement[{key!r}] must hold real numbers, got {type(value).__name__} of dtype "
-                        f"{arr.dtype}")
+        raise TypeError(f"{prefix}measurement[{shown(key)}] must hold real numbers, got {type(value).__name__} of "
+                        f"dtype {arr.dtype}")
     arr = arr.astype(float, copy=False)
     if trailing is None:
         out[key] = arr
@@ -116,6 +118,6 @@ def _convert_entry(out: dict[str, NDArray[np.float64]], key: str, value: object,
     if arr.shape == trailing:
         arr = arr[None, ...]
     elif arr.shape[1:] != trailing:
-        raise ValueError(f"{prefix}measurement[{key!r}] must have shape {trailing} or (N, *{trailing}), got "
+        raise ValueError(f"{prefix}measurement[{shown(key)}] must have shape {trailing} or (N, *{trailing}), got "
                          f"{arr.shape}")
     out[key] = arr

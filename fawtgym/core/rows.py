@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.checks import shown
+
 
 def check_row_mask(rows: ArrayLike, n: int, who: str) -> NDArray[np.bool_]:
     """``rows`` as a bool mask of shape (n,); ValueError (one line, naming what was got) otherwise."""
@@ -70,7 +72,7 @@ def check_dt(dt: float | ArrayLike, who: str = "dt") -> float | NDArray[np.float
             return check_dt(float(a), who)
         if a.ndim == 1 and a.size and np.all(np.isfinite(a)) and np.all(a > 0):
             return a
-    raise ValueError(f"{who} must be a finite positive number of seconds (or one per row), got {dt!r}")
+    raise ValueError(f"{who} must be a finite positive number of seconds (or one per row), got {shown(dt)}")
 
 
 def per_row(dt: float | NDArray[np.float64], ndim: int) -> float | NDArray[np.float64]:

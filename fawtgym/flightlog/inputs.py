@@ -46,6 +46,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from fawtgym.core.checks import shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.envs.motors import command_to_thrust, rotor_wrench
 from fawtgym.envs.vehicles import QUAD_X_ARMS, QUAD_X_DIRECTIONS, VehiclePreset
@@ -65,7 +66,7 @@ QUAD_X_MIX = np.stack([-QUAD_X_ARMS[:, 1], QUAD_X_ARMS[:, 0], QUAD_X_DIRECTIONS]
 def rotor_commands(log: FlightLog, source: str) -> tuple[Signal, str]:
     """Four rotor commands in [0, 1] as a signal, and the source actually used."""
     if source not in INPUT_SOURCES:
-        raise FlightLogError(f"unknown --inputs {source!r}; allowed: {list(INPUT_SOURCES)}")
+        raise FlightLogError(f"unknown --inputs {shown(source)}; allowed: {list(INPUT_SOURCES)}")
     if source == "auto":
         for cand, topics in (("motors", ("actuator_motors",)),
                              ("setpoints", ("vehicle_thrust_setpoint", "vehicle_torque_setpoint")),
@@ -143,7 +144,7 @@ class ThrustModel:
 
 def make_thrust_model(log: FlightLog, preset: VehiclePreset, curve: str) -> ThrustModel:
     if curve not in THRUST_CURVES:
-        raise FlightLogError(f"unknown --thrust-curve {curve!r}; allowed: {list(THRUST_CURVES)}")
+        raise FlightLogError(f"unknown --thrust-curve {shown(curve)}; allowed: {list(THRUST_CURVES)}")
     fac = log.params.get("THR_MDL_FAC")
     if curve == "auto":
         curve = "px4" if fac is not None else "preset"
@@ -200,9 +201,9 @@ def choose_scale(scales: dict[str, object], choice: str) -> tuple[float, str]:
             value = float(choice)
         except ValueError:
             raise FlightLogError(f"--thrust-scale must be one of {list(SCALE_CHOICES)} or a positive number, "
-                                 f"got {choice!r}") from None
+                                 f"got {shown(choice)}") from None
         if not (math.isfinite(value) and value > 0):
-            raise FlightLogError(f"--thrust-scale must be a finite positive number, got {choice!r}")
+            raise FlightLogError(f"--thrust-scale must be a finite positive number, got {shown(choice)}")
         return value, "given"
     if choice == "auto":
         for key in ("estimate", "hover", "param", "preset"):

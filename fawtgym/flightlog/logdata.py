@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from fawtgym.core.checks import shown
+
 from .errors import FlightLogError
 
 
@@ -35,14 +37,15 @@ class Topic:
         try:
             return np.stack([np.asarray(self.fields[f"{base}[{i}]"], dtype=float) for i in range(size)], axis=1)
         except KeyError as exc:
-            raise FlightLogError(f"topic {self.name!r} has no field {exc.args[0]!r}; it has "
+            raise FlightLogError(f"topic {shown(self.name)} has no field {shown(exc.args[0])}; it has "
                                  f"{sorted(self.fields)[:12]}") from None
 
     def columns(self, *names: str) -> NDArray[np.float64]:
         """Stack scalar fields into shape (K, len(names))."""
         missing = [n for n in names if n not in self.fields]
         if missing:
-            raise FlightLogError(f"topic {self.name!r} has no field(s) {missing}; it has {sorted(self.fields)[:12]}")
+            raise FlightLogError(f"topic {shown(self.name)} has no field(s) {missing}; it has "
+                                 f"{sorted(self.fields)[:12]}")
         return np.stack([np.asarray(self.fields[n], dtype=float) for n in names], axis=1)
 
 
@@ -83,4 +86,5 @@ def read_log(path: str | Path, topics: tuple[str, ...] | None = None) -> FlightL
         from .tlog import read_tlog
 
         return read_tlog(p)
-    raise FlightLogError(f"log file {p.name!r} has suffix {suffix!r}; allowed: .ulg (PX4 ULog), .tlog (MAVLink)")
+    raise FlightLogError(f"log file {shown(p.name)} has suffix {shown(suffix)}; allowed: .ulg (PX4 ULog), .tlog "
+                         f"(MAVLink)")

@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from fawtgym.core.checks import shown
+
 from .phases import PHASES, segments
 from .runner import ObserveResult
 
@@ -49,7 +51,7 @@ def write_table(result: ObserveResult, out_dir: Path, fmt: str = "auto") -> Path
     """Write ``estimates.parquet`` (``fmt`` parquet, or auto with pyarrow installed) or ``estimates.csv``."""
     cols = table_columns(result)
     if fmt not in ("auto", "csv", "parquet"):
-        raise ValueError(f"unknown table format {fmt!r}; allowed: auto, csv, parquet")
+        raise ValueError(f"unknown table format {shown(fmt)}; allowed: auto, csv, parquet")
     if fmt in ("auto", "parquet"):
         try:
             import pyarrow as pa

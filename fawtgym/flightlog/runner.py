@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from fawtgym.core.checks import shown
 from fawtgym.envs.vehicles import VehiclePreset, make_vehicle
 
 from .errors import FlightLogError
@@ -68,7 +69,7 @@ def observe(log: FlightLog | str | Path, observers: Sequence[str], vehicle: str 
     if unknown:
         raise FlightLogError(f"unknown observer(s) {unknown}; valid names: {observer_names()}")
     if not (np.isfinite(settle) and settle >= 0):
-        raise FlightLogError(f"--settle must be a finite number of seconds >= 0, got {settle!r}")
+        raise FlightLogError(f"--settle must be a finite number of seconds >= 0, got {shown(settle)}")
     try:
         preset = make_vehicle(vehicle)
     except (ValueError, TypeError, OSError) as exc:
@@ -111,7 +112,7 @@ def observe(log: FlightLog | str | Path, observers: Sequence[str], vehicle: str 
     opts = observer_options or {}
     for name in observers:
         if not observer_class(name).channels:
-            raise FlightLogError(f"observer {name!r} estimates no disturbance (state estimates only); choose one "
+            raise FlightLogError(f"observer {shown(name)} estimates no disturbance (state estimates only); choose one "
                                  f"that estimates force or torque: {_disturbance_observers()}")
     for name in observers:
         force_out = np.full((n, 3), np.nan)
@@ -130,14 +131,15 @@ def observe(log: FlightLog | str | Path, observers: Sequence[str], vehicle: str 
                     force_out[k] = est.force[0]
                     torque_out[k] = est.torque[0]
             except (FloatingPointError, ValueError) as exc:
-                raise FlightLogError(f"observer {name!r} failed at t = {grid[k]:.2f} s of the log at --rate {rate:g} "
+                raise FlightLogError(f"observer {shown(name)} failed at t = {grid[k]:.2f} s of the log at --rate "
+                                     f"{rate:g} "
                                      f"Hz ({' '.join(str(exc).split())}); a higher --rate (smaller step) or another "
                                      "observer may help") from None
         channels = frozenset(obs.channels) if obs is not None else observer_class(name).channels
         kept = [arr for ch, arr in (("force", force_out), ("torque", torque_out)) if ch in channels]
         bad = estimated & ~np.all(np.isfinite(np.concatenate(kept, axis=1)), axis=1)
         if bad.any():
-            raise FlightLogError(f"observer {name!r} diverged (non-finite estimate) at t = {grid[bad][0]:.2f} s; "
+            raise FlightLogError(f"observer {shown(name)} diverged (non-finite estimate) at t = {grid[bad][0]:.2f} s; "
                                  "try a higher --rate or another observer")
         for ch, arr in (("force", force_out), ("torque", torque_out)):
             if ch not in channels:  # the observer reports zeros there; zeros are not an estimate

@@ -15,13 +15,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from fawtgym.core.checks import shown
+
 from .errors import FlightLogError
 
 
 def make_grid(t_start: float, t_end: float, rate: float) -> NDArray[np.float64]:
     """Grid times [s] from ``t_start`` to ``t_end`` (inclusive when on the grid) at ``rate`` Hz."""
     if not (np.isfinite(rate) and rate > 0):
-        raise FlightLogError(f"observer rate must be a finite positive number of Hz, got {rate!r}")
+        raise FlightLogError(f"observer rate must be a finite positive number of Hz, got {shown(rate)}")
     if not (np.isfinite(t_start) and np.isfinite(t_end)) or t_end <= t_start:
         raise FlightLogError(f"the log's usable time span [{t_start:.3f}, {t_end:.3f}] s is empty")
     n = int(np.floor((t_end - t_start) * rate + 1e-9)) + 1
