@@ -40,12 +40,39 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from fawtgym.core.checks import shown
+from fawtgym.core.checks import check_positive, shown
 
 from .scenarios import Scenario, scenario_from_mapping, table4_duty
 
 FORMAT = 1
 DEFAULT_RECORD_HZ = 20.0
+#: the most seeds of a cell: its vehicles fly as one batched env (HoverBatchEnv's MAX_NUM_ENVS)
+MAX_SEEDS = 10**6
+#: seeds are ints in [0, SEED_LIMIT) (the CLI's and numpy's 32-bit seeds)
+SEED_LIMIT = 2**32
+#: the highest trace rate [Hz] (a rate above the control rate keeps every step)
+MAX_RECORD_HZ = 1e5
+
+
+def check_seeds(seeds: Any) -> list[int]:
+    """A cell's seeds as a list of ints: 1 to :data:`MAX_SEEDS` distinct ints in [0, :data:`SEED_LIMIT`) (bool,
+    float and str refused: a seed of 1.5 is no seed 1); ValueError naming them otherwise."""
+    what = f"1 to {MAX_SEEDS} distinct int seeds in [0, 2**32)"
+    if isinstance(seeds, (str, bytes)) or not isinstance(seeds, Iterable):
+        raise ValueError(f"seeds must be {what}, got {shown(seeds)}")
+    out = list(seeds)
+    for s in out:
+        if isinstance(s, (bool, np.bool_)) or not isinstance(s, (int, np.integer)) or not 0 <= s < SEED_LIMIT:
+            raise ValueError(f"seeds must be {what}, got {shown(s)} in {shown(seeds)}")
+    if not 1 <= len(out) <= MAX_SEEDS or len(set(out)) != len(out):
+        raise ValueError(f"seeds must be {what}, got {len(out)} seeds ({len(set(out))} distinct)")
+    return [int(s) for s in out]
+
+
+def check_record_hz(record_hz: Any) -> float:
+    """The trace rate [Hz] as a float in (0, :data:`MAX_RECORD_HZ`] (ValueError naming it otherwise)."""
+    return check_positive(record_hz, "record_hz", maximum=MAX_RECORD_HZ,
+                          note="Hz (the traces' rate; above the control rate: every step)")
 
 
 class CellError(RuntimeError):
@@ -62,8 +89,8 @@ def slug(text: str) -> str:
 
 def cell_key(agent: str, scenario: Mapping[str, Any], seeds: Sequence[int], record_hz: float) -> str:
     """What identifies a cell's result: a rerun with the same key skips it."""
-    blob = json.dumps({"format": FORMAT, "agent": agent, "scenario": scenario, "seeds": list(seeds),
-                       "record_hz": record_hz}, sort_keys=True)
+    blob = json.dumps({"format": FORMAT, "agent": agent, "scenario": scenario, "seeds": check_seeds(seeds),
+                       "record_hz": check_record_hz(record_hz)}, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
@@ -95,7 +122,7 @@ def fly_cell(agent_name: str, scenario: Mapping[str, Any], seeds: Sequence[int],
     from .metrics import EpisodeRecorder
 
     sc = scenario_from_mapping(scenario["name"], scenario)
-    seeds = [int(s) for s in seeds]
+    seeds, record_hz = check_seeds(seeds), check_record_hz(record_hz)
     t0 = time.perf_counter()
     spec = parse_agent(agent_name)
     try:
@@ -264,7 +291,7 @@ def run_cells(out: Path, agents: Sequence[str], scenarios: Sequence[Scenario], s
     if not (isinstance(workers, int) and workers >= 1):
         raise ValueError(f"workers must be a positive integer, got {shown(workers)}")
     out = Path(out)
-    seeds = [int(s) for s in seeds]
+    seeds, record_hz = check_seeds(seeds), check_record_hz(record_hz)
     jobs, skipped = [], []
     for sc in scenarios:
         scd = sc.to_dict()

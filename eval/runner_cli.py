@@ -23,7 +23,7 @@ from pathlib import Path
 from fawtgym.cli_parser import ArgumentParser
 from fawtgym.core.checks import shown
 
-from .runner import DEFAULT_RECORD_HZ
+from .runner import DEFAULT_RECORD_HZ, MAX_SEEDS, check_seeds
 from .scenarios import Scenario
 
 #: the quick leaderboard (the README's main command): (agents, scenarios, seeds); ranked on the first scenario
@@ -49,17 +49,24 @@ def _seeds(text: str) -> list[int]:
     try:
         if ":" in text:
             a, b = (int(x) for x in text.split(":"))
+            if b - a > MAX_SEEDS:  # checked before the list is built (0:10**18 would not fit in memory)
+                raise ValueError
             seeds = list(range(a, b))
         elif "," in text:
             seeds = [int(x) for x in text.split(",") if x.strip()]
         else:
-            seeds = list(range(_positive_int(text)))
+            count = _positive_int(text)
+            if count > MAX_SEEDS:
+                raise ValueError
+            seeds = list(range(count))
     except (ValueError, argparse.ArgumentTypeError):
-        raise argparse.ArgumentTypeError(f"must be a count (5), a range (10:15) or a list (1,4,9) of seeds >= 0, "
+        raise argparse.ArgumentTypeError(f"must be a count (5), a range (10:15) or a list (1,4,9) of at most "
+                                         f"{MAX_SEEDS} seeds in [0, 2**32), got {shown(text)}") from None
+    try:
+        return check_seeds(seeds)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must give 1 to {MAX_SEEDS} distinct seeds in [0, 2**32), "
                                          f"got {shown(text)}") from None
-    if not seeds or min(seeds) < 0 or len(set(seeds)) != len(seeds):
-        raise argparse.ArgumentTypeError(f"must give distinct seeds >= 0, got {shown(text)}")
-    return seeds
 
 
 def _positive_float(text: str) -> float:

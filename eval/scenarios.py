@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -39,7 +38,8 @@ from typing import Any
 
 import numpy as np
 
-from fawtgym.core.checks import shown
+from fawtgym.core.checks import check_number, shown
+from fawtgym.envs.options import CONTROL_RATE_RANGE, MAX_EPISODE_SECONDS, MAX_SETPOINT
 
 #: the compressed Table 4 schedule (hover, fan on, fan off) [s], as ``fawtgym reproduce table4 --quick`` flies it
 TABLE4_SCHEDULE = (75.0, 5.0, 50.0)
@@ -165,12 +165,15 @@ def scenario_from_mapping(name: str, fields: Mapping[str, Any]) -> Scenario:
     kw = {k: v for k, v in fields.items() if k != "name"}
     if "setpoint" in kw and kw["setpoint"] is not None:
         sp = kw["setpoint"]
-        if not (isinstance(sp, Sequence) and len(sp) == 3 and all(isinstance(v, (int, float)) for v in sp)):
+        if not (isinstance(sp, Sequence) and not isinstance(sp, str) and len(sp) == 3):
             raise ValueError(f"scenario {shown(name)}: setpoint must be 3 NED coordinates [m], got {shown(sp)}")
-        kw["setpoint"] = tuple(float(v) for v in sp)
-    for key in ("seconds", "control_rate"):
-        if key in kw and not (isinstance(kw[key], (int, float)) and math.isfinite(kw[key]) and kw[key] > 0):
-            raise ValueError(f"scenario {shown(name)}: {key} must be a positive number, got {shown(kw[key])}")
+        kw["setpoint"] = tuple(check_number(v, f"scenario {shown(name)}: setpoint coordinate", minimum=-MAX_SETPOINT,
+                                            maximum=MAX_SETPOINT, inclusive_minimum=True, note="m (NED)") for v in sp)
+    for key, low, high, unit in (("seconds", 0.0, MAX_EPISODE_SECONDS, "s"),
+                                 ("control_rate", *CONTROL_RATE_RANGE, "Hz")):
+        if key in kw:
+            kw[key] = check_number(kw[key], f"scenario {shown(name)}: {key}", minimum=low, maximum=high,
+                                   inclusive_minimum=key == "control_rate", note=unit)
     return Scenario(name=str(fields.get("name", name)), **kw)
 
 
@@ -209,7 +212,7 @@ def load_scenarios(path: str | Path) -> list[Scenario]:
 
 def get_scenario(name: str) -> Scenario:
     """A built-in scenario by name; ValueError listing the valid names otherwise."""
-    sc = _builtin(name)
+    sc = _builtin(name) if isinstance(name, str) else None
     if sc is None:
         raise ValueError(f"unknown scenario {shown(name)}; valid: {', '.join(scenario_names())} "
                          "(fawt-<duty>-steady/-switching take any duty 30-70), or a .yaml/.json file")
@@ -220,10 +223,9 @@ def adhoc_scenario(wind: str, seconds: float) -> Scenario:
     """The ``--wind W --duration S`` shorthand: the table4 hover conditions with wind ``W`` for ``S`` seconds."""
     from fawtgym.envs.wind import wind_names
 
-    if wind not in wind_names():
+    if not isinstance(wind, str) or wind not in wind_names():
         raise ValueError(f"unknown wind {shown(wind)}; valid: {', '.join(wind_names())}")
-    if not (math.isfinite(seconds) and seconds > 0):
-        raise ValueError(f"--duration must be a positive number of seconds, got {shown(seconds)}")
+    seconds = check_number(seconds, "--duration", minimum=0.0, maximum=MAX_EPISODE_SECONDS, note="s")
     return Scenario(f"{wind}-{seconds:g}s", wind, seconds=float(seconds),
                     description=f"ad hoc: wind {wind} for {seconds:g} s")
 

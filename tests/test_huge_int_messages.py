@@ -74,3 +74,39 @@ def test_max_steps_and_sharded_loop_words_huge_ints():
         env.max_steps = HUGE
     with pytest.raises(ValueError, match=r"^seed must be an int >= 0, got a negative int of about 5001 digits$"):
         ShardedLoop([HoverBatchEnv(1, physics_threads=0)], [object()]).reset(seed=-HUGE)
+
+
+def test_eval_cells_refuse_seeds_and_trace_rates_that_are_not_what_they_say():
+    """fly_cell flew seed 1 for a seed of 1.5 (int() truncation) and ran with record_hz = -1."""
+    from fawtgym.eval.runner import cell_key, check_record_hz, check_seeds, fly_cell
+    from fawtgym.eval.scenarios import get_scenario
+
+    calm = get_scenario("calm").to_dict()
+    for bad in ([1.5], ["a"], [True], [-1], [2**32], [1, 1], [], [HUGE], 5):
+        with pytest.raises(ValueError, match=r"^seeds must be 1 to 1000000 distinct int seeds in \[0, 2\*\*32\)"):
+            fly_cell("px4", calm, bad)
+    for bad in (-1, 0, float("nan"), HUGE, "20", 1e6):
+        with pytest.raises(ValueError, match=r"^record_hz must be a finite real number in \(0, 100000\] Hz"):
+            cell_key("px4", calm, [0], bad)
+    assert check_seeds((3, 1)) == [3, 1] and check_record_hz(20) == 20.0
+
+
+def test_scenario_fields_and_train_config_are_checked():
+    from fawtgym.eval.scenarios import adhoc_scenario, get_scenario, scenario_from_mapping
+    from fawtgym.train.config import TrainConfig
+
+    for field, bad in (("seconds", HUGE), ("seconds", True), ("control_rate", 0.5),
+                       ("setpoint", [float("nan"), 0, -1])):
+        with pytest.raises(ValueError, match=r"^scenario 'x': (seconds|control_rate|setpoint coordinate) must be a "
+                                             r"finite real number"):
+            scenario_from_mapping("x", {"wind": "calm", field: bad})
+    with pytest.raises(ValueError, match=r"^--duration must be a finite real number in \(0, 1e\+09\] s, got 'a'"):
+        adhoc_scenario("calm", "a")
+    with pytest.raises(ValueError, match=r"^unknown scenario 5; valid: "):
+        get_scenario(5)
+    for kw, text in (({"steps": True}, "--steps must be an integer in [1, 1000000000000], got True"),
+                     ({"eval_seeds": -HUGE}, "--eval-seeds must be an integer in [1, 1000000], got a negative int of "
+                                             "about 5001 digits")):
+        with pytest.raises(ValueError) as err:
+            TrainConfig(**kw)
+        assert str(err.value) == text

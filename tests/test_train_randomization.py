@@ -107,7 +107,7 @@ def test_bad_randomization_options():
     cases = [({"wind_speed": 1}, "unknown randomize key(s) ['wind_speed']; valid: duty, mass, inertia, drag"),
              ({"duty": [30, 70]}, "fractions, e.g. [0.3, 0.7]"), ({"duty": 0.5}, "must be [lo, hi]"),
              ({"mass": 1.5}, "randomize 'mass' is a fraction f in [0, 0.9]"),
-             ({"accel_bias": -0.1}, "half-range b >= 0"), ({"drag": "lots"}, "must be a finite number")]
+             ({"accel_bias": -0.1}, "half-range b >= 0"), ({"drag": "lots"}, "must be a finite real number")]
     for options, text in cases:
         with pytest.raises(ValueError) as err:
             Randomization.from_options(options)

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from fawtgym.core.checks import shown
+from fawtgym.eval.runner import MAX_SEEDS
 
 ALGOS = ("ppo", "sac", "td3")
 OBS_MODES = ("state", "state+eso")
@@ -86,6 +87,10 @@ def algo_class(algo: str) -> Any:
     return {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}[algo]
 
 
+#: the largest training budget [env steps] (10**12: years of a 2-core machine)
+MAX_TRAIN_STEPS = 10**12
+
+
 @dataclasses.dataclass(frozen=True)
 class TrainConfig:
     """Everything that decides a run (module docstring)."""
@@ -111,10 +116,10 @@ class TrainConfig:
                                    ("action", self.action, ACTION_MODES)):
             if value not in valid:
                 raise ValueError(f"unknown --{name} {shown(value)}; valid: {', '.join(valid)}")
-        if not (isinstance(self.steps, int) and self.steps >= 1):
-            raise ValueError(f"--steps must be a positive integer, got {shown(self.steps)}")
-        if not (isinstance(self.seed, int) and self.seed >= 0):
-            raise ValueError(f"--seed must be an integer >= 0, got {shown(self.seed)}")
+        for flag, count, low, high in (("steps", self.steps, 1, MAX_TRAIN_STEPS), ("seed", self.seed, 0, 2**32 - 1),
+                                       ("eval-seeds", self.eval_seeds, 1, MAX_SEEDS)):
+            if isinstance(count, bool) or not isinstance(count, int) or not low <= count <= high:
+                raise ValueError(f"--{flag} must be an integer in [{low}, {high}], got {shown(count)}")
 
     @property
     def hp(self) -> dict[str, Any]:

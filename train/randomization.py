@@ -40,7 +40,6 @@ nominal preset, as a flight controller would.  The draws of the latest episode o
 from __future__ import annotations
 
 import dataclasses
-import math
 import re
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -48,7 +47,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fawtgym.core.checks import shown
+from fawtgym.core.checks import check_number, shown
 
 #: the randomization options (module docstring)
 RANDOMIZE_KEYS = ("duty", "mass", "inertia", "drag", "gyro_bias", "accel_bias")
@@ -57,10 +56,9 @@ _FAWT = re.compile(r"fawt(-\d+)?")
 
 
 def _number(key: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(float(value)):
-        raise ValueError(f"randomize {shown(key)} must be a finite number, got {shown(value)}")
-    return float(value)
+    """A randomization bound as a float (:func:`~fawtgym.core.checks.check_number`: bool, str, None, inf and ints
+    beyond float range refused, naming the key)."""
+    return check_number(value, f"randomize {shown(key)}")
 
 
 @dataclasses.dataclass(frozen=True)
