@@ -21,6 +21,7 @@ subclass implements :meth:`Observer._reset`, which builds the fresh state of the
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 from collections.abc import Callable, Iterator, Mapping
 from operator import itemgetter
@@ -760,7 +761,23 @@ def observer_names() -> list[str]:
 
 
 def make_observer(name: str, mass: float, inertia: ArrayLike, **kwargs: Any) -> Observer:
-    """Build a registered observer by name; unknown names raise ValueError listing the valid ones."""
-    if name not in _REGISTRY:
+    """Build a registered observer by name; an unknown name or option raises ValueError listing the valid ones."""
+    if not isinstance(name, str) or name not in _REGISTRY:
         raise ValueError(f"unknown observer {shown(name)}; valid names: {observer_names()}")
-    return _REGISTRY[name](mass, inertia, **kwargs)
+    cls = _REGISTRY[name]
+    options = observer_options(name)
+    unknown = sorted(set(kwargs) - set(options)) if options is not None else []
+    if unknown:
+        raise ValueError(f"unknown option(s) {unknown} for observer {shown(name)}; valid options: "
+                         f"{', '.join(options) if options else 'none'}")
+    return cls(mass, inertia, **kwargs)
+
+
+def observer_options(name: str) -> tuple[str, ...] | None:
+    """The keyword options of registered observer ``name`` (its constructor's parameters after mass and inertia), or
+    None if it takes arbitrary keywords."""
+    params = list(inspect.signature(_REGISTRY[name]).parameters.values())[2:]
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params):
+        return None
+    return tuple(p.name for p in params if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD,
+                                                       inspect.Parameter.KEYWORD_ONLY))

@@ -37,7 +37,8 @@ def _checked(name: str, cls: Callable[..., WindModel], *fixed: Any) -> Callable[
         unknown = sorted(set(options) - set(params))
         if unknown:
             hint = " (its duty is fixed; use the 'fawt' wind with duty=...)" if "duty" in unknown and fixed else ""
-            raise ValueError(f"unknown option(s) {unknown} for wind {shown(name)}{hint}; valid options: {params}")
+            raise ValueError(f"unknown option(s) {unknown} for wind {shown(name)}{hint}; valid options: "
+                             f"{params or 'none'}")
         return cls(*fixed, **options)
 
     factory.__doc__ = f"{name}: {cls.__doc__}"
@@ -51,6 +52,7 @@ register_wind("fawt", _checked("fawt", FawtWind))
 for _level in ("light", "moderate", "severe"):
     register_wind(f"dryden-{_level}", _checked(f"dryden-{_level}", DrydenWind, _level))
 register_wind("gust-1cos", _checked("gust-1cos", OneCosineGust))
+register_wind("calm", _checked("calm", CalmWind))  # (base registers the bare class: it takes no options)
 
 __all__ = ["TABLE3", "CalmWind", "DrydenParams", "DrydenProcess", "DrydenWind", "FanSchedule", "FawtWind",
            "OneCosineGust", "WindModel", "dryden_psd", "fawt_statistics", "make_wind", "register_wind",

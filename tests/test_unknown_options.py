@@ -1,0 +1,41 @@
+"""An unknown option name of a wind or an observer is refused with one line listing the valid ones (it was Python's
+"takes no arguments" / "unexpected keyword argument" TypeError, which gym.make re-wrapped)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import pytest
+
+import fawtgym  # noqa: F401  (registers the env)
+from fawtgym.agents.px4_agent import PX4ObserverAgent
+from fawtgym.envs.hover_batch_env import HoverBatchEnv
+from fawtgym.envs.hover_env import HoverEnv
+from fawtgym.envs.wind import make_wind
+from fawtgym.observers import make_observer, observer_names
+from fawtgym.observers.base import observer_options
+
+
+@pytest.mark.parametrize("build", [lambda w: make_wind(w), lambda w: HoverEnv(wind=w),
+                                   lambda w: HoverBatchEnv(3, wind=w), lambda w: gym.make("fawtgym/Hover-v0", wind=w)],
+                         ids=["make_wind", "HoverEnv", "HoverBatchEnv", "gym.make"])
+def test_calm_wind_takes_no_options(build):
+    with pytest.raises(ValueError, match=r"^unknown option\(s\) \['foo'\] for wind 'calm'; valid options: none$"):
+        build({"name": "calm", "foo": 1})
+    assert type(make_wind({"name": "calm"})).__name__ == "CalmWind"
+
+
+@pytest.mark.filterwarnings("ignore:QB gain")  # qb's stored gain was designed for another vehicle: it says so
+@pytest.mark.parametrize("name", observer_names())
+def test_unknown_observer_option_lists_the_valid_ones(name):
+    options = observer_options(name)
+    assert options is not None and "gravity" in options
+    with pytest.raises(ValueError) as err:
+        make_observer(name, 1.2, [0.01, 0.01, 0.02], not_an_option=1)
+    assert str(err.value) == (f"unknown option(s) ['not_an_option'] for observer '{name}'; valid options: "
+                              f"{', '.join(options)}")
+    make_observer(name, 1.2, [0.01, 0.01, 0.02], gravity=9.81)  # a valid option still builds
+
+
+def test_agent_observer_kwargs_are_checked_alike():
+    with pytest.raises(ValueError, match=r"^unknown option\(s\) \['foo'\] for observer 'ffts_eso'; valid options: "):
+        PX4ObserverAgent.for_env(HoverBatchEnv(1), observer="ffts_eso", observer_kwargs={"foo": 1})
