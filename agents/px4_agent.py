@@ -324,8 +324,12 @@ class PX4Agent(Agent):
     def set_setpoint(self, position: ArrayLike, yaw: float | None = None) -> None:
         """Change the NED position setpoint (and heading) during an episode; overrides ``info["setpoint"]``."""
         pos = _checked_setpoint(position, position)
+        n = max(self._n, 1)
+        if pos.ndim == 2 and pos.shape[0] not in (1, n):
+            raise ValueError(f"setpoint must be of shape (3,), (1, 3) or ({n}, 3) (the {n} vehicle(s) this agent "
+                             f"flies), got shape {pos.shape}")
         heading = self.yaw_setpoint if yaw is None else _yaw(yaw)  # checked before anything changes
-        self._setpoint = _rows3(pos, max(self._n, 1)).copy()
+        self._setpoint = _rows3(pos, n).copy()
         self._setpoint_override = True
         self.yaw_setpoint = heading
 

@@ -39,3 +39,20 @@ def test_unknown_observer_option_lists_the_valid_ones(name):
 def test_agent_observer_kwargs_are_checked_alike():
     with pytest.raises(ValueError, match=r"^unknown option\(s\) \['foo'\] for observer 'ffts_eso'; valid options: "):
         PX4ObserverAgent.for_env(HoverBatchEnv(1), observer="ffts_eso", observer_kwargs={"foo": 1})
+
+
+def test_agent_setpoint_of_another_row_count_is_refused_in_one_line():
+    """set_setpoint with (2, 3) for 3 vehicles raised numpy's broadcast error."""
+    import numpy as np
+
+    from fawtgym.agents.px4_agent import PX4Agent
+
+    env = HoverBatchEnv(3)
+    agent = PX4Agent.for_env(env)
+    _, info = env.reset(seed=0)
+    agent.reset(info)
+    with pytest.raises(ValueError, match=r"^setpoint must be of shape \(3,\), \(1, 3\) or \(3, 3\) \(the 3 "
+                                         r"vehicle\(s\) this agent flies\), got shape \(2, 3\)$"):
+        agent.set_setpoint(np.full((2, 3), -1.0))
+    agent.set_setpoint(np.full((3, 3), -1.0))
+    agent.set_setpoint([0.0, 0.0, -1.0])
