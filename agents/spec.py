@@ -107,6 +107,11 @@ def _parse_kwargs(text: str, where: str) -> tuple[tuple[str, Any], ...]:
         except ValueError:
             raise ValueError(f"agent {shown(where)}: the value of {kw.arg} must be a Python literal (number, "
                              f"True/False, 'string', list), got {ast.unparse(kw.value)}") from None
+        try:  # the canonical name holds its repr: refused if it has none (an int beyond Python's int-to-str limit)
+            repr(out[kw.arg])
+        except ValueError:
+            raise ValueError(f"agent {shown(where)}: the value of {kw.arg} is {shown(out[kw.arg])}, beyond any "
+                             "option's range") from None
     return tuple(sorted(out.items()))
 
 

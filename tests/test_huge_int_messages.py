@@ -110,3 +110,14 @@ def test_scenario_fields_and_train_config_are_checked():
         with pytest.raises(ValueError) as err:
             TrainConfig(**kw)
         assert str(err.value) == text
+
+
+def test_an_agent_override_beyond_the_int_to_str_limit_is_refused_by_the_grammar():
+    """``px4(MPC_XY_P=0xfff...)``: a hex literal parses to an int without repr, which the agent's name needs."""
+    from fawtgym.agents.spec import parse_agent
+
+    text = f"px4(MPC_XY_P=0x{'f' * 5000})"
+    with pytest.raises(ValueError, match=r"the value of MPC_XY_P is an int of about 6021 digits, beyond any option's "
+                                         r"range$"):
+        parse_agent(text)
+    assert parse_agent("px4(MPC_XY_P=0xff)").name == "px4(MPC_XY_P=255)"
