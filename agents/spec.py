@@ -30,7 +30,7 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
-from fawtgym.core.checks import shown
+from fawtgym.core.checks import listed, shown
 
 from .base import Agent
 
@@ -238,10 +238,10 @@ def _check_observer_kwargs(spec: AgentSpec, kwargs: Mapping[str, Any]) -> None:
     if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
         return
     valid = [k for k in params if k not in ("self", "mass", "inertia")]
-    unknown = sorted(set(kwargs) - set(valid))
+    unknown = set(kwargs) - set(valid)
     if unknown:
-        raise ValueError(f"agent {shown(spec.name)}: unknown option(s) {unknown} for observer {spec.observer}; its "
-                         f"gains: {', '.join(valid)}; PX4 parameters are upper case; agent options: "
+        raise ValueError(f"agent {shown(spec.name)}: unknown option(s) {listed(unknown)} for observer {spec.observer}; "
+                         f"its gains: {', '.join(valid)}; PX4 parameters are upper case; agent options: "
                          f"{', '.join(_AGENT_OPTIONS)}")
 
 

@@ -135,7 +135,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
 from fawtgym.core.arrays import REAL_KINDS, ReadOnlyState, as_array, as_f64, read_only
-from fawtgym.core.checks import check_flag, shown
+from fawtgym.core.checks import check_flag, listed, shown
 from fawtgym.core.frames import SIGN_MJ_NED, rot_ned_to_quat_mj
 from fawtgym.core.so3 import exp_so3
 
@@ -610,9 +610,9 @@ class HoverBatchEnv(VectorEnv):
         k = rows.size
         if not isinstance(draws, Mapping):
             raise ValueError(f"randomizer must return a mapping of {list(RANDOMIZER_KEYS)}, got {type(draws).__name__}")
-        unknown = sorted(set(draws) - set(RANDOMIZER_KEYS), key=str)
+        unknown = set(draws) - set(RANDOMIZER_KEYS)
         if unknown:
-            raise ValueError(f"randomizer draws {unknown} are unknown; valid: {list(RANDOMIZER_KEYS)}")
+            raise ValueError(f"randomizer draws {listed(unknown)} are unknown; valid: {list(RANDOMIZER_KEYS)}")
         values = {}
         for key, shape, need, ok in (("mass_scale", (k,), "> 0", np.greater),
                                      ("inertia_scale", (k,), "> 0", np.greater),

@@ -18,7 +18,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.checks import check_number, shown
+from fawtgym.core.checks import check_number, listed, shown
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED
 
 from .mjcf import INTEGRATORS
@@ -165,10 +165,10 @@ def check_sensors(spec: Any) -> SensorSpec:
     are named."""
     if isinstance(spec, Mapping):
         fields = {f.name for f in dataclasses.fields(SensorSpec)} - {"name"}
-        unknown = sorted(set(spec) - fields - {"base"})
+        unknown = set(spec) - fields - {"base"}
         if unknown:
             valid = ["base", *sorted(fields)]
-            raise ValueError(f"unknown sensors field(s) {unknown}; valid: {valid}")
+            raise ValueError(f"unknown sensors field(s) {listed(unknown)}; valid: {valid}")
     return make_sensor_spec(spec)
 
 
@@ -283,9 +283,9 @@ def check_reset_options(options: Any, n: int | None = None
         return None, None
     if not isinstance(options, Mapping):
         raise ValueError(f"reset options must be None or a dict with keys {list(RESET_OPTIONS)}, got {shown(options)}")
-    unknown = sorted(set(options) - set(RESET_OPTIONS), key=str)
+    unknown = set(options) - set(RESET_OPTIONS)
     if unknown:
-        raise ValueError(f"unknown reset option(s) {unknown}; valid: {list(RESET_OPTIONS)}")
+        raise ValueError(f"unknown reset option(s) {listed(unknown)}; valid: {list(RESET_OPTIONS)}")
     sp = check_setpoint(options["setpoint"], n) if "setpoint" in options else None
     noise = check_init_noise(options["init_noise"]) if "init_noise" in options else None
     return sp, noise

@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.checks import check_number, shown
+from fawtgym.core.checks import check_number, listed, shown
 
 #: The physical range of each :class:`SensorSpec` field: (lowest, highest, unit), lowest inclusive.  Every range spans
 #: orders of magnitude beyond the presets (a consumer IMU's gyro density is ~1e-3 (rad/s)/sqrt(Hz)); beyond it a value
@@ -112,9 +112,9 @@ def make_sensor_spec(spec: str | SensorSpec | Mapping[str, Any]) -> SensorSpec:
         data = dict(spec)
         base = data.pop("base", "none")
         fields = [f.name for f in dataclasses.fields(SensorSpec)]
-        unknown = sorted(str(k) for k in data if k not in fields)
+        unknown = [k for k in data if k not in fields]
         if unknown:
-            raise ValueError(f"unknown sensor field(s) {unknown}; valid: ['base', {str(fields)[1:]}")
+            raise ValueError(f"unknown sensor field(s) {listed(unknown)}; valid: ['base', {str(fields)[1:]}")
         return dataclasses.replace(make_sensor_spec(base), **data)
     if isinstance(spec, str) and spec in SENSOR_PRESETS:
         return SENSOR_PRESETS[spec]

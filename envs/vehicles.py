@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from fawtgym.core.arrays import REAL_KINDS, as_array
-from fawtgym.core.checks import check_number, shown
+from fawtgym.core.checks import check_number, listed, shown
 from fawtgym.core.constants import GRAVITY  # defined in core; importable from here too (compatibility)
 
 AIR_DENSITY = 1.225  #: ISA sea-level air density [kg/m^3]
@@ -294,9 +294,9 @@ def vehicle_from_mapping(data: Mapping[str, Any]) -> VehiclePreset:
     data = dict(data)
     base = data.pop("base", None)
     fields = {f.name for f in dataclasses.fields(VehiclePreset)}
-    unknown = sorted(set(data) - fields)
+    unknown = set(data) - fields
     if unknown:
-        raise ValueError(f"unknown vehicle field(s) {unknown}; valid fields: {sorted(fields)}")
+        raise ValueError(f"unknown vehicle field(s) {listed(unknown)}; valid fields: {sorted(fields)}")
     if base is not None:
         return make_vehicle(base).replace(**data)
     missing = sorted(f.name for f in dataclasses.fields(VehiclePreset)

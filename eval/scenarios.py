@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from fawtgym.core.checks import check_number, shown
+from fawtgym.core.checks import check_number, listed, shown
 from fawtgym.envs.options import CONTROL_RATE_RANGE, MAX_EPISODE_SECONDS, MAX_SETPOINT
 
 #: the compressed Table 4 schedule (hover, fan on, fan off) [s], as ``fawtgym reproduce table4 --quick`` flies it
@@ -157,9 +157,9 @@ def scenario_from_mapping(name: str, fields: Mapping[str, Any]) -> Scenario:
     if not isinstance(fields, Mapping):
         raise ValueError(f"scenario {shown(name)} must be a mapping of fields {_FIELDS[1:]}, got "
                          f"{type(fields).__name__}")
-    unknown = sorted(set(fields) - set(_FIELDS))
+    unknown = set(fields) - set(_FIELDS)
     if unknown:
-        raise ValueError(f"scenario {shown(name)}: unknown field(s) {unknown}; valid fields: {_FIELDS[1:]}")
+        raise ValueError(f"scenario {shown(name)}: unknown field(s) {listed(unknown)}; valid fields: {_FIELDS[1:]}")
     if "wind" not in fields:
         raise ValueError(f"scenario {shown(name)} needs a 'wind' field (a wind name or a mapping with 'name')")
     kw = {k: v for k, v in fields.items() if k != "name"}

@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.arrays import REAL_KINDS, as_array
-from fawtgym.core.checks import check_number, shown
+from fawtgym.core.checks import check_number, listed, shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.kernel_types import TYPED_DISPATCH, compile_only
 from fawtgym.core.measurement import ATTITUDE, TRAILING_SHAPES, batch_measurement
@@ -218,7 +218,7 @@ class Observer:
         who = self.name or type(self).__name__
         allowed = self.reset_options
         if options and not allowed.keys() >= options.keys():
-            raise TypeError(f"{who}: unknown reset options {sorted(set(options) - set(allowed))}; allowed: "
+            raise TypeError(f"{who}: unknown reset options {listed(set(options) - set(allowed))}; allowed: "
                             f"{', '.join(('force', 'torque', 'rows', *allowed))}")
         if rows is None:
             meas = measurement
@@ -766,9 +766,9 @@ def make_observer(name: str, mass: float, inertia: ArrayLike, **kwargs: Any) -> 
         raise ValueError(f"unknown observer {shown(name)}; valid names: {observer_names()}")
     cls = _REGISTRY[name]
     options = observer_options(name)
-    unknown = sorted(set(kwargs) - set(options)) if options is not None else []
+    unknown = set(kwargs) - set(options) if options is not None else set()
     if unknown:
-        raise ValueError(f"unknown option(s) {unknown} for observer {shown(name)}; valid options: "
+        raise ValueError(f"unknown option(s) {listed(unknown)} for observer {shown(name)}; valid options: "
                          f"{', '.join(options) if options else 'none'}")
     return cls(mass, inertia, **kwargs)
 

@@ -121,3 +121,22 @@ def test_an_agent_override_beyond_the_int_to_str_limit_is_refused_by_the_grammar
                                          r"range$"):
         parse_agent(text)
     assert parse_agent("px4(MPC_XY_P=0xff)").name == "px4(MPC_XY_P=255)"
+
+
+@pytest.mark.parametrize("key", [5, HUGE], ids=["int", "huge int"])
+def test_unknown_option_names_of_any_type_are_listed_alike(key):
+    """A non-str option name: sorting it among str names raised TypeError ('<' not supported), and a huge int one
+    Python's 'Exceeds the limit'; gym.make and HoverBatchEnv now say the same line."""
+    from fawtgym.core.checks import listed
+
+    word = shown(key)
+    for options, start in (({"sensors": {"base": "mocap_imu", key: 1, "zz": 2}},
+                            f"unknown sensors field(s) ['zz', {word}]; valid: ['base', "),
+                           ({"wind": {"name": "fawt-50", key: 1}}, f"unknown option(s) [{word}] for wind 'fawt-50'")):
+        texts = set()
+        for build in (lambda o=options: gym.make("fawtgym/Hover-v0", **o), lambda o=options: HoverBatchEnv(3, **o)):
+            with pytest.raises(ValueError) as err:
+                build()
+            texts.add(str(err.value))
+        assert len(texts) == 1 and texts.pop().startswith(start)
+    assert listed({"b", "a"}) == repr(["a", "b"])

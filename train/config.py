@@ -19,7 +19,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from fawtgym.core.checks import shown
+from fawtgym.core.checks import listed, shown
 from fawtgym.eval.runner import MAX_SEEDS
 
 ALGOS = ("ppo", "sac", "td3")
@@ -70,9 +70,9 @@ def _check_hyperparams(algo: str, hp: Mapping[str, Any]) -> None:
     cls = algo_class(algo)
     ours = {"self", "env", "policy", "_init_setup_model", "device", "seed", "verbose", "tensorboard_log"}
     valid = (set(inspect.signature(cls.__init__).parameters) - ours) | set(OWN_KEYS)
-    unknown = sorted(set(hp) - valid)
+    unknown = set(hp) - valid
     if unknown:
-        raise ValueError(f"unknown {algo} hyperparameter(s) {unknown}; valid: {', '.join(sorted(valid))}")
+        raise ValueError(f"unknown {algo} hyperparameter(s) {listed(unknown)}; valid: {', '.join(sorted(valid))}")
     n = hp.get("n_envs", 1)
     if not (isinstance(n, int) and n >= 1):
         raise ValueError(f"n_envs must be a positive integer, got {shown(n)}")

@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fawtgym.core.checks import check_number, shown
+from fawtgym.core.checks import check_number, listed, shown
 
 #: the randomization options (module docstring)
 RANDOMIZE_KEYS = ("duty", "mass", "inertia", "drag", "gyro_bias", "accel_bias")
@@ -102,9 +102,9 @@ class Randomization:
         if not isinstance(options, Mapping):
             raise ValueError(f"randomize must be a mapping of {', '.join(RANDOMIZE_KEYS)}, got "
                              f"{type(options).__name__}")
-        unknown = sorted(set(options) - set(RANDOMIZE_KEYS))
+        unknown = set(options) - set(RANDOMIZE_KEYS)
         if unknown:
-            raise ValueError(f"unknown randomize key(s) {unknown}; valid: {', '.join(RANDOMIZE_KEYS)}")
+            raise ValueError(f"unknown randomize key(s) {listed(unknown)}; valid: {', '.join(RANDOMIZE_KEYS)}")
         out = cls(**{k: v for k, v in options.items() if v is not None})
         return out if out.active else None
 

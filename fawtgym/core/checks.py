@@ -57,6 +57,12 @@ def shown(value: Any, limit: int = 200) -> str:
     return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 
+def listed(values: Any) -> str:
+    """Names for an error message: ``values`` sorted by their text, in a list's brackets, each worded by :func:`shown`
+    (the repr of a list of strings; mixed types and ints beyond Python's int-to-str limit too)."""
+    return "[" + ", ".join(shown(v) for v in sorted(values, key=lambda v: shown(v))) + "]"
+
+
 def check_positive(value: Any, name: str, *, maximum: float = math.inf, note: str = "") -> float:
     """:func:`check_number` with the range (0, ``maximum``]: a real, finite, positive number."""
     return check_number(value, name, minimum=0.0, maximum=maximum, note=note)
