@@ -17,7 +17,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core.arrays import as_f64
-from fawtgym.core.checks import check_number, shown
+from fawtgym.core.checks import check_number, listed, shown
 
 #: Longest wind step [s].  The gust filters are exact at any step, but their step-matrix table holds air
 #: travel ``V dt`` up to 200 m (:mod:`.dryden_discrete`): 1 s covers airspeeds up to 200 m/s.  A step of
@@ -137,6 +137,9 @@ def make_wind(spec: str | WindModel | Mapping[str, Any] | None) -> WindModel:
         name = options.pop("name", None)
         if not isinstance(name, str) or name not in _WIND_REGISTRY:
             raise ValueError(f"unknown wind {shown(name)}; valid names: {wind_names()}")
+        odd = [k for k in options if not isinstance(k, str)]
+        if odd:  # (a ** call would raise Python's "keywords must be strings")
+            raise ValueError(f"unknown option(s) {listed(odd)} for wind {shown(name)}: option names are strings")
         return _WIND_REGISTRY[name](**options)
     if isinstance(spec, str):
         if spec not in _WIND_REGISTRY:
