@@ -127,7 +127,7 @@ MIN_CUTOFF = 0.01
 
 def _check_name(name: str) -> str:
     if not isinstance(name, str) or name not in PARAM_SPECS:
-        close = difflib.get_close_matches(str(name).upper(), PARAM_SPECS, n=3, cutoff=0.5)
+        close = difflib.get_close_matches(name.upper(), PARAM_SPECS, n=3, cutoff=0.5) if isinstance(name, str) else []
         hint = f"; did you mean {', '.join(close)}?" if close else f"; valid names: {sorted(PARAM_SPECS)}"
         raise ValueError(f"unknown PX4 parameter {shown(name)}{hint}")
     return name

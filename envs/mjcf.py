@@ -23,6 +23,8 @@ principal or full inertia from the preset.
 
 from __future__ import annotations
 
+from xml.sax.saxutils import quoteattr
+
 import numpy as np
 
 from fawtgym.core.checks import shown
@@ -69,7 +71,7 @@ def vehicle_mjcf(preset: VehiclePreset, physics_dt: float = 0.001, integrator: s
         actuators.append(f'<general name="rotor{i}" site="rotor{i}" gear="0 0 1 0 0 {-d * preset.k_moment:.9g}"/>')
     rotor_xml = "\n      ".join(rotors)
     act_xml = "\n    ".join(actuators)
-    return f"""<mujoco model="fawtgym_{preset.name}">
+    return f"""<mujoco model={quoteattr("fawtgym_" + preset.name)}>
   <compiler angle="radian" autolimits="true"/>
   <option timestep="{physics_dt:.9g}" integrator="{integrator}" gravity="0 0 {-GRAVITY:.9g}" density="0" viscosity="0">
     <flag contact="disable" constraint="disable"/>

@@ -119,19 +119,13 @@ def check_setpoint(value: Any, n: int | None = None) -> NDArray[np.float64]:
     return sp
 
 
-def _one_line(value: Any) -> str:
-    """``repr(value)`` on one line (a numpy array's repr wraps), at most 200 characters."""
-    text = " ".join(repr(value).split())
-    return text if len(text) <= 200 else text[:197] + "..."
-
-
 def check_external_wrench(force: Any, torque: Any, n: int | None = None
                           ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """An external wrench: force NED [N] and torque FRD [N m], each 3 finite real numbers ((3,), or (n, 3) one per
     row if ``n`` is given); returns them broadcast to (n, 3) (or (3,))."""
     shapes = "(3,)" if n is None else f"(3,) or ({n}, 3)"
     what = f"two {shapes} arrays of finite real numbers (force NED [N], torque FRD [N m])"
-    error = f"external wrench must be {what}, got {_one_line(force)}, {_one_line(torque)}"
+    error = f"external wrench must be {what}, got {shown(force)}, {shown(torque)}"
     out = []
     for value in (force, torque):
         try:

@@ -50,6 +50,9 @@ QUAD_X_ARMS = np.array([[1.0, 1.0, 0.0], [-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [-
 QUAD_X_DIRECTIONS = np.array([1.0, 1.0, -1.0, -1.0])
 
 
+#: the longest vehicle name (it names the MJCF model and the leaderboard's vehicle)
+MAX_NAME = 200
+
 #: The physical range of each scalar field: (lowest, highest, unit).  Every range spans orders of magnitude around
 #: the presets (from a 10 g micro quad to a 10 t airframe); outside it a value is a typo or a unit slip, and huge or
 #: tiny values overflow the model (omega_max^2, 1 / tau) or MuJoCo's mass matrix.  A lowest of 0 is inclusive.
@@ -98,6 +101,9 @@ class VehiclePreset:
     source: str = ""  #: where the numbers come from
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.strip() or len(self.name) > MAX_NAME:
+            raise ValueError(f"vehicle field 'name' must be a non-empty str of at most {MAX_NAME} characters, got "
+                             f"{shown(self.name)}")
         for field, (lowest, highest, unit) in SCALAR_RANGES.items():
             # any real number (numpy scalars too, stored as float); bool, str, None and complex are refused
             value = check_number(getattr(self, field), f"vehicle field {field!r}", minimum=lowest, maximum=highest,

@@ -140,3 +140,32 @@ def test_unknown_option_names_of_any_type_are_listed_alike(key):
             texts.add(str(err.value))
         assert len(texts) == 1 and texts.pop().startswith(start)
     assert listed({"b", "a"}) == repr(["a", "b"])
+
+
+@pytest.mark.parametrize(("name", "ok"), [('x"y', True), ("a<b&c", True), ("s500 copy", True), (5, False), ("", False),
+                                          ("n" * 201, False), (HUGE, False)],
+                         ids=["quote", "xml", "space", "int", "empty", "long", "huge int"])
+def test_vehicle_name_is_a_str_and_any_str_builds(name, ok):
+    """A name with a quote broke the MJCF (MuJoCo's multi-line XML error); an int name was accepted."""
+    from fawtgym.envs.hover_env import HoverEnv
+
+    spec = {"base": "s500", "name": name}
+    if ok:
+        assert HoverEnv(vehicle=spec).reset(seed=0)[0].shape == (19,)
+        return
+    with pytest.raises(ValueError, match=r"^vehicle field 'name' must be a non-empty str of at most 200 characters, "
+                                         r"got "):
+        HoverEnv(vehicle=spec)
+
+
+def test_arrays_and_unknown_px4_names_in_messages_stay_on_one_line():
+    import numpy as np
+
+    from fawtgym.agents.px4_params import PX4Params
+
+    assert shown(np.zeros((3, 3))) == "array([[0., 0., 0.], [0., 0., 0.], [0., 0., 0.]])"
+    with pytest.raises(ValueError, match=r"^unknown PX4 parameter an int of about 5001 digits; valid names: "):
+        PX4Params.s500().set(HUGE, 1)
+    with pytest.raises(ValueError, match=r"^external wrench must be .*, got array\(\[\[1., 1., 1.\], "
+                                         r"\[1., 1., 1.\]\]\), \[0, 0, 0\]$"):
+        HoverBatchEnv(3).set_external_wrench(np.ones((2, 3)), [0, 0, 0])

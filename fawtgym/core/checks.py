@@ -45,7 +45,7 @@ def check_number(value: Any, name: str, *, minimum: float = -math.inf, maximum: 
 def shown(value: Any, limit: int = 200) -> str:
     """``repr(value)`` for an error message, at most ``limit`` characters: a longer one (e.g. an int of thousands of
     digits, whose full repr Python refuses beyond 4300 digits) is cut, with its length (and sign) stated; a container
-    holding such an int is named by its type."""
+    holding such an int is named by its type; a multi-line repr (numpy arrays) is put on one line."""
     if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
         bits = abs(int(value)).bit_length()
         if bits > 3 * limit:  # more than ~0.9 limit digits
@@ -54,6 +54,8 @@ def shown(value: Any, limit: int = 200) -> str:
         text = repr(value)
     except ValueError:  # it holds an int beyond Python's int-to-str limit (e.g. a list with 10**5000 in it)
         return f"a {type(value).__name__} holding an int of more than {sys.get_int_max_str_digits()} digits"
+    if "\n" in text:  # a multi-line repr (a numpy array's wraps): one line, as every message is
+        text = " ".join(text.split())
     return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 
