@@ -44,9 +44,9 @@ from fawtgym.envs.options import CONTROL_RATE_RANGE, MAX_EPISODE_SECONDS, MAX_SE
 #: the compressed Table 4 schedule (hover, fan on, fan off) [s], as ``fawtgym reproduce table4 --quick`` flies it
 TABLE4_SCHEDULE = (75.0, 5.0, 50.0)
 TABLE4_DUTIES = (30, 40, 50, 60, 70)
-_STEADY = re.compile(r"fawt-(\d+)-steady")
-_SWITCHING = re.compile(r"fawt-(\d+)-switching")
-_TABLE4 = re.compile(r"table4-(\d+)")
+_STEADY = re.compile(r"fawt-(\d{1,3})-steady")  # (at most 3 digits: a duty in %)
+_SWITCHING = re.compile(r"fawt-(\d{1,3})-switching")
+_TABLE4 = re.compile(r"table4-(\d{1,3})")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -154,6 +154,9 @@ _FIELDS = [f.name for f in dataclasses.fields(Scenario)]
 
 def scenario_from_mapping(name: str, fields: Mapping[str, Any]) -> Scenario:
     """A scenario from plain fields (a user file); ValueError naming a bad field and what is allowed."""
+    given = fields.get("name", name) if isinstance(fields, Mapping) else name
+    if not isinstance(given, str) or not given:
+        raise ValueError(f"a scenario's name must be a non-empty str, got {shown(given)}")
     if not isinstance(fields, Mapping):
         raise ValueError(f"scenario {shown(name)} must be a mapping of fields {_FIELDS[1:]}, got "
                          f"{type(fields).__name__}")
@@ -174,7 +177,7 @@ def scenario_from_mapping(name: str, fields: Mapping[str, Any]) -> Scenario:
         if key in kw:
             kw[key] = check_number(kw[key], f"scenario {shown(name)}: {key}", minimum=low, maximum=high,
                                    inclusive_minimum=key == "control_rate", note=unit)
-    return Scenario(name=str(fields.get("name", name)), **kw)
+    return Scenario(name=given, **kw)
 
 
 def load_scenarios(path: str | Path) -> list[Scenario]:

@@ -169,3 +169,18 @@ def test_arrays_and_unknown_px4_names_in_messages_stay_on_one_line():
     with pytest.raises(ValueError, match=r"^external wrench must be .*, got array\(\[\[1., 1., 1.\], "
                                          r"\[1., 1., 1.\]\]\), \[0, 0, 0\]$"):
         HoverBatchEnv(3).set_external_wrench(np.ones((2, 3)), [0, 0, 0])
+
+
+def test_scenario_names_and_train_config_keys_of_any_size():
+    """A 5000-digit duty in a scenario name and a huge int name or randomize key raised Python's int-limit error."""
+    from fawtgym.eval.scenarios import get_scenario, scenario_from_mapping
+    from fawtgym.train.config import freeze
+
+    for name in (f"fawt-{'9' * 5000}-steady", f"table4-{'9' * 5000}", "fawt-1000-steady"):
+        with pytest.raises(ValueError, match=r"^unknown scenario "):
+            get_scenario(name)
+    assert get_scenario("fawt-45-steady").name == "fawt-45-steady"
+    for bad in (HUGE, 5, ""):
+        with pytest.raises(ValueError, match=r"^a scenario's name must be a non-empty str, got "):
+            scenario_from_mapping("x", {"wind": "calm", "name": bad})
+    assert freeze({HUGE: 1}) == (("an int of about 5001 digits", 1),) and freeze({"a": 1, 2: 3}) == (("2", 3), ("a", 1))

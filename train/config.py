@@ -157,7 +157,7 @@ class TrainConfig:
 def freeze(x: Any) -> Any:
     """Mappings and lists as sorted tuples (hashable, for the frozen config)."""
     if isinstance(x, Mapping):
-        return tuple(sorted((str(k), freeze(v)) for k, v in x.items()))
+        return tuple(sorted((k if isinstance(k, str) else shown(k), freeze(v)) for k, v in x.items()))
     if isinstance(x, list):
         return ("__list__", *[freeze(v) for v in x])
     return x
