@@ -109,12 +109,9 @@ def build_observer(name: Any, preset: VehiclePreset, observer_kwargs: Mapping[st
     try:
         return make_observer(name, preset.mass, preset.inertia_matrix, **kwargs)
     except TypeError as exc:
-        import inspect
+        from fawtgym.observers.base import observer_options
 
-        from fawtgym.observers.base import observer_class
-
-        gains = [k for k in inspect.signature(observer_class(name).__init__).parameters
-                 if k not in ("self", "mass", "inertia", "args", "kwargs")]
+        gains = observer_options(name) or ()
         raise ValueError(f"observer {shown(name)}: {str(exc).splitlines()[0]}; its gains: {', '.join(gains)}") from exc
 
 

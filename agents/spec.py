@@ -229,15 +229,11 @@ def make_agent(spec: AgentSpec | str, env: Any) -> Agent:
 
 def _check_observer_kwargs(spec: AgentSpec, kwargs: Mapping[str, Any]) -> None:
     """Unknown observer gains name the observer's valid keywords."""
-    import inspect
+    from fawtgym.observers.base import observer_options
 
-    from fawtgym.observers.base import observer_class
-
-    cls = observer_class(spec.observer)
-    params = inspect.signature(cls.__init__).parameters
-    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+    valid = observer_options(spec.observer)
+    if valid is None:  # it takes any keyword
         return
-    valid = [k for k in params if k not in ("self", "mass", "inertia")]
     unknown = set(kwargs) - set(valid)
     if unknown:
         raise ValueError(f"agent {shown(spec.name)}: unknown option(s) {listed(unknown)} for observer {spec.observer}; "

@@ -750,7 +750,7 @@ def register_observer(name: str) -> Callable[[type[Observer]], type[Observer]]:
 
 def observer_class(name: str) -> type[Observer]:
     """The class registered under ``name``; ValueError listing the valid names otherwise."""
-    if name not in _REGISTRY:
+    if not isinstance(name, str) or name not in _REGISTRY:
         raise ValueError(f"unknown observer {shown(name)}; valid names: {observer_names()}")
     return _REGISTRY[name]
 
@@ -762,9 +762,7 @@ def observer_names() -> list[str]:
 
 def make_observer(name: str, mass: float, inertia: ArrayLike, **kwargs: Any) -> Observer:
     """Build a registered observer by name; an unknown name or option raises ValueError listing the valid ones."""
-    if not isinstance(name, str) or name not in _REGISTRY:
-        raise ValueError(f"unknown observer {shown(name)}; valid names: {observer_names()}")
-    cls = _REGISTRY[name]
+    cls = observer_class(name)
     options = observer_options(name)
     unknown = set(kwargs) - set(options) if options is not None else set()
     if unknown:
@@ -776,7 +774,7 @@ def make_observer(name: str, mass: float, inertia: ArrayLike, **kwargs: Any) -> 
 def observer_options(name: str) -> tuple[str, ...] | None:
     """The keyword options of registered observer ``name`` (its constructor's parameters after mass and inertia), or
     None if it takes arbitrary keywords."""
-    params = list(inspect.signature(_REGISTRY[name]).parameters.values())[2:]
+    params = list(inspect.signature(observer_class(name)).parameters.values())[2:]
     if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params):
         return None
     return tuple(p.name for p in params if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD,

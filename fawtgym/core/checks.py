@@ -62,7 +62,7 @@ def shown(value: Any, limit: int = 200) -> str:
 def listed(values: Any) -> str:
     """Names for an error message: ``values`` sorted by their text, in a list's brackets, each worded by :func:`shown`
     (the repr of a list of strings; mixed types and ints beyond Python's int-to-str limit too)."""
-    return "[" + ", ".join(shown(v) for v in sorted(values, key=lambda v: shown(v))) + "]"
+    return "[" + ", ".join(shown(v) for v in sorted(values, key=shown)) + "]"
 
 
 def check_positive(value: Any, name: str, *, maximum: float = math.inf, note: str = "") -> float:
