@@ -29,10 +29,6 @@ def test_shown_words_huge_ints_and_containers_holding_them():
     assert shown("y" * 300) == "'" + "y" * 199 + "... (302 characters)"
 
 
-def _single() -> gym.Env:
-    return gym.make("fawtgym/Hover-v0")
-
-
 CASES = [
     ("num_envs", lambda: HoverBatchEnv(HUGE), "num_envs must be an int in [1, 1000000], got an int of about 5001 "
                                               "digits"),
@@ -41,8 +37,8 @@ CASES = [
                                                                         "thread), got an int of about 5001 digits"),
     ("render_width", lambda: HoverBatchEnv(1, render_width=HUGE), "render_width must be an int in [1, 8192] pixels, "
                                                                   "got an int of about 5001 digits"),
-    ("single seed", lambda: _single().reset(seed=-HUGE), "seed must be None or an int >= 0, got a negative int of "
-                                                         "about 5001 digits"),
+    ("single seed", lambda: gym.make("fawtgym/Hover-v0").reset(seed=-HUGE),
+     "seed must be None or an int >= 0, got a negative int of about 5001 digits"),
     ("batch seed", lambda: HoverBatchEnv(2).reset(seed=-HUGE), "seed must be None, an int >= 0 or a list of 2 ints "
                                                                ">= 0 / None (one per row), got a negative int of "
                                                                "about 5001 digits"),
@@ -51,8 +47,8 @@ CASES = [
                                                                          "list holding an int of more than"),
     ("setpoint", lambda: HoverBatchEnv(2).reset(options={"setpoint": [HUGE, 0, -1]}), "setpoint must be 3 finite NED "
                                                                                       "coordinates [m] of shape"),
-    ("single setpoint", lambda: _single().reset(options={"setpoint": [-HUGE, 0, -1]}), "setpoint must be 3 finite "
-                                                                                       "NED coordinates [m] of shape"),
+    ("single setpoint", lambda: gym.make("fawtgym/Hover-v0").reset(options={"setpoint": [-HUGE, 0, -1]}),
+     "setpoint must be 3 finite NED coordinates [m] of shape"),
     ("shards", lambda: shard_sizes(4, HUGE), "shards must be an int in [1, n = 4] (envs of at least one row each), "
                                              "got an int of about 5001 digits"),
 ]
