@@ -37,7 +37,9 @@ def test_bench_env_table_agrees_with_its_own_measurements(capsys):
     # rates are printed to the unit, the ratio to 0.01: agree to that rounding
     assert ratio == pytest.approx(raw_rate / env_rate, rel=1e-3, abs=0.006)
     met = "overhead <= 2x raw physics (met)" in out
-    assert met == (ratio - 1.0 <= 2.0 + 0.005), out
+    assert met or "overhead <= 2x raw physics (NOT met)" in out, out
+    if abs(ratio - 3.0) > 0.005:  # a printed 3.00 is any ratio in [2.995, 3.005): either verdict is then consistent
+        assert met == (ratio - 1.0 <= 2.0), out
 
 
 def test_bench_env_measure_returns_positive_finite_rates():
