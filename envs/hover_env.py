@@ -151,6 +151,7 @@ biases, as the VICON-fed PX4 of Wang et al. (2024), Sec. 7 (:mod:`fawtgym.envs.s
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Mapping
 from typing import Any
 
@@ -159,7 +160,7 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.checks import shown
+from fawtgym.core.checks import check_known, shown
 from fawtgym.core.frames import rot_ned_to_quat_mj, vec_ned_to_mj
 
 from .aero import AeroModel
@@ -233,8 +234,10 @@ class HoverEnv(gym.Env):
                  episode_seconds: float = 10.0, setpoint: ArrayLike | None = None, init_noise: float = 1.0,
                  reward_weights: Mapping[str, float] | None = None, max_position_error: float = 2.0,
                  integrator: str = "Euler", render_mode: str | None = None, render_width: int = 480,
-                 render_height: int = 480, mujoco_timers: bool = False) -> None:
+                 render_height: int = 480, mujoco_timers: bool = False, **unknown: Any) -> None:
         super().__init__()
+        if unknown:  # a one-line ValueError, as for every option (Python's TypeError is re-worded by gym.make)
+            check_known(unknown, list(inspect.signature(HoverEnv.__init__).parameters)[1:-1], "HoverEnv")
         kwargs = dict(vehicle=vehicle, wind=wind, action_type=action_type, sensors=sensors,
                       control_rate=control_rate, physics_rate=physics_rate, episode_seconds=episode_seconds,
                       setpoint=setpoint, init_noise=init_noise, reward_weights=reward_weights,

@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.arrays import REAL_KINDS, as_array
-from fawtgym.core.checks import check_number, listed, shown
+from fawtgym.core.checks import check_known, check_number, listed, shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.kernel_types import TYPED_DISPATCH, compile_only
 from fawtgym.core.measurement import ATTITUDE, TRAILING_SHAPES, batch_measurement
@@ -764,10 +764,8 @@ def make_observer(name: str, mass: float, inertia: ArrayLike, **kwargs: Any) -> 
     """Build a registered observer by name; an unknown name or option raises ValueError listing the valid ones."""
     cls = observer_class(name)
     options = observer_options(name)
-    unknown = set(kwargs) - set(options) if options is not None else set()
-    if unknown:
-        raise ValueError(f"unknown option(s) {listed(unknown)} for observer {shown(name)}; valid options: "
-                         f"{', '.join(options) if options else 'none'}")
+    if options is not None:
+        check_known(kwargs, options, f"observer {shown(name)}")
     return cls(mass, inertia, **kwargs)
 
 

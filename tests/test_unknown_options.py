@@ -56,3 +56,22 @@ def test_agent_setpoint_of_another_row_count_is_refused_in_one_line():
         agent.set_setpoint(np.full((2, 3), -1.0))
     agent.set_setpoint(np.full((3, 3), -1.0))
     agent.set_setpoint([0.0, 0.0, -1.0])
+
+
+@pytest.mark.parametrize("build,owner", [
+    (lambda **k: HoverEnv(**k), "HoverEnv"),
+    (lambda **k: HoverBatchEnv(2, **k), "HoverBatchEnv"),
+    (lambda **k: gym.make("fawtgym/Hover-v0", **k), "HoverEnv"),
+    (lambda **k: gym.make_vec("fawtgym/Hover-v0", num_envs=2, vectorization_mode="vector_entry_point", **k),
+     "HoverBatchEnv"),
+], ids=["HoverEnv", "HoverBatchEnv", "gym.make", "gym.make_vec"])
+@pytest.mark.parametrize("value", [1, 10**5000], ids=["int", "huge int"])
+def test_unknown_env_option_is_one_line_at_every_entry_point(build, owner, value):
+    """Python's "unexpected keyword argument" TypeError was re-raised by gym.make with the repr of every keyword
+    argument appended (Python's int-to-str error for a huge int, several lines for an array)."""
+    with pytest.raises(ValueError) as err:
+        build(bogus=value)
+    text = str(err.value)
+    assert text.startswith(f"unknown option(s) ['bogus'] for {owner}; valid options: "), text
+    assert "vehicle, wind, action_type" in text, text
+    assert "\n" not in text and "control_rate" in text and ("physics_threads" in text) == (owner == "HoverBatchEnv")

@@ -19,7 +19,7 @@ import inspect
 from collections.abc import Callable
 from typing import Any
 
-from fawtgym.core.checks import listed, shown
+from fawtgym.core.checks import check_known, shown
 
 from .base import CalmWind, WindModel, make_wind, register_wind, wind_names
 from .dryden import DrydenParams, dryden_psd
@@ -34,11 +34,8 @@ def _checked(name: str, cls: Callable[..., WindModel], *fixed: Any) -> Callable[
     params = list(inspect.signature(cls).parameters)[len(fixed):]
 
     def factory(**options: Any) -> WindModel:
-        unknown = set(options) - set(params)
-        if unknown:
-            hint = " (its duty is fixed; use the 'fawt' wind with duty=...)" if "duty" in unknown and fixed else ""
-            raise ValueError(f"unknown option(s) {listed(unknown)} for wind {shown(name)}{hint}; valid options: "
-                             f"{params or 'none'}")
+        hint = " (its duty is fixed; use the 'fawt' wind with duty=...)" if "duty" in options and fixed else ""
+        check_known(options, params, f"wind {shown(name)}", hint)
         return cls(*fixed, **options)
 
     factory.__doc__ = f"{name}: {cls.__doc__}"

@@ -65,6 +65,17 @@ def listed(values: Any) -> str:
     return "[" + ", ".join(shown(v) for v in sorted(values, key=shown)) + "]"
 
 
+def check_known(options: Any, valid: Any, owner: str, hint: str = "") -> None:
+    """Refuse option names of ``options`` not in ``valid``: one-line ValueError ``"unknown option(s) ['foo'] for
+    <owner><hint>; valid options: a, b"`` (``none`` when nothing is valid).  Python's own "unexpected keyword
+    argument" is a TypeError, which ``gym.make`` re-raises with the repr of every keyword argument appended (not one
+    line for an array, Python's int-to-str error for a huge int): every entry point refuses alike with this."""
+    unknown = set(options) - set(valid)
+    if unknown:
+        raise ValueError(f"unknown option(s) {listed(unknown)} for {owner}{hint}; valid options: "
+                         f"{', '.join(valid) if valid else 'none'}")
+
+
 def check_positive(value: Any, name: str, *, maximum: float = math.inf, note: str = "") -> float:
     """:func:`check_number` with the range (0, ``maximum``]: a real, finite, positive number."""
     return check_number(value, name, minimum=0.0, maximum=maximum, note=note)
