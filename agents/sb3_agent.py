@@ -36,8 +36,12 @@ from .policy_io import ActionScale, EstimateFeatures, ResidualScale, shares_obse
 def locate_run(path: str | Path) -> tuple[Path, dict[str, Any]]:
     """(folder holding model.zip, the run's metadata) for a run or checkpoint folder; ValueError otherwise."""
     p = Path(path)
-    if not p.is_dir():
-        raise ValueError(f"sb3 agent: {str(p)!r} is not a folder of 'fawtgym train' (a run or a checkpoint)")
+    try:
+        folder_exists = p.is_dir()
+    except OSError as exc:  # e.g. a name longer than the file system takes
+        raise ValueError(f"sb3 agent: {shown(str(p))} is not a folder of 'fawtgym train' ({exc.strerror})") from None
+    if not folder_exists:
+        raise ValueError(f"sb3 agent: {shown(str(p))} is not a folder of 'fawtgym train' (a run or a checkpoint)")
     meta_path = next((q / "metadata.json" for q in (p, p.parent, p.parent.parent) if (q / "metadata.json").is_file()),
                      None)
     if meta_path is None:

@@ -27,6 +27,7 @@ import ast
 import dataclasses
 import importlib
 import re
+import sys
 from collections.abc import Mapping
 from typing import Any
 
@@ -93,15 +94,22 @@ def split_agents(text: str) -> list[str]:
 def _parse_kwargs(text: str, where: str) -> tuple[tuple[str, Any], ...]:
     try:
         call = ast.parse(f"f({text})", mode="eval").body
-    except SyntaxError:
-        raise ValueError(f"agent {shown(where)}: cannot read the keyword overrides ({text}); write key=value, ... with "
-                         "Python literals") from None
-    if not isinstance(call, ast.Call) or call.args:
-        raise ValueError(f"agent {shown(where)}: overrides must be key=value pairs, got ({text})")
+    except SyntaxError as exc:
+        if "digits" in str(exc):  # Python's int-to-str limit, raised while parsing a literal
+            raise ValueError(f"agent {shown(where)}: an override's value is an int of more than "
+                             f"{sys.get_int_max_str_digits()} digits, beyond any option's range") from None
+        raise ValueError(f"agent {shown(where)}: cannot read the keyword overrides {shown(text)}; write "
+                         "key=value, ... with Python literals") from None
+    # one group of overrides: "px4(A=1)(B=2)" parses as a call of a call, which would drop A
+    if not isinstance(call, ast.Call) or call.args or not isinstance(call.func, ast.Name):
+        raise ValueError(f"agent {shown(where)}: overrides must be one group of key=value pairs, got "
+                         f"{shown(text)}")
     out = {}
     for kw in call.keywords:
         if kw.arg is None:
-            raise ValueError(f"agent {shown(where)}: overrides must be key=value pairs, got ({text})")
+            raise ValueError(f"agent {shown(where)}: overrides must be key=value pairs, got {shown(text)}")
+        if kw.arg in out:
+            raise ValueError(f"agent {shown(where)}: {kw.arg} is given twice; give each override once")
         try:
             out[kw.arg] = ast.literal_eval(kw.value)
         except ValueError:

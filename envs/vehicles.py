@@ -30,7 +30,6 @@ YAML/JSON path; invalid values raise ``ValueError`` naming the field.
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from collections.abc import Mapping
 from pathlib import Path
@@ -42,6 +41,7 @@ from numpy.typing import NDArray
 from fawtgym.core.arrays import REAL_KINDS, as_array
 from fawtgym.core.checks import check_number, listed, shown
 from fawtgym.core.constants import GRAVITY  # defined in core; importable from here too (compatibility)
+from fawtgym.core.files import DATA_SUFFIXES, load_data
 
 AIR_DENSITY = 1.225  #: ISA sea-level air density [kg/m^3]
 
@@ -322,15 +322,12 @@ def make_vehicle(spec: str | VehiclePreset | Mapping[str, Any] | Path) -> Vehicl
         if str(spec) in _PRESETS:
             return _PRESETS[str(spec)]()
         path = Path(spec)
-        if path.suffix.lower() in (".yaml", ".yml", ".json") and path.is_file():
-            text = path.read_text()
-            if path.suffix.lower() == ".json":
-                return vehicle_from_mapping(json.loads(text))
-            try:
-                import yaml
-            except ImportError as exc:  # pragma: no cover - depends on the install
-                raise ImportError("reading a YAML vehicle needs pyyaml: pip install 'fawtgym[yaml]'") from exc
-            return vehicle_from_mapping(yaml.safe_load(text))
+        if path.suffix.lower() in DATA_SUFFIXES:
+            data = load_data(path, "vehicle file")
+            if not isinstance(data, Mapping):
+                raise ValueError(f"vehicle file {path} must hold a mapping of vehicle fields, got "
+                                 f"{type(data).__name__}")
+            return vehicle_from_mapping(data)
         raise ValueError(f"unknown vehicle {str(spec)!r}; valid presets: {list(VEHICLE_NAMES)} "
                          "(or a VehiclePreset, a mapping, or a .yaml/.json file)")
     raise ValueError(f"vehicle must be a preset name, a VehiclePreset, a mapping or a .yaml/.json path, got "

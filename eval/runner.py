@@ -33,6 +33,7 @@ import os
 import re
 import tempfile
 import time
+import zipfile
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -41,6 +42,7 @@ import numpy as np
 from gymnasium import spaces
 
 from fawtgym.core.checks import check_positive, shown
+from fawtgym.core.files import load_data
 
 from .scenarios import Scenario, scenario_from_mapping, table4_duty
 
@@ -222,8 +224,12 @@ def read_traces(out: Path, agent: str, scenario: str) -> dict[str, np.ndarray] |
     _, npz = cell_paths(out, agent, scenario)
     if not npz.is_file():
         return None
-    with np.load(npz) as data:
-        return {k: data[k] for k in data.files}
+    try:
+        with np.load(npz, allow_pickle=False) as data:
+            return {k: data[k] for k in data.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:  # empty, truncated or not an npz at all
+        raise ValueError(f"{npz} is not a readable trace file of 'fawtgym eval' ({type(exc).__name__}); delete it "
+                         f"and {npz.with_suffix('.json').name} beside it, and run the cell again") from None
 
 
 def is_finished(out: Path, agent: str, scenario: Mapping[str, Any], seeds: Sequence[int], record_hz: float) -> bool:
@@ -250,12 +256,13 @@ def update_run_file(out: Path, agents: Sequence[str], scenarios: Sequence[Scenar
                     baseline: str | None, command: str, record_hz: float) -> dict[str, Any]:
     """Create or extend ``run.json`` (agents and scenarios accumulate; the seeds of a run folder are fixed)."""
     path = Path(out) / "run.json"
-    old = read_cell(path) if path.is_file() else None
+    old = read_run(path) if path.is_file() else None
     run: dict[str, Any] = old or {"format": FORMAT, "agents": [], "scenarios": [], "seeds": list(seeds),
                                   "record_hz": record_hz, "commands": []}
     if list(run["seeds"]) != list(seeds) or float(run.get("record_hz", record_hz)) != float(record_hz):
-        raise ValueError(f"{out} holds a run with seeds {run['seeds']} at {run.get('record_hz')} Hz traces; use the "
-                         f"same --seeds/--record-hz to extend it or another --out (got seeds {list(seeds)})")
+        raise ValueError(f"{out} holds a run with seeds {shown(run['seeds'])} at {run.get('record_hz')} Hz traces; "
+                         f"use the same --seeds/--record-hz to extend it or another --out (got seeds "
+                         f"{shown(list(seeds))})")
     run["agents"] = list(dict.fromkeys([*run["agents"], *agents]))
     known = {s["name"]: s for s in run["scenarios"]}
     for sc in scenarios:
@@ -387,15 +394,37 @@ def _progress(total: int, enabled: bool, skipped: int) -> Any:
                 dynamic_ncols=True)
 
 
+def read_run(path: Path) -> dict[str, Any]:
+    """A results folder's ``run.json``, its shape checked (ValueError naming the file and the first bad field)."""
+    run = load_data(path, "run file")
+    bad = None
+    if not isinstance(run, dict):
+        bad = f"must hold a JSON object, got {type(run).__name__}"
+    elif not (isinstance(run.get("agents"), list) and all(isinstance(a, str) and a for a in run["agents"])):
+        bad = f"agents must be a list of agent names, got {shown(run.get('agents'))}"
+    elif not (isinstance(run.get("scenarios"), list)
+              and all(isinstance(sc, dict) and isinstance(sc.get("name"), str) for sc in run["scenarios"])):
+        bad = f"scenarios must be a list of scenario records with names, got {shown(run.get('scenarios'))}"
+    elif not isinstance(run.get("seeds"), list):
+        bad = f"seeds must be a list, got {shown(run.get('seeds'))}"
+    if bad is not None:
+        raise ValueError(f"{path} is not a run file of 'fawtgym eval': {bad}")
+    try:
+        check_seeds(run["seeds"])
+        if "record_hz" in run:
+            check_record_hz(run["record_hz"])
+    except ValueError as exc:
+        raise ValueError(f"{path} is not a run file of 'fawtgym eval': {exc}") from None
+    return run
+
+
 def load_run(out: Path) -> tuple[dict[str, Any], dict[tuple[str, str], dict[str, Any]]]:
     """``(run.json, {(agent, scenario): cell record})`` of a results folder; ValueError if it is not one."""
     out = Path(out)
     run_path = out / "run.json"
     if not run_path.is_file():
         raise ValueError(f"{str(out)!r} is not a results folder of 'fawtgym eval' (no run.json)")
-    run = read_cell(run_path)
-    if run is None:
-        raise ValueError(f"{run_path} is not readable JSON")
+    run = read_run(run_path)
     cells = {}
     for sc in run["scenarios"]:
         for agent in run["agents"]:

@@ -30,7 +30,6 @@ with options), ``seconds``, ``setpoint`` (NED, default the FAWT hover point), ``
 from __future__ import annotations
 
 import dataclasses
-import json
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -39,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from fawtgym.core.checks import check_number, listed, shown
+from fawtgym.core.files import load_data
 from fawtgym.envs.options import CONTROL_RATE_RANGE, MAX_EPISODE_SECONDS, MAX_SETPOINT
 
 #: the compressed Table 4 schedule (hover, fan on, fan off) [s], as ``fawtgym reproduce table4 --quick`` flies it
@@ -152,6 +152,10 @@ def scenario_names() -> list[str]:
 _FIELDS = [f.name for f in dataclasses.fields(Scenario)]
 
 
+#: the longest scenario description (characters)
+MAX_DESCRIPTION = 2000
+
+
 def scenario_from_mapping(name: str, fields: Mapping[str, Any]) -> Scenario:
     """A scenario from plain fields (a user file); ValueError naming a bad field and what is allowed."""
     given = fields.get("name", name) if isinstance(fields, Mapping) else name
@@ -166,6 +170,17 @@ def scenario_from_mapping(name: str, fields: Mapping[str, Any]) -> Scenario:
     if "wind" not in fields:
         raise ValueError(f"scenario {shown(name)} needs a 'wind' field (a wind name or a mapping with 'name')")
     kw = {k: v for k, v in fields.items() if k != "name"}
+    if not isinstance(kw["wind"], (str, Mapping)) or not kw["wind"]:
+        raise ValueError(f"scenario {shown(name)}: wind must be a wind name or a mapping with 'name', got "
+                         f"{shown(kw['wind'])}")
+    for key in ("description", "sensors", "vehicle"):
+        value = kw.get(key, "")
+        if not (isinstance(value, str) and len(value) <= MAX_DESCRIPTION
+                or key != "description" and isinstance(value, Mapping)):
+            allowed = (f"a str of at most {MAX_DESCRIPTION} characters" if key == "description"
+                       else "a name or a mapping of fields")
+            raise ValueError(f"scenario {shown(name)}: {key} must be {allowed}, got {shown(value)} "
+                             f"({type(value).__name__})")
     if "setpoint" in kw and kw["setpoint"] is not None:
         sp = kw["setpoint"]
         if not (isinstance(sp, Sequence) and not isinstance(sp, str) and len(sp) == 3):
@@ -183,25 +198,7 @@ def scenario_from_mapping(name: str, fields: Mapping[str, Any]) -> Scenario:
 def load_scenarios(path: str | Path) -> list[Scenario]:
     """Scenarios from a YAML (``.yaml``/``.yml``, needs pyyaml) or JSON file (module docstring)."""
     p = Path(path)
-    if not p.is_file():
-        raise ValueError(f"scenario file {str(p)!r} does not exist")
-    text = p.read_text()
-    if p.suffix in (".yaml", ".yml"):
-        try:
-            import yaml
-        except ImportError as exc:  # pragma: no cover - yaml is in the test extra
-            raise ValueError(f"reading {p} needs pyyaml (pip install 'fawtgym[yaml]')") from exc
-        try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise ValueError(f"scenario file {p} is not valid YAML: {str(exc).splitlines()[0]}") from exc
-    elif p.suffix == ".json":
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"scenario file {p} is not valid JSON: {exc}") from exc
-    else:
-        raise ValueError(f"scenario file {p} must end in .yaml, .yml or .json")
+    data = load_data(p, "scenario file")
     if not isinstance(data, Mapping) or not data:
         raise ValueError(f"scenario file {p} must hold a mapping (one scenario's fields, or name -> fields)")
     if "wind" in data:

@@ -46,10 +46,19 @@ def test_agent_grammar() -> None:
     ("px4,px4", "given twice"),
     ("px4+geso(order=3", "unbalanced"),
     ("bad module:X", "module:Class"),
+    ("px4(MPC_XY_P=1, MPC_XY_P=2)", "MPC_XY_P is given twice"),  # ast keeps the last one: it was flown silently
+    ("px4(FOO=1)(MPC_XY_P=2)", "one group of key=value pairs"),  # a call of a call: FOO was dropped unchecked
+    ("px4(MPC_XY_P=" + "9" * 5000 + ")", "an int of more than 4300 digits, beyond any option's range$"),
+    ("sb3:" + "9" * 5000, "is not a folder of 'fawtgym train'"),  # OSError: File name too long (with the 5 kB name)
 ])
 def test_agent_grammar_errors(text: str, match: str) -> None:
-    with pytest.raises(ValueError, match=match):
-        parse_agents(text)
+    with pytest.raises(ValueError, match=match) as err:
+        specs = parse_agents(text)
+        if specs[0].kind == "sb3":  # the path is read when the agent is built
+            from fawtgym.agents.sb3_agent import locate_run
+
+            locate_run(specs[0].target)
+    assert "\n" not in str(err.value) and len(str(err.value)) < 1000
 
 
 def test_make_agent_errors_and_plugin() -> None:

@@ -20,6 +20,7 @@ Finished runs of a sweep are skipped and unfinished ones resumed, so a sweep can
 from __future__ import annotations
 
 import concurrent.futures as cf
+import inspect
 import itertools
 import multiprocessing
 import sys
@@ -28,7 +29,8 @@ from pathlib import Path
 from typing import Any
 
 from fawtgym.cli_parser import ArgumentParser, check_output_dir
-from fawtgym.core.checks import shown
+from fawtgym.core.checks import check_int, check_known, shown
+from fawtgym.core.files import load_data
 
 from .config import ACTION_MODES, ALGOS, OBS_MODES, TrainConfig, freeze, load_hyperparams, parse_literal
 
@@ -130,28 +132,36 @@ def _run_one(cfg_dict: dict[str, Any], out: str, resume: bool, checkpoint_every:
 
 def sweep_configs(path: Path) -> tuple[Path, list[tuple[TrainConfig, Path]]]:
     """(output folder, [(config, run folder)]) of a sweep file."""
-    import yaml
-
-    if not path.is_file():
-        raise ValueError(f"sweep file {str(path)!r} does not exist")
-    try:
-        spec = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ValueError(f"sweep file {path} is not valid YAML: {str(exc).splitlines()[0]}") from exc
+    spec = load_data(path, "sweep file")
     if not isinstance(spec, Mapping) or not set(spec) <= {"out", "base", "grid", "seeds", "hp"}:
         raise ValueError(f"sweep file {path} must be a mapping with keys out, base, grid, seeds, hp")
-    out = Path(spec.get("out", f"runs/{path.stem}"))
-    base = dict(spec.get("base") or {})
-    grid = dict(spec.get("grid") or {})
-    seeds = list(spec.get("seeds", [0]))
+    out = spec.get("out", f"runs/{path.stem}")
+    if not isinstance(out, str) or not out:
+        raise ValueError(f"sweep file {path}: out must be a folder name (a non-empty str), got {shown(out)}")
+    out = Path(out)
+    base, grid, hp_all = (spec.get(key) or {} for key in ("base", "grid", "hp"))
+    for key, value in (("base", base), ("grid", grid), ("hp", hp_all)):
+        if not isinstance(value, Mapping):
+            raise ValueError(f"sweep file {path}: {key} must be a mapping, got {shown(value)}")
+    fields = set(inspect.signature(TrainConfig).parameters) - {"hyperparams"} | {"hp"}
+    check_known({**base, **grid}, sorted(fields), f"sweep file {path} (base, grid)")
+    seeds = spec.get("seeds", [0])
+    seeds = [seeds] if isinstance(seeds, int) and not isinstance(seeds, bool) else seeds
+    if not isinstance(seeds, list) or not seeds:
+        raise ValueError(f"sweep file {path}: seeds must be a seed or a non-empty list of seeds, got {shown(seeds)}")
+    seeds = [check_int(seed, f"sweep file {path}: a seed", 0, 2**32 - 1) for seed in seeds]
+    base, grid = dict(base), dict(grid)
     runs = []
     keys = list(grid)
     for values in itertools.product(*(grid[k] if isinstance(grid[k], list) else [grid[k]] for k in keys)):
         point = {**base, **dict(zip(keys, values, strict=True))}
+        point_hp = point.pop("hp", None) or {}  # once per point: every seed of it takes it
+        if not isinstance(point_hp, Mapping):
+            raise ValueError(f"sweep file {path}: a point's hp must be a mapping, got {shown(point_hp)}")
+        algo = point.get("algo", "ppo")
+        hp = load_hyperparams(algo, {**hp_all, **point_hp})
         for seed in seeds:
-            algo = point.get("algo", "ppo")
-            hp = load_hyperparams(algo, {**(spec.get("hp") or {}), **(point.pop("hp", None) or {})})
-            cfg = make_config(hyperparams=hp, **{**point, "seed": int(seed)})
+            cfg = make_config(hyperparams=hp, **{**point, "seed": seed})
             name = "-".join(f"{v}" for v in values).replace("+", "_").replace("/", "_") or "run"
             runs.append((cfg, out / f"{name}-s{seed}"))
     return out, runs

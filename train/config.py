@@ -19,7 +19,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from fawtgym.core.checks import listed, shown
+from fawtgym.core.checks import check_flag, check_int, check_number, listed, shown
+from fawtgym.core.files import parse_data
 from fawtgym.eval.runner import MAX_SEEDS
 
 ALGOS = ("ppo", "sac", "td3")
@@ -41,9 +42,10 @@ def load_hyperparams(algo: str, overrides: Sequence[str] | Mapping[str, Any] = (
     for key, value in items:
         if isinstance(value, str):
             try:
-                value = yaml.safe_load(value)
-            except yaml.YAMLError:
-                pass
+                value = parse_data(value, f"--hp {key}")
+            except ValueError as exc:
+                if "digits" in str(exc):  # an int beyond Python's int-to-str limit: no hyperparameter takes one
+                    raise
             if isinstance(value, str):  # YAML 1.1 reads 1e-4 (no dot) as a string
                 try:
                     value = float(value)
@@ -73,9 +75,60 @@ def _check_hyperparams(algo: str, hp: Mapping[str, Any]) -> None:
     unknown = set(hp) - valid
     if unknown:
         raise ValueError(f"unknown {algo} hyperparameter(s) {listed(unknown)}; valid: {', '.join(sorted(valid))}")
-    n = hp.get("n_envs", 1)
-    if not (isinstance(n, int) and n >= 1):
-        raise ValueError(f"n_envs must be a positive integer, got {shown(n)}")
+    for key, (count_low, count_high) in HP_INTS.items():
+        if key in hp and not (key == "train_freq" and isinstance(hp[key], (list, tuple))):
+            check_int(hp[key], f"{algo} hyperparameter {key}", count_low, count_high)
+    for key, (low, high, closed_low) in HP_REALS.items():
+        if key in hp and hp[key] is not None and not (key == "ent_coef" and algo == "sac"
+                                                        and isinstance(hp[key], str)):
+            check_number(hp[key], f"{algo} hyperparameter {key}", minimum=low, maximum=high,
+                         inclusive_minimum=closed_low)
+    if algo == "sac" and isinstance(hp.get("ent_coef"), str):
+        coef = hp["ent_coef"]
+        if coef != "auto" and not (coef.startswith("auto_") and _positive_text(coef[5:])):
+            raise ValueError(f"sac hyperparameter ent_coef must be a number >= 0, 'auto' or 'auto_<initial value > 0>'"
+                             f", got {shown(coef)}")
+    if "normalize" in hp:
+        check_flag(hp["normalize"], f"{algo} hyperparameter normalize")
+    if algo == "ppo" and hp.get("batch_size", 64) < 2:
+        raise ValueError(f"ppo hyperparameter batch_size must be at least 2 (Stable-Baselines3 normalizes the "
+                         f"advantage over a minibatch), got {shown(hp['batch_size'])}")
+    if algo == "ppo" and hp.get("n_steps", 2048) * hp.get("n_envs", 1) < 2:
+        raise ValueError("ppo's rollout (n_steps * n_envs) must hold at least 2 steps, got "
+                         f"{hp.get('n_steps', 2048)} * {hp.get('n_envs', 1)}")
+    kwargs = hp.get("policy_kwargs", {})
+    if not isinstance(kwargs, Mapping):
+        raise ValueError(f"{algo} hyperparameter policy_kwargs must be a mapping, got {shown(kwargs)}")
+    arch = kwargs.get("net_arch", [64])
+    layers = arch.values() if isinstance(arch, Mapping) else [arch]
+    for sizes in layers:
+        if not isinstance(sizes, (list, tuple)) or not sizes:
+            raise ValueError(f"policy_kwargs net_arch must be a list of layer widths (or a mapping of such lists: "
+                             f"pi, vf, qf), got {shown(arch)}")
+        for width in sizes:
+            check_int(width, "policy_kwargs net_arch layer width", 1, 65536)
+    if "log_std_init" in kwargs:
+        check_number(kwargs["log_std_init"], "policy_kwargs log_std_init", minimum=-20.0, maximum=20.0,
+                     inclusive_minimum=True)
+
+
+#: integer hyperparameters and their ranges ([low, high]; ``gradient_steps`` -1: as many as env steps, SB3's meaning)
+HP_INTS = {"n_envs": (1, 4096), "n_steps": (1, 10**7), "batch_size": (1, 10**7), "n_epochs": (1, 10**4),
+           "buffer_size": (1, 10**9), "learning_starts": (0, 10**12), "train_freq": (1, 10**6),
+           "gradient_steps": (-1, 10**4), "policy_delay": (1, 10**4)}
+#: real hyperparameters and their ranges (low, high, low included?); None is left to the algorithm (its default)
+HP_REALS = {"learning_rate": (0.0, 1.0, False), "gamma": (0.0, 1.0, True), "gae_lambda": (0.0, 1.0, True),
+            "clip_range": (0.0, 10.0, False), "clip_range_vf": (0.0, 1e6, False), "ent_coef": (0.0, 1e3, True),
+            "vf_coef": (0.0, 1e3, True), "max_grad_norm": (0.0, 1e9, False), "target_kl": (0.0, 1e3, False),
+            "tau": (0.0, 1.0, False), "action_noise_std": (0.0, 10.0, True), "target_policy_noise": (0.0, 10.0, True),
+            "target_noise_clip": (0.0, 10.0, True)}
+
+
+def _positive_text(text: str) -> bool:
+    try:
+        return float(text) > 0.0
+    except ValueError:
+        return False
 
 
 def algo_class(algo: str) -> Any:

@@ -31,7 +31,9 @@ from typing import Any
 
 import numpy as np
 
-from .config import OWN_KEYS, TrainConfig, algo_class
+from fawtgym.core.checks import check_int
+
+from .config import MAX_TRAIN_STEPS, OWN_KEYS, TrainConfig, algo_class
 
 CHECKPOINTS = "checkpoints"
 
@@ -180,6 +182,10 @@ def train(cfg: TrainConfig, run: Path, *, resume: bool = False, checkpoint_every
     """Train ``cfg`` into ``run`` (module docstring); returns the metadata written."""
     from stable_baselines3.common.callbacks import BaseCallback
 
+    checkpoint_every = check_int(checkpoint_every, "checkpoint_every (--checkpoint-every, env steps)", 1,
+                                 MAX_TRAIN_STEPS)
+    if eval_every is not None:
+        eval_every = check_int(eval_every, "eval_every (--eval-every, env steps)", 1, MAX_TRAIN_STEPS)
     run = Path(run)
     meta_path = run / "metadata.json"
     if resume:

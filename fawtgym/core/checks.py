@@ -76,6 +76,15 @@ def check_known(options: Any, valid: Any, owner: str, hint: str = "") -> None:
                          f"{', '.join(valid) if valid else 'none'}")
 
 
+def check_int(value: Any, name: str, minimum: int, maximum: int) -> int:
+    """An int (a numpy integer too; bool, float and str refused) in [``minimum``, ``maximum``]; else one-line
+    ValueError naming ``name``, the range and the value."""
+    if (isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+            and minimum <= value <= maximum):
+        return int(value)
+    raise ValueError(f"{name} must be an int in [{minimum}, {maximum}], got {shown(value)} ({type(value).__name__})")
+
+
 def check_positive(value: Any, name: str, *, maximum: float = math.inf, note: str = "") -> float:
     """:func:`check_number` with the range (0, ``maximum``]: a real, finite, positive number."""
     return check_number(value, name, minimum=0.0, maximum=maximum, note=note)
