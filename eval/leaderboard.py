@@ -298,7 +298,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError as exc:
         parser.error(str(exc))
     if ns.baseline is not None and board["baseline"] is None:
-        parser.error(f"--baseline {ns.baseline!r} is not an agent of this run; agents: {', '.join(board['agents'])}")
+        parser.error(f"--baseline {shown(ns.baseline)} is not an agent of this run; agents: "
+                     f"{', '.join(board['agents'])}")
     out = ns.out or ns.results
     try:
         paths = write_outputs(board, out)

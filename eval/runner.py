@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from fawtgym.core.checks import check_positive, shown
+from fawtgym.core.checks import check_number, shown
 from fawtgym.core.files import load_data
 
 from .scenarios import Scenario, scenario_from_mapping, table4_duty
@@ -54,6 +54,8 @@ MAX_SEEDS = 10**6
 SEED_LIMIT = 2**32
 #: the highest trace rate [Hz] (a rate above the control rate keeps every step)
 MAX_RECORD_HZ = 1e5
+#: the lowest trace rate [Hz]: one sample per 1000 s (a rate of 1e-300 Hz made the sample interval overflow)
+MIN_RECORD_HZ = 1e-3
 
 
 def check_seeds(seeds: Any) -> list[int]:
@@ -72,9 +74,10 @@ def check_seeds(seeds: Any) -> list[int]:
 
 
 def check_record_hz(record_hz: Any) -> float:
-    """The trace rate [Hz] as a float in (0, :data:`MAX_RECORD_HZ`] (ValueError naming it otherwise)."""
-    return check_positive(record_hz, "record_hz", maximum=MAX_RECORD_HZ,
-                          note="Hz (the traces' rate; above the control rate: every step)")
+    """The trace rate [Hz] as a float in [:data:`MIN_RECORD_HZ`, :data:`MAX_RECORD_HZ`] (ValueError naming it
+    otherwise)."""
+    return check_number(record_hz, "record_hz", minimum=MIN_RECORD_HZ, inclusive_minimum=True,
+                        maximum=MAX_RECORD_HZ, note="Hz (the traces' rate; above the control rate: every step)")
 
 
 class CellError(RuntimeError):

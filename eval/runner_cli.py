@@ -23,6 +23,7 @@ from pathlib import Path
 from fawtgym.cli_parser import ArgumentParser
 from fawtgym.core.checks import shown
 
+from .leaderboard import DEFAULT_BASELINE
 from .runner import DEFAULT_RECORD_HZ, MAX_SEEDS, check_seeds
 from .scenarios import Scenario
 
@@ -98,7 +99,8 @@ def build_parser() -> argparse.ArgumentParser:
                                                               "default), a range 10:15, or a list 1,4,9")
     p.add_argument("--out", type=Path, default=None, help="results folder (default results/quick, results/full "
                                                           "with --full, results/eval otherwise)")
-    p.add_argument("--baseline", default="px4", help="agent the others are compared with, paired (default px4)")
+    p.add_argument("--baseline", default=DEFAULT_BASELINE,
+                   help=f"agent the others are compared with, paired (default {DEFAULT_BASELINE})")
     p.add_argument("--rank-on", default=None, help="scenario the printed leaderboard ranks on (default: the first)")
     p.add_argument("--workers", type=_positive_int, default=2, help="local worker processes (default 2)")
     p.add_argument("--backend", choices=("local", "ray"), default="local",
@@ -138,6 +140,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         for sc in scenarios:
             check_scenario(sc)
         check_agents(agents, scenarios[0])
+        if ns.baseline != DEFAULT_BASELINE and ns.baseline not in agents:  # the default may be absent: no baseline
+            raise ValueError(f"--baseline {shown(ns.baseline)} is not one of the agents: {', '.join(agents)}")
         if ns.rank_on is not None and ns.rank_on not in [s.name for s in scenarios]:
             raise ValueError(f"--rank-on {shown(ns.rank_on)} is not one of the scenarios: "
                              f"{', '.join(s.name for s in scenarios)}")

@@ -63,6 +63,13 @@ class Scenario:
     init_noise: float = 0.0
     description: str = ""
 
+    def __post_init__(self) -> None:
+        """A scenario lasts at least one control step: the env would round a shorter one up to a step, and the
+        leaderboard would report the flight under a duration it did not fly."""
+        if self.seconds * self.control_rate < 1.0 - 1e-9:
+            raise ValueError(f"scenario {shown(self.name)}: seconds must be at least one control step (1 / "
+                             f"control_rate = {1.0 / self.control_rate:g} s), got {shown(self.seconds)}")
+
     def env_options(self) -> dict[str, Any]:
         """Keyword arguments of ``fawtgym/Hover-v0`` / ``HoverBatchEnv`` for this scenario."""
         opts: dict[str, Any] = {"vehicle": self.vehicle, "wind": _thaw(self.wind), "sensors": self.sensors,

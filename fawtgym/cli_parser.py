@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import re
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -34,6 +35,8 @@ class ArgumentParser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         message = " ".join(str(message).split())
+        # argparse quotes the raw text it refused ("invalid int value: '999...'"): a long one is cut as every message
+        message = re.sub(r"'([^']{200,})'", lambda m: shown(m.group(1)), message)
         sys.stderr.write(f"{self.prog}: error: {message} (see: {self.prog} --help)\n")
         raise SystemExit(2)
 
@@ -102,7 +105,7 @@ def duty_percent(lo: float = 0.0, hi: float = 100.0) -> Callable[[str], float]:
     def parse(text: str) -> float:
         t = text.strip()
         has_pct = t.endswith("%")
-        v = _number(t.rstrip("%"), float, f"a duty in percent ({lo:g}-{hi:g})")
+        v = _number(t[:-1] if has_pct else t, float, f"a duty in percent ({lo:g}-{hi:g})")  # one % sign at most
         if not has_pct and 0 < v < 1:
             raise argparse.ArgumentTypeError(f"{shown(text)}: the duty is given in percent ({lo:g}-{hi:g}); "
                                              f"for {100 * v:g} % write {100 * v:g}")

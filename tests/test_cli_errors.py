@@ -57,7 +57,15 @@ CASES = [
     ["eval", "--wind", "fawt-50", "--duration", "-1"],
     ["eval", "--out", "a_file/results"],
     ["leaderboard", "/nonexistent/results"],
+    ["eval", "--wind", "calm", "--duration", "1e-300"],  # was flown as one 0.005 s step under the name calm-1e-300s
+    ["eval", "--wind", "calm", "--duration", "1", "--record-hz", "1e-300"],  # the sample interval overflowed
+    ["eval", "--agents", "px4+leso", "--wind", "calm", "--duration", "1", "--baseline", "nope"],  # was accepted
+    ["eval", "--agents", "px4(MPC_XY_P=1, MPC_XY_P=2)"],  # the last value was kept silently
+    ["eval", "--agents", "px4(FOO=1)(MPC_XY_P=2)"],  # FOO was dropped unchecked
     # train
+    ["train", "--eval-every", "0"],  # divided by zero after the env was built
+    ["train", "--hp", "n_steps=0"],  # Stable-Baselines3's assertion traceback
+    ["train", "--hp", "clip_range=.nan"],  # trained on NaN
     ["train", "--algo", "nosuch"],
     ["train", "--obs", "nosuch"],
     ["train", "--steps", "0"],
@@ -96,6 +104,14 @@ CASES = [
     ["observe", "a_file", "--observer", "nosuch", "--vehicle", "s500"],
     ["observe", "a_file", "--observer", "ffts_eso", "--vehicle", "nosuch"],
     ["observe", "a_file", "--observer", "ffts_eso", "--vehicle", "s500", "--rate", "0"],
+    ["observe", "a_file", "--observer", "ffts_eso", "--vehicle", "s500", "--rate", "1e300"],  # numpy's size error
+    ["observe", ".", "--observer", "ffts_eso", "--vehicle", "s500"],  # a folder: it said "does not exist"
+    ["sitl", "px4", "--sim-duration", "nan"],  # refused only after PX4 connected
+    ["sitl", "px4", "--bridge-tlog", "a_file/x.tlog"],  # refused only after PX4 connected
+    ["sitl", "px4", "--log", "a_file"],  # FileExistsError
+    ["replay", "--agent", "px4", "--tlog", "a_file/x.tlog"],  # refused only after the autopilot answered
+    ["replay", "--agent", "px4", "--rate", "1e300"],  # named the env's control_rate
+    ["wind", "--preset", "fawt", "--duty", "50%%"],  # was read as 50
     ["sitl", "px4", "--port", "-1"],
     ["sitl", "px4", "--wind", "nosuch"],
     ["sitl", "px4", "--seed", "-1"],
@@ -144,6 +160,22 @@ def test_bad_arguments_give_one_line(argv: list[str], capsys: pytest.CaptureFixt
     assert len(lines) == 1, err
     assert "Traceback" not in err
     assert "error" in lines[0]
+
+
+BIG = "9" * 5000
+
+
+@pytest.mark.parametrize("argv", [["train", "--seed", BIG], ["eval", "--agents", f"px4(MPC_XY_P={BIG})"],
+                                  ["eval", "--agents", f"sb3:{BIG}"], ["leaderboard", "x", "--baseline", BIG]],
+                         ids=["argparse int", "override", "sb3 path", "baseline"])
+def test_a_huge_value_is_cut_in_the_one_line(argv: list[str], capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """The 5000 digits were repeated in full (5 kB lines), or Python's int-to-str error leaked."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit):
+        raise SystemExit(main(argv))
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and len(err) < 800 and "Exceeds the limit" not in err, err[:300]
 
 
 def _help_argvs() -> list[object]:

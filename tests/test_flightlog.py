@@ -206,6 +206,36 @@ def test_truncated_and_non_ulog_files_are_one_line_errors(tmp_path: Path) -> Non
     assert "does not exist" in _one_line(exc)
 
 
+def test_wrong_topics_directory_and_rates_are_named(tmp_path: Path) -> None:
+    """A topic the log lacks was reported as a truncated log; a folder as missing; rates of 0, NaN, 1e300, a str
+    raised ZeroDivisionError, numpy's size or ufunc errors, or ran and estimated nothing."""
+    with pytest.raises(FlightLogError, match=r"holds no sample of the topic\(s\) \['nope'\]"):
+        read_log(SITL, ("nope",))
+    with pytest.raises(FlightLogError, match=r"topics must be a sequence of PX4 topic names"):
+        read_log(SITL, "vehicle_attitude")  # type: ignore[arg-type]
+    assert "vehicle_attitude" in read_log(SITL, ("vehicle_attitude",)).topics
+    with pytest.raises(FlightLogError, match=r"is a directory"):
+        read_log(tmp_path)
+    for rate in (0.5, float("nan"), 1e300, "50", 10**5000):
+        with pytest.raises(FlightLogError, match=r"^observer rate \(--rate\) must be a finite real number in "
+                                                 r"\[1, 10000\] Hz, got "):
+            observe(SITL, ["leso"], JMAVSIM, rate=rate)  # type: ignore[arg-type]
+        with pytest.raises(FlightLogError, match=r"^observer rate"):
+            make_grid(0.0, 1.0, rate)  # type: ignore[arg-type]
+    for scale in ("1e400", 10**5000, "-1", True):
+        with pytest.raises(FlightLogError, match=r"^--thrust-scale must be one of \['auto'"):
+            observe(SITL, ["leso"], JMAVSIM, thrust_scale=scale)  # type: ignore[arg-type]
+
+
+def test_trim_rates_are_checked(tmp_path: Path) -> None:
+    from fawtgym.flightlog.trim import trim_ulog
+
+    for rate in (0, float("nan"), -1):
+        with pytest.raises(ValueError, match=r"^max_rate \(--max-rate\) must be a finite real number in \(0, "):
+            trim_ulog(SITL, tmp_path / "x.ulg", rate)
+    assert not (tmp_path / "x.ulg").exists()
+
+
 def test_cli_errors_exit_2_with_one_line_and_no_traceback(tmp_path: Path) -> None:
     bad = tmp_path / "bad.ulg"
     bad.write_text("garbage")

@@ -82,7 +82,7 @@ def test_eval_cells_refuse_seeds_and_trace_rates_that_are_not_what_they_say():
         with pytest.raises(ValueError, match=r"^seeds must be 1 to 1000000 distinct int seeds in \[0, 2\*\*32\)"):
             fly_cell("px4", calm, bad)
     for bad in (-1, 0, float("nan"), HUGE, "20", 1e6):
-        with pytest.raises(ValueError, match=r"^record_hz must be a finite real number in \(0, 100000\] Hz"):
+        with pytest.raises(ValueError, match=r"^record_hz must be a finite real number in \[0.001, 100000\] Hz"):
             cell_key("px4", calm, [0], bad)
     assert check_seeds((3, 1)) == [3, 1] and check_record_hz(20) == 20.0
 

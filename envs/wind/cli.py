@@ -101,7 +101,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ti = math.sqrt(var) / mean if mean > 0 else float("nan")
     print(f"wind {ns.preset}: {u.shape[0]} steps of {ns.dt:g} s x {ns.fields} field(s) at NED {np.round(point, 3)}")
     print(f"{'':14s}{'mean [m/s]':>12s}{'var [m2/s2]':>14s}{'TI':>9s}")
-    print(f"{'generated':14s}{mean:12.3f}{var:14.4f}{ti:9.4f}")
+    ti_text = f"{ti:9.4f}" if math.isfinite(ti) else f"{'-':>9s}"  # no mean flow (calm): TI is undefined
+    print(f"{'generated':14s}{mean:12.3f}{var:14.4f}{ti_text}")
     if isinstance(wind, FawtWind):
         duty = wind.duty
         if duty in TABLE3:

@@ -46,8 +46,9 @@ from typing import Any
 import numpy as np
 
 from fawtgym.core import measurement as M
-from fawtgym.core.checks import shown
+from fawtgym.core.checks import check_number, shown
 from fawtgym.core.frames import rot_to_euler
+from fawtgym.envs.options import MAX_EPISODE_SECONDS
 
 from . import convert as C
 from .airframe import PX4_MOTOR_TO_ROTOR
@@ -59,6 +60,12 @@ MSG_ID_HIL_STATE_QUATERNION = 115
 #: the ground contact wrench (zero in the air), each held over the step that ends at the row's ``t``
 TRUTH_WRENCH_COLUMNS = ("fa_n", "fa_e", "fa_d", "ta_x", "ta_y", "ta_z", "fg_n", "fg_e", "fg_d", "tg_x", "tg_y", "tg_z")
 CMD_SET_MESSAGE_INTERVAL = 511
+
+
+def check_sim_duration(duration: object) -> float:
+    """``--sim-duration`` [simulated s] in (0, 1e9]; ValueError naming it otherwise."""
+    return check_number(duration, "sim duration (--sim-duration)", minimum=0.0, maximum=MAX_EPISODE_SECONDS,
+                        note="simulated s")
 
 
 class Px4Bridge:
@@ -118,8 +125,8 @@ class Px4Bridge:
 
         Returns a summary (steps, simulated and wall seconds, lockstep reached, final true position).
         """
-        if duration is not None and not (math.isfinite(duration) and duration > 0):
-            raise ValueError(f"duration must be a positive number of seconds, got {shown(duration)}")
+        if duration is not None:
+            duration = check_sim_duration(duration)
         self._server.settimeout(self.accept_timeout)
         try:
             conn, peer = self._server.accept()

@@ -15,7 +15,14 @@ from typing import Any
 
 import numpy as np
 
-from fawtgym.cli_parser import ArgumentParser, bounded_int, nonnegative_float, seed
+from fawtgym.cli_parser import (
+    ArgumentParser,
+    bounded_int,
+    check_output_dir,
+    check_output_file,
+    nonnegative_float,
+    seed,
+)
 from fawtgym.core.checks import shown
 
 from .mavio import SitlError
@@ -113,6 +120,7 @@ def replay_main(argv: Sequence[str]) -> int:
                         "the PX4 none_iris Iris that 'fawtgym sitl px4' flies; s500, x500, ... or a .yaml/.json "
                         "file for an autopilot flying that vehicle); an sb3: policy must have been trained for it")
     ns = parser.parse_args(list(argv))
+    check_output_file(parser, "--tlog", ns.tlog or None, (".tlog",))  # before the wait for the autopilot
     log = lambda text: print(f"replay: {text}", flush=True)
     replay = _make_replay(parser, ns, ns.connect, log)
     log(f"agent {replay.agent_name} on {ns.connect}, hover point {replay.hover_point.tolist()}, "
@@ -157,12 +165,17 @@ def sitl_main(argv: Sequence[str]) -> int:
                         help="in lockstep, wait this long for PX4's answer to a sample [s] (default 5)")
     _replay_args(parser, None)
     ns = parser.parse_args(list(argv))
-    from .bridge import Px4Bridge
+    for flag, path in (("--bridge-tlog", ns.bridge_tlog), ("--tlog", ns.tlog if ns.agent is not None else None)):
+        check_output_file(parser, flag, path or None, (".tlog",))  # before the wait for PX4
+    check_output_dir(parser, "--log", ns.log)
+    from .bridge import Px4Bridge, check_sim_duration
     from .convert import BARO_NOISE_PA, Home, parse_home
     from .plant import SitlVehicle
 
     log = lambda text: print(f"sitl px4: {text}", flush=True)
     try:
+        if ns.sim_duration is not None:
+            check_sim_duration(ns.sim_duration)
         wind = _wind_spec(ns.wind)
         home = Home() if ns.home is None else parse_home(ns.home)
         start = None if ns.start is None else _vector(ns.start, "--start")

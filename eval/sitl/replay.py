@@ -44,7 +44,6 @@ the ``.tlog``.
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from collections.abc import Callable, Mapping
@@ -56,11 +55,12 @@ from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
-from fawtgym.core.checks import shown
+from fawtgym.core.checks import check_number, shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.frames import FAWT_HOVER_POINT_NED, euler_to_rot, rot_to_euler
 from fawtgym.envs.ctbr import MAX_RATES
 from fawtgym.envs.observation import hover_observation
+from fawtgym.envs.options import CONTROL_RATE_RANGE, MAX_EPISODE_SECONDS
 
 from . import convert as C
 from .airframe import iris
@@ -127,18 +127,18 @@ class Replay:
         from fawtgym.envs.hover_env import HoverEnv
         from fawtgym.envs.vehicles import make_vehicle
 
-        if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate >= 50.0):
-            raise ValueError(f"rate must be >= 50 Hz (SET_ATTITUDE_TARGET stream), got {shown(rate)}")
-        if not (math.isfinite(prestream) and prestream > 1.0):
-            raise ValueError(f"prestream must be more than 1 s (PX4 wants setpoints before OFFBOARD), "
-                             f"got {shown(prestream)}")
-        for name, value in (("duration", duration), ("climb_speed", climb_speed), ("heartbeat_timeout",
-                            heartbeat_timeout), ("telemetry_timeout", telemetry_timeout), ("connect_timeout",
-                            connect_timeout), ("command_timeout", command_timeout), ("land_timeout", land_timeout)):
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive number, got {shown(value)}")
-        if not (math.isfinite(settle) and settle >= 0):
-            raise ValueError(f"settle must be >= 0 s, got {shown(settle)}")
+        rate = check_number(rate, "rate (--rate)", minimum=50.0, inclusive_minimum=True,
+                            maximum=CONTROL_RATE_RANGE[1], note="Hz (the SET_ATTITUDE_TARGET stream)")
+        prestream = check_number(prestream, "prestream", minimum=1.0, maximum=MAX_EPISODE_SECONDS,
+                                 note="s (PX4 wants setpoints before OFFBOARD)")
+        for name, value in (("duration (--duration)", duration), ("climb_speed (--climb-speed)", climb_speed),
+                            ("heartbeat_timeout (--heartbeat-timeout)", heartbeat_timeout),
+                            ("telemetry_timeout (--telemetry-timeout)", telemetry_timeout),
+                            ("connect_timeout (--connect-timeout)", connect_timeout),
+                            ("command_timeout", command_timeout), ("land_timeout", land_timeout)):
+            check_number(value, name, minimum=0.0, maximum=MAX_EPISODE_SECONDS)
+        settle = check_number(settle, "settle", minimum=0.0, inclusive_minimum=True, maximum=MAX_EPISODE_SECONDS,
+                              note="s")
         self.preset = iris() if vehicle in (None, "iris") else make_vehicle(vehicle)
         self.hover_point = np.array(FAWT_HOVER_POINT_NED if hover_point is None else hover_point, dtype=float)
         self.origin = np.array(ground_start(self.preset) if origin is None else origin, dtype=float)

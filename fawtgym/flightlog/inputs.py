@@ -190,21 +190,30 @@ def thrust_scales(model: ThrustModel, log: FlightLog, c_grid: NDArray[np.float64
 SCALE_CHOICES: tuple[str, ...] = ("auto", "estimate", "hover", "param", "preset")
 
 
-def choose_scale(scales: dict[str, object], choice: str) -> tuple[float, str]:
+#: the largest ``--thrust-scale`` (a factor on the preset's rotor thrust)
+MAX_THRUST_SCALE = 1e3
+
+
+def choose_scale(scales: dict[str, object], choice: str, check_only: bool = False) -> tuple[float, str]:
     """The scale for ``--thrust-scale`` (auto | estimate | hover | param | preset | number) and its origin.
 
     ``auto`` takes the first candidate the log pins in the order estimate, hover, param, preset; a named
-    candidate the log does not pin raises FlightLogError naming what it needs.
+    candidate the log does not pin raises FlightLogError naming what it needs.  ``check_only``: only refuse a
+    choice that is none of these (before the log is read); returns ``(nan, "")`` for a named one.
     """
-    if choice not in SCALE_CHOICES:
+    if not (isinstance(choice, str) and choice in SCALE_CHOICES):
         try:
-            value = float(choice)
-        except ValueError:
+            value = float(choice) if isinstance(choice, (str, float, int)) and not isinstance(choice, bool) \
+                else math.nan
+        except (ValueError, OverflowError):  # not a number; an int beyond float range
             raise FlightLogError(f"--thrust-scale must be one of {list(SCALE_CHOICES)} or a positive number, "
                                  f"got {shown(choice)}") from None
-        if not (math.isfinite(value) and value > 0):
-            raise FlightLogError(f"--thrust-scale must be a finite positive number, got {shown(choice)}")
+        if not (math.isfinite(value) and 0 < value <= MAX_THRUST_SCALE):
+            raise FlightLogError(f"--thrust-scale must be one of {list(SCALE_CHOICES)} or a finite number in (0, "
+                                 f"{MAX_THRUST_SCALE:g}], got {shown(choice)}")
         return value, "given"
+    if check_only:
+        return math.nan, ""
     if choice == "auto":
         for key in ("estimate", "hover", "param", "preset"):
             if scales.get(key) is not None:

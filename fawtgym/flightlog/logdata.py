@@ -75,8 +75,10 @@ def read_log(path: str | Path, topics: tuple[str, ...] | None = None) -> FlightL
     loading only these keeps memory proportional to what is used.
     """
     p = Path(path)
+    if p.is_dir():
+        raise FlightLogError(f"log file {shown(str(p))} is a directory (give a .ulg or .tlog file)")
     if not p.is_file():
-        raise FlightLogError(f"log file {str(p)!r} does not exist (give a .ulg or .tlog file)")
+        raise FlightLogError(f"log file {shown(str(p))} does not exist (give a .ulg or .tlog file)")
     suffix = p.suffix.lower()
     if suffix == ".ulg":
         from .ulog import read_ulog

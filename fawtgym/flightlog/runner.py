@@ -21,14 +21,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fawtgym.core.checks import shown
+from fawtgym.core.checks import check_number, shown
 from fawtgym.envs.vehicles import VehiclePreset, make_vehicle
 
 from .errors import FlightLogError
 from .inputs import choose_scale, contradictions, make_thrust_model, rotor_commands, thrust_scales
 from .logdata import FlightLog, read_log
 from .phases import PHASES, Phases, detect_phases, segments
-from .timebase import hold, make_grid
+from .timebase import check_rate, hold, make_grid
 from .topics import measurement_signals
 
 DEFAULT_RATE = 50.0  #: observer rate [Hz]
@@ -68,8 +68,12 @@ def observe(log: FlightLog | str | Path, observers: Sequence[str], vehicle: str 
     unknown = [o for o in observers if o not in observer_names()]
     if unknown:
         raise FlightLogError(f"unknown observer(s) {unknown}; valid names: {observer_names()}")
-    if not (np.isfinite(settle) and settle >= 0):
-        raise FlightLogError(f"--settle must be a finite number of seconds >= 0, got {shown(settle)}")
+    rate = check_rate(rate)  # before the log is read (a bad value is told at once, not after parsing)
+    try:
+        settle = check_number(settle, "--settle", minimum=0.0, inclusive_minimum=True, maximum=1e6, note="s")
+    except ValueError as exc:
+        raise FlightLogError(str(exc)) from None
+    choose_scale({}, thrust_scale, check_only=True)
     try:
         preset = make_vehicle(vehicle)
     except (ValueError, TypeError, OSError) as exc:

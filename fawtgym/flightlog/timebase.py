@@ -15,15 +15,27 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fawtgym.core.checks import shown
+from fawtgym.core.checks import check_number
 
 from .errors import FlightLogError
+
+#: the observers' rate on a log [Hz]: at least one estimate a second, at most 10 kHz (PX4 logs its fastest topics at
+#: a few hundred Hz; a rate of 1e300 Hz asked numpy for a grid beyond any memory)
+RATE_RANGE = (1.0, 1e4)
+
+
+def check_rate(rate: object) -> float:
+    """The observer rate [Hz] as a float in :data:`RATE_RANGE`; FlightLogError naming it otherwise."""
+    try:
+        return check_number(rate, "observer rate (--rate)", minimum=RATE_RANGE[0], inclusive_minimum=True,
+                            maximum=RATE_RANGE[1], note="Hz")
+    except ValueError as exc:
+        raise FlightLogError(str(exc)) from None
 
 
 def make_grid(t_start: float, t_end: float, rate: float) -> NDArray[np.float64]:
     """Grid times [s] from ``t_start`` to ``t_end`` (inclusive when on the grid) at ``rate`` Hz."""
-    if not (np.isfinite(rate) and rate > 0):
-        raise FlightLogError(f"observer rate must be a finite positive number of Hz, got {shown(rate)}")
+    rate = check_rate(rate)
     if not (np.isfinite(t_start) and np.isfinite(t_end)) or t_end <= t_start:
         raise FlightLogError(f"the log's usable time span [{t_start:.3f}, {t_end:.3f}] s is empty")
     n = int(np.floor((t_end - t_start) * rate + 1e-9)) + 1

@@ -24,6 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
+from fawtgym.core.checks import check_int, check_number
+
+
+def _max_rate(max_rate: object) -> float:
+    """``--max-rate`` [Hz] in (0, 1e4] (0 divided by zero; NaN and -1 were taken)."""
+    return check_number(max_rate, "max_rate (--max-rate)", minimum=0.0, maximum=1e4, note="Hz")
+
 
 def trim_ulog(src: str | Path, dest: str | Path, max_rate: float = 100.0) -> dict[str, int]:
     """Write ``dest``: ``src`` with only the topics observe reads, each at most ``max_rate`` Hz.  Returns the
@@ -32,6 +39,7 @@ def trim_ulog(src: str | Path, dest: str | Path, max_rate: float = 100.0) -> dic
 
     from .topics import USED_TOPICS
 
+    max_rate = _max_rate(max_rate)
     ulog = ULog(str(src), list(USED_TOPICS))
     ulog._data_list = [d for d in ulog.data_list if d.multi_id == 0]
     kept = {}
@@ -56,6 +64,7 @@ def trim_tlog(src: str | Path, dest: str | Path, max_rate: float = 50.0) -> dict
 
     from .tlog import _WANTED
 
+    max_rate = _max_rate(max_rate)
     conn = mavutil.mavlink_connection(str(src), dialect="common", robust_parsing=True)
     last: dict[str, float] = {}
     kept: dict[str, int] = {}
@@ -72,6 +81,7 @@ def trim_tlog(src: str | Path, dest: str | Path, max_rate: float = 50.0) -> dict
 
 def trim_truth(src: str | Path, dest: str | Path, block: int = 5) -> int:
     """Write ``dest``: t, wind and the total disturbance wrench of the bridge's truth.csv, block means."""
+    block = check_int(block, "block (--block, steps)", 1, 10**6)
     tr = np.genfromtxt(src, delimiter=",", names=True)
     aero = np.column_stack([tr[c] for c in ("fa_n", "fa_e", "fa_d", "ta_x", "ta_y", "ta_z")])
     ground = np.column_stack([tr[c] for c in ("fg_n", "fg_e", "fg_d", "tg_x", "tg_y", "tg_z")])

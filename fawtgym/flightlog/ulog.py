@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fawtgym.core.checks import listed, shown
+
 from .errors import FlightLogError
 from .logdata import FlightLog, Topic
 
@@ -25,6 +27,9 @@ def read_ulog(path: Path, topics: tuple[str, ...] | None = None) -> FlightLog:
         raise FlightLogError("reading .ulg files needs pyulog: pip install 'fawtgym[logs]'") from None
     from .topics import USED_TOPICS
 
+    if topics is not None and (isinstance(topics, str) or not all(isinstance(t, str) and t for t in topics)):
+        raise FlightLogError(f"topics must be a sequence of PX4 topic names (e.g. ('vehicle_attitude',)), got "
+                             f"{shown(topics)}")
     wanted = list(USED_TOPICS if topics is None else topics)
     size = path.stat().st_size
     try:
@@ -33,6 +38,9 @@ def read_ulog(path: Path, topics: tuple[str, ...] | None = None) -> FlightLog:
         what = " ".join(str(exc).split()) or type(exc).__name__
         raise FlightLogError(f"{path.name} is not a readable PX4 ULog ({what}); give a .ulg written by PX4's "
                              "logger") from None
+    if not ulog.data_list and topics is not None and not ulog.file_corruption and _has_data(path):
+        raise FlightLogError(f"{path.name} holds no sample of the topic(s) {listed(wanted)} (PX4 topic names as "
+                             "logged, e.g. vehicle_attitude)")
     if not ulog.data_list:
         where = "inside the format definitions" if ulog.file_corruption else "before any logged data"
         raise FlightLogError(f"{path.name} is truncated or empty: the file ends after {size} bytes, {where} "
@@ -53,6 +61,16 @@ def read_ulog(path: Path, topics: tuple[str, ...] | None = None) -> FlightLog:
     if ulog.file_corruption:
         notes.append(f"pyulog found corrupt data in {path.name}; data read up to t = {duration:.1f} s")
     return FlightLog(str(path), "ulog", topics_out, params, duration, _px4_version(version), notes, start=t0 * 1e-6)
+
+
+def _has_data(path: Path) -> bool:
+    """Whether any topic of the log has a sample (reads it all: only to tell a missing topic from a cut log)."""
+    from pyulog import ULog
+
+    try:
+        return bool(ULog(str(path)).data_list)
+    except Exception:  # pyulog raises many types on a damaged file: the truncation message follows
+        return False
 
 
 def _px4_version(ver: str) -> str:
