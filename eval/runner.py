@@ -217,9 +217,10 @@ def write_cell(out: Path, result: Mapping[str, Any], traces: Mapping[str, np.nda
 def read_cell(path: Path) -> dict[str, Any] | None:
     """A finished cell's record (None if absent or unreadable)."""
     try:
-        return json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError):
+        record = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):  # missing, not UTF-8, not JSON, an int beyond Python's int-to-str limit
         return None
+    return record if isinstance(record, dict) else None
 
 
 def read_traces(out: Path, agent: str, scenario: str) -> dict[str, np.ndarray] | None:

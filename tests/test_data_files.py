@@ -141,3 +141,14 @@ def test_unreadable_traces_name_the_file(tmp_path: Path, content: bytes) -> None
     good = tmp_path / "cells" / "calm" / "ok.npz"
     np.savez(good, t=np.arange(3.0))
     assert read_traces(tmp_path, "ok", "calm")["t"].tolist() == [0.0, 1.0, 2.0]
+
+
+@pytest.mark.parametrize("content", [b"\xe3\x28", b"[1, 2]", b'{"a": ' + BIG.encode() + b"}", b"{"],
+                         ids=["not UTF-8", "a list", "huge int", "cut"])
+def test_an_unreadable_cell_record_is_an_unfinished_cell(tmp_path: Path, content: bytes) -> None:
+    """read_cell raised UnicodeDecodeError (and callers AttributeError on a list): the cell is flown again instead."""
+    from fawtgym.eval.runner import read_cell
+
+    path = tmp_path / "cell.json"
+    path.write_bytes(content)
+    assert read_cell(path) is None
