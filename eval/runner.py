@@ -232,8 +232,10 @@ def read_traces(out: Path, agent: str, scenario: str) -> dict[str, np.ndarray] |
         with np.load(npz, allow_pickle=False) as data:
             return {k: data[k] for k in data.files}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:  # empty, truncated or not an npz at all
-        raise ValueError(f"{npz} is not a readable trace file of 'fawtgym eval' ({type(exc).__name__}); delete it "
-                         f"and {npz.with_suffix('.json').name} beside it, and run the cell again") from None
+        why = ("empty" if isinstance(exc, EOFError) else "cut short or not a zip archive"
+               if isinstance(exc, zipfile.BadZipFile) else "not an archive of arrays")
+        raise ValueError(f"{npz} is not a readable trace file of 'fawtgym eval' ({why}); delete it and "
+                         f"{npz.with_suffix('.json').name} beside it, and run the cell again") from None
 
 
 def is_finished(out: Path, agent: str, scenario: Mapping[str, Any], seeds: Sequence[int], record_hz: float) -> bool:

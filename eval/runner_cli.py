@@ -118,10 +118,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     ns = parser.parse_args(argv)
     import fawtgym  # noqa: F401  (registers envs and observers)
-    from fawtgym.agents.spec import parse_agents
+    from fawtgym.agents.spec import parse_agent, parse_agents
 
     from . import leaderboard as lb
-    from .runner import run_cells, update_run_file
+    from .runner import read_run, run_cells, update_run_file
     from .scenarios import adhoc_scenario, check_scenario, resolve_scenarios
 
     if (ns.wind is None) != (ns.duration is None):
@@ -140,8 +140,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         for sc in scenarios:
             check_scenario(sc)
         check_agents(agents, scenarios[0])
-        if ns.baseline != DEFAULT_BASELINE and ns.baseline not in agents:  # the default may be absent: no baseline
-            raise ValueError(f"--baseline {shown(ns.baseline)} is not one of the agents: {', '.join(agents)}")
+        if ns.baseline != DEFAULT_BASELINE:  # the default may be absent: no paired column then
+            ns.baseline = parse_agent(ns.baseline).name  # its canonical spelling, as the agents'
+            run_file = Path(ns.out) / "run.json"
+            known = list(dict.fromkeys([*(read_run(run_file)["agents"] if run_file.is_file() else []), *agents]))
+            if ns.baseline not in known:
+                raise ValueError(f"--baseline {shown(ns.baseline)} is not one of the run's agents: {', '.join(known)}")
         if ns.rank_on is not None and ns.rank_on not in [s.name for s in scenarios]:
             raise ValueError(f"--rank-on {shown(ns.rank_on)} is not one of the scenarios: "
                              f"{', '.join(s.name for s in scenarios)}")

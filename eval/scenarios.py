@@ -180,6 +180,8 @@ def scenario_from_mapping(name: str, fields: Mapping[str, Any]) -> Scenario:
     if not isinstance(kw["wind"], (str, Mapping)) or not kw["wind"]:
         raise ValueError(f"scenario {shown(name)}: wind must be a wind name or a mapping with 'name', got "
                          f"{shown(kw['wind'])}")
+    if "description" in kw and kw["description"] is None:  # "description:" left empty in YAML
+        kw["description"] = ""
     for key in ("description", "sensors", "vehicle"):
         value = kw.get(key, "")
         if not (isinstance(value, str) and len(value) <= MAX_DESCRIPTION

@@ -268,3 +268,18 @@ def test_ray_backend_gives_the_local_numbers(tmp_path: Path) -> None:
         ray.shutdown()
     assert not summary["errors"] and len(summary["done"]) == 2
     assert _numbers(tmp_path / "local") == _numbers(tmp_path / "ray")
+
+
+def test_eval_baseline_may_be_an_agent_of_the_run_flown_earlier(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                                                ) -> None:
+    """--baseline names any agent of the results folder (this command's or an earlier one's), in any spelling the
+    grammar reads; a name that is none of them is refused (it was accepted and printed 'vs baseline n/a')."""
+    from fawtgym.cli import main
+
+    common = ["--wind", "calm", "--duration", "0.05", "--seeds", "1", "--out", str(tmp_path / "r"), "--no-progress"]
+    assert main(["eval", "--agents", "px4+geso(order=3)", *common]) == 0
+    assert main(["eval", "--agents", "px4", "--baseline", "px4+geso( order = 3 )", *common]) == 0
+    with pytest.raises(SystemExit) as exc:
+        main(["eval", "--agents", "px4", "--baseline", "px4+leso", *common])
+    assert exc.value.code == 2
+    assert "--baseline 'px4+leso' is not one of the run's agents: px4+geso(order=3), px4" in capsys.readouterr().err

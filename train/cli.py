@@ -217,8 +217,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     ns = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
     check_output_dir(parser, "--out", ns.out)
-    for flag in ("steps", "checkpoint_every", "eval_seeds", "workers"):
-        if getattr(ns, flag) < 1:
+    for flag in ("steps", "checkpoint_every", "eval_seeds", "workers", "eval_every"):
+        if getattr(ns, flag) is not None and getattr(ns, flag) < 1:  # eval_every None: steps / 4
             parser.error(f"--{flag.replace('_', '-')} must be >= 1, got {getattr(ns, flag)}")
     try:
         if ns.sweep is not None:

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from fawtgym.core.checks import check_flag, check_int, check_number, listed, shown
-from fawtgym.core.files import parse_data
+from fawtgym.core.files import load_data, parse_data
 from fawtgym.eval.runner import MAX_SEEDS
 
 ALGOS = ("ppo", "sac", "td3")
@@ -33,18 +33,16 @@ OWN_KEYS = ("policy", "n_envs", "normalize", "action_noise", "action_noise_std")
 
 def load_hyperparams(algo: str, overrides: Sequence[str] | Mapping[str, Any] = ()) -> dict[str, Any]:
     """The algorithm's YAML hyperparameters with ``key=value`` overrides (values are YAML scalars/lists/mappings)."""
-    import yaml
-
     if algo not in ALGOS:
         raise ValueError(f"unknown algorithm {shown(algo)}; valid: {', '.join(ALGOS)}")
-    hp = yaml.safe_load((HYPERPARAMS_DIR / f"{algo}.yaml").read_text())
+    hp = load_data(HYPERPARAMS_DIR / f"{algo}.yaml", "hyperparameter file")
     items = overrides.items() if isinstance(overrides, Mapping) else [_split(o) for o in overrides]
     for key, value in items:
         if isinstance(value, str):
             try:
                 value = parse_data(value, f"--hp {key}")
-            except ValueError as exc:
-                if "digits" in str(exc):  # an int beyond Python's int-to-str limit: no hyperparameter takes one
+            except ValueError as exc:  # text that is no YAML stays a str (a policy name); these are mistakes:
+                if "digits" in str(exc) or "appears twice" in str(exc):  # a huge int, a key given twice
                     raise
             if isinstance(value, str):  # YAML 1.1 reads 1e-4 (no dot) as a string
                 try:
@@ -75,6 +73,12 @@ def _check_hyperparams(algo: str, hp: Mapping[str, Any]) -> None:
     unknown = set(hp) - valid
     if unknown:
         raise ValueError(f"unknown {algo} hyperparameter(s) {listed(unknown)}; valid: {', '.join(sorted(valid))}")
+    freq = hp.get("train_freq")
+    if isinstance(freq, (list, tuple)):  # SB3's (n, unit) form
+        if len(freq) != 2 or freq[1] not in ("step", "episode"):
+            raise ValueError(f"{algo} hyperparameter train_freq must be an int or [n, 'step' | 'episode'], got "
+                             f"{shown(freq)}")
+        check_int(freq[0], f"{algo} hyperparameter train_freq's n", *HP_INTS["train_freq"])
     for key, (count_low, count_high) in HP_INTS.items():
         if key in hp and not (key == "train_freq" and isinstance(hp[key], (list, tuple))):
             check_int(hp[key], f"{algo} hyperparameter {key}", count_low, count_high)
@@ -90,19 +94,20 @@ def _check_hyperparams(algo: str, hp: Mapping[str, Any]) -> None:
                              f", got {shown(coef)}")
     if "normalize" in hp:
         check_flag(hp["normalize"], f"{algo} hyperparameter normalize")
-    if algo == "ppo" and hp.get("batch_size", 64) < 2:
-        raise ValueError(f"ppo hyperparameter batch_size must be at least 2 (Stable-Baselines3 normalizes the "
-                         f"advantage over a minibatch), got {shown(hp['batch_size'])}")
-    if algo == "ppo" and hp.get("n_steps", 2048) * hp.get("n_envs", 1) < 2:
-        raise ValueError("ppo's rollout (n_steps * n_envs) must hold at least 2 steps, got "
-                         f"{hp.get('n_steps', 2048)} * {hp.get('n_envs', 1)}")
+    if algo == "ppo" and hp.get("normalize_advantage", True):  # SB3 normalizes it over a minibatch: 2 at least
+        if hp.get("batch_size", 64) < 2:
+            raise ValueError(f"ppo hyperparameter batch_size must be at least 2 with normalize_advantage (the "
+                             f"advantage is normalized over a minibatch), got {shown(hp['batch_size'])}")
+        if hp.get("n_steps", 2048) * hp.get("n_envs", 1) < 2:
+            raise ValueError("ppo's rollout (n_steps * n_envs) must hold at least 2 steps with normalize_advantage, "
+                             f"got {hp.get('n_steps', 2048)} * {hp.get('n_envs', 1)}")
     kwargs = hp.get("policy_kwargs", {})
     if not isinstance(kwargs, Mapping):
         raise ValueError(f"{algo} hyperparameter policy_kwargs must be a mapping, got {shown(kwargs)}")
-    arch = kwargs.get("net_arch", [64])
-    layers = arch.values() if isinstance(arch, Mapping) else [arch]
+    arch = kwargs.get("net_arch")  # None: the algorithm's default; []: no hidden layer (a linear policy)
+    layers = arch.values() if isinstance(arch, Mapping) else [] if arch is None else [arch]
     for sizes in layers:
-        if not isinstance(sizes, (list, tuple)) or not sizes:
+        if not isinstance(sizes, (list, tuple)):
             raise ValueError(f"policy_kwargs net_arch must be a list of layer widths (or a mapping of such lists: "
                              f"pi, vf, qf), got {shown(arch)}")
         for width in sizes:
@@ -117,7 +122,7 @@ HP_INTS = {"n_envs": (1, 4096), "n_steps": (1, 10**7), "batch_size": (1, 10**7),
            "buffer_size": (1, 10**9), "learning_starts": (0, 10**12), "train_freq": (1, 10**6),
            "gradient_steps": (-1, 10**4), "policy_delay": (1, 10**4)}
 #: real hyperparameters and their ranges (low, high, low included?); None is left to the algorithm (its default)
-HP_REALS = {"learning_rate": (0.0, 1.0, False), "gamma": (0.0, 1.0, True), "gae_lambda": (0.0, 1.0, True),
+HP_REALS = {"learning_rate": (0.0, 10.0, False), "gamma": (0.0, 1.0, True), "gae_lambda": (0.0, 1.0, True),
             "clip_range": (0.0, 10.0, False), "clip_range_vf": (0.0, 1e6, False), "ent_coef": (0.0, 1e3, True),
             "vf_coef": (0.0, 1e3, True), "max_grad_norm": (0.0, 1e9, False), "target_kl": (0.0, 1e3, False),
             "tau": (0.0, 1.0, False), "action_noise_std": (0.0, 10.0, True), "target_policy_noise": (0.0, 10.0, True),

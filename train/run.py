@@ -80,6 +80,8 @@ def build_model(cfg: TrainConfig, venv: Any, tb_dir: Path | None) -> Any:
     """A fresh algorithm instance of ``cfg`` on ``venv``."""
     hp = cfg.hp
     kwargs = {k: v for k, v in hp.items() if k not in OWN_KEYS}
+    if isinstance(kwargs.get("train_freq"), list):  # YAML has no tuple: SB3 takes (n, "step" | "episode")
+        kwargs["train_freq"] = tuple(kwargs["train_freq"])
     if cfg.algo == "td3" and hp.get("action_noise") == "normal":
         from stable_baselines3.common.noise import NormalActionNoise
 

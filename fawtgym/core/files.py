@@ -63,7 +63,8 @@ def parse_data(text: str, where: str, kind: str = "yaml") -> Any:
         if "integer string conversion" in str(exc):  # Python's int-to-str limit, raised while parsing
             raise ValueError(f"{where} holds an integer of more than {sys.get_int_max_str_digits()} digits (no "
                              "option takes one)") from None
-        raise
+        # a tag PyYAML could not construct ("!!int abc"): Python's own text, named as the file's
+        raise ValueError(f"{where} is not valid {kind.upper()}: {' '.join(str(exc).split())}") from None
     except RecursionError:
         raise ValueError(f"{where} is nested too deeply to read") from None
 
