@@ -109,6 +109,7 @@ def test_sweep_point_hyperparameters_reach_every_seed(tmp_path: Path) -> None:
     _, runs = sweep_configs(path)
     got = sorted((cfg.seed, dict(cfg.hyperparams)["n_steps"]) for cfg, _ in runs)
     assert got == [(seed, n) for seed in (0, 1, 2) for n in (64, 128)]
+    assert sorted(folder.name for _, folder in runs)[:2] == ["n_steps_128-s0", "n_steps_128-s1"]  # not "{'n_steps'..."
 
 
 @pytest.mark.parametrize("content, match", [

@@ -162,9 +162,21 @@ def sweep_configs(path: Path) -> tuple[Path, list[tuple[TrainConfig, Path]]]:
         hp = load_hyperparams(algo, {**hp_all, **point_hp})
         for seed in seeds:
             cfg = make_config(hyperparams=hp, **{**point, "seed": seed})
-            name = "-".join(f"{v}" for v in values).replace("+", "_").replace("/", "_") or "run"
+            name = "-".join(_point_text(v) for v in values).replace("+", "_").replace("/", "_") or "run"
             runs.append((cfg, out / f"{name}-s{seed}"))
     return out, runs
+
+
+def _point_text(value: Any) -> str:
+    """A grid value in a run folder's name: a scalar as written; a mapping as its keys and values (an hp point), a
+    list as its items, joined by ``_`` and made file-name safe (``n_steps_64`` rather than ``{'n_steps': 64}``)."""
+    from fawtgym.eval.runner import slug
+
+    if isinstance(value, Mapping):
+        return slug("_".join(f"{k}_{_point_text(v)}" for k, v in value.items()))
+    if isinstance(value, (list, tuple)):
+        return slug("_".join(_point_text(v) for v in value))
+    return f"{value}"
 
 
 def run_sweep(ns: Any) -> int:
