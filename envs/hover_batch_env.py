@@ -220,7 +220,7 @@ MAX_PHYSICS_THREADS = 256
 #: the most rows a HoverBatchEnv takes
 MAX_NUM_ENVS = 10**6
 #: what step() and reset() of a closed env raise
-CLOSED = "the env was closed: step() and reset() need a new env"
+CLOSED = "the env was closed: step(), reset() and render() need a new env"
 
 
 def _check_physics_threads(threads: Any) -> int | None:
@@ -278,6 +278,9 @@ class HoverBatchEnv(VectorEnv):
             ``mj_step`` on the s500; the same physics bit for bit; :mod:`fawtgym.envs.mujoco_timers`); True: with
             them, as the Python bindings set them up.  The switch is one process global: code that reads
             ``mjData.timer`` of MuJoCo it steps on other threads while envs step builds every env with True.
+        max_episode_steps: None, or truncate episodes after at most this many control steps (the shorter of it and
+            ``episode_seconds``): what ``gym.make_vec`` hands a vector entry point for a spec with a time limit,
+            as the ``TimeLimit`` wrapper does for the single env.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -289,7 +292,8 @@ class HoverBatchEnv(VectorEnv):
                  integrator: str = "Euler", render_mode: str | None = None, render_width: int = 480,
                  render_height: int = 480, autoreset_mode: str | AutoresetMode = "next_step",
                  randomizer: Callable[[NDArray[np.intp], list[np.random.Generator]], Mapping[str, Any]] | None = None,
-                 physics_threads: int | None = None, mujoco_timers: bool = False, **unknown: Any) -> None:
+                 physics_threads: int | None = None, mujoco_timers: bool = False,
+                 max_episode_steps: int | None = None, **unknown: Any) -> None:
         if unknown:  # a one-line ValueError, as for every option (Python's TypeError is re-worded by gym.make)
             check_known(unknown, list(inspect.signature(HoverBatchEnv.__init__).parameters)[1:-1], "HoverBatchEnv")
         if (isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer))
@@ -399,6 +403,9 @@ class HoverBatchEnv(VectorEnv):
             obs_high=self._obs_high, reward_weights=self._reward_w, alloc_t=self._alloc_t, rotor_pos=self._rotor_pos,
             hull=self._hull, cop=aero.cop, body_drag=aero.body_drag, k_d=aero.k_d, k_r=aero.k_r)
         self._link_aero()
+        if max_episode_steps is not None:  # the setter checks it
+            self.max_steps = max_episode_steps
+            self.max_steps = min(self.max_steps, opts.max_steps)
 
     def _link_aero(self) -> None:
         """Make the aero model's coefficients a view of the step parameters (cop, body_drag, k_d, k_r, in
@@ -523,11 +530,13 @@ class HoverBatchEnv(VectorEnv):
         self._check_idle("pickling or copying the env")
         state = self.__dict__.copy()
         state["_rollout"] = state["_worker"] = None
+        state["_closed"] = self._rollout is None  # a closed env's copy is closed too
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
+        closed = state.pop("_closed", False)
         self.__dict__.update(state)
-        self._rollout = rollout.Rollout(nthread=self._nthread)
+        self._rollout = None if closed else rollout.Rollout(nthread=self._nthread)
         self._link_aero()  # a copy's aero coefficients are a view of the copy's parameters again
 
     def set_external_wrench(self, force_ned: ArrayLike = (0.0, 0.0, 0.0),

@@ -164,7 +164,7 @@ from fawtgym.core.checks import check_known, shown
 from fawtgym.core.frames import rot_ned_to_quat_mj, vec_ned_to_mj
 
 from .aero import AeroModel
-from .hover_batch_env import HoverBatchEnv
+from .hover_batch_env import CLOSED, HoverBatchEnv
 from .options import (
     ACTION_TYPES,
     DEFAULT_REWARD_WEIGHTS,
@@ -398,6 +398,8 @@ class HoverEnv(gym.Env):
 
     # ---- rendering ----------------------------------------------------------------------
     def render(self) -> NDArray[np.uint8] | None:
+        if self._batch._rollout is None:
+            raise RuntimeError(CLOSED)
         if self._batch._row_rngs is None:
             raise RuntimeError("HoverEnv.render() called before reset(): call reset() first")
         if self.render_mode is None:
@@ -411,6 +413,9 @@ class HoverEnv(gym.Env):
         return self._renderer.render(self.data, self.setpoint, wind)
 
     def close(self) -> None:
+        """Release the renderer and the batch's physics; step(), reset() and render() then raise RuntimeError (as
+        every closed env of the package does; closing twice is allowed)."""
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+        self._batch.close()

@@ -236,3 +236,40 @@ def test_physics_threads_sets_the_rollout_threads_and_survives_pickling():
     np.testing.assert_array_equal(env.step(a)[0], copy.step(a)[0])
     assert env.physics_threads == copy.physics_threads == 3
     assert HoverBatchEnv(1).physics_threads == 0
+
+
+def test_make_vec_time_limit_truncates_as_the_sync_vector_env_does():
+    """gym.make_vec hands a vector entry point the spec's max_episode_steps (it was refused as an unknown option):
+    the batch truncates at the shorter of it and episode_seconds, as TimeLimit does around each single env."""
+    spec = gym.make("fawtgym/Hover-v0", max_episode_steps=5).spec
+    runs = []
+    for mode in ("vector_entry_point", "sync"):
+        venv = gym.make_vec(spec, num_envs=2, vectorization_mode=mode)
+        venv.reset(seed=0)
+        runs.append([venv.step(np.zeros((2, 4), dtype=np.float32))[3].tolist() for _ in range(6)])
+        venv.close()
+    assert runs[0] == runs[1] and runs[0][4] == [True, True] and not any(any(t) for t in runs[0][:4])
+    assert HoverBatchEnv(2, episode_seconds=0.03, max_episode_steps=5).max_steps == 3  # the shorter one
+    with pytest.raises(ValueError, match=r"^max_steps must be an int in \[1, 2\*\*52\]"):
+        HoverBatchEnv(2, max_episode_steps=0)
+
+
+@pytest.mark.parametrize("make", [lambda: gym.make("fawtgym/Hover-v0", render_mode="rgb_array"),
+                                  lambda: HoverBatchEnv(1), lambda: HoverBatchEnv(3)], ids=["single", "N=1", "N=3"])
+def test_a_closed_env_refuses_to_step_at_every_batch_size(make):
+    """HoverEnv.close() closed only its renderer: step, reset and render went on working."""
+    import copy
+
+    env = make()
+    env.reset(seed=0)
+    env.close()
+    env.close()  # twice is allowed
+    calls = [lambda: env.step(env.action_space.sample()), lambda: env.reset(seed=0)]
+    if isinstance(env.unwrapped, HoverEnv):
+        calls.append(env.render)
+    else:
+        calls.append(lambda: copy.deepcopy(env).step(env.action_space.sample()))  # a closed env's copy is closed
+    for call in calls:
+        with pytest.raises(RuntimeError, match=r"^the env was closed: step\(\), reset\(\) and render\(\) need a new "
+                                               r"env$"):
+            call()

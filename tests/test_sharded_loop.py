@@ -154,7 +154,7 @@ def test_a_closed_loop_and_a_closed_env_refuse_to_step():
     for call in (lambda: env.step(env.hover_action()), lambda: env.reset(seed=0)):
         with pytest.raises(RuntimeError) as exc:
             call()
-        assert str(exc.value) == "the env was closed: step() and reset() need a new env"
+        assert str(exc.value) == "the env was closed: step(), reset() and render() need a new env"
 
 
 def test_num_envs_is_bounded():
