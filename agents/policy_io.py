@@ -20,9 +20,10 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.checks import shown
+from fawtgym.core.checks import check_number, shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.envs.motors import allocation_matrix
+from fawtgym.envs.options import check_actions
 from fawtgym.envs.vehicles import VehiclePreset
 
 from .base import measurement_from_info, observer_step
@@ -69,16 +70,23 @@ class ResidualScale:
     """
 
     def __init__(self, low: ArrayLike, high: ArrayLike, bound: float) -> None:
-        if isinstance(bound, bool) or not isinstance(bound, (int, float)) or not 0.0 < bound <= 2.0:
-            raise ValueError(f"residual bound must be a number in (0, 2] (a fraction of the action range), "
-                             f"got {shown(bound)}")
+        self.bound = check_number(bound, "residual bound (--residual-bound)", minimum=0.0, maximum=2.0,
+                                  note="(a fraction of the action range)")
         self.low, self.high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
-        self.bound = float(bound)
         self.scale = self.bound * (self.high - self.low) / 2.0
 
     def __call__(self, base: ArrayLike, u: ArrayLike) -> NDArray[np.float64]:
         u = np.clip(np.asarray(u, dtype=float), -1.0, 1.0)
         return np.minimum(np.maximum(np.asarray(base, dtype=float) + self.scale * u, self.low), self.high)
+
+
+def policy_actions(u: ArrayLike, shape: tuple[int, ...]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """A policy's normalized actions checked like the env's actions (exactly ``shape``, real, finite: NaN and inf
+    refused naming the entry and the policy's [-1, 1] bounds); returns them as float64 and, per row (the last axis
+    reduced), whether an entry lay outside [-1, 1] (:class:`ActionScale` and :class:`ResidualScale` clip it)."""
+    ones = np.ones(shape[-1])
+    checked = check_actions(u, shape, -ones, ones, name="policy actions")
+    return checked, np.any(np.abs(checked) > 1.0, axis=-1)
 
 
 def torque_authority(preset: VehiclePreset) -> NDArray[np.float64]:

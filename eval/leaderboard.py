@@ -78,12 +78,24 @@ def build(run: Mapping[str, Any], cells: Mapping[tuple[str, str], Mapping[str, A
     """The leaderboard as data: ranking on ``scenario`` and every scenario's summaries."""
     scenarios = [s["name"] for s in run["scenarios"]]
     agents = list(run["agents"])
+    if not scenarios:
+        raise ValueError("this run has no scenario yet: fly one with fawtgym eval")
     scenario = scenario or scenarios[0]
     if scenario not in scenarios:
         raise ValueError(f"scenario {shown(scenario)} is not in this run; its scenarios: {', '.join(scenarios)}")
-    baseline = baseline if baseline is not None else run.get("baseline", DEFAULT_BASELINE)
-    if baseline not in agents:
-        baseline = None
+    if baseline is not None:  # asked for: an agent of the run, in any spelling the grammar reads
+        from fawtgym.agents.spec import parse_agent
+
+        try:
+            baseline = parse_agent(baseline).name
+        except ValueError:
+            pass  # not an agent name at all: refused just below
+        if baseline not in agents:
+            raise ValueError(f"--baseline {shown(baseline)} is not an agent of this run; agents: {', '.join(agents)}")
+    else:  # the run's (or the default, px4): none if it did not fly
+        baseline = run.get("baseline", DEFAULT_BASELINE)
+        if baseline not in agents:
+            baseline = None
     per: dict[str, dict[str, Any]] = {}
     for sc in scenarios:
         base_cell = cells.get((baseline, sc)) if baseline else None
@@ -297,9 +309,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         board = leaderboard(ns.results, ns.scenario, ns.baseline)
     except ValueError as exc:
         parser.error(str(exc))
-    if ns.baseline is not None and board["baseline"] is None:
-        parser.error(f"--baseline {shown(ns.baseline)} is not an agent of this run; agents: "
-                     f"{', '.join(board['agents'])}")
     out = ns.out or ns.results
     try:
         paths = write_outputs(board, out)

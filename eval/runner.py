@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from fawtgym.core.checks import check_number, shown
+from fawtgym.core.checks import check_int, check_number, shown
 from fawtgym.core.files import load_data
 
 from .scenarios import Scenario, scenario_from_mapping, table4_duty
@@ -126,15 +126,21 @@ def fly_cell(agent_name: str, scenario: Mapping[str, Any], seeds: Sequence[int],
 
     from .metrics import EpisodeRecorder
 
+    if not isinstance(scenario, Mapping) or not isinstance(scenario.get("name"), str):
+        raise ValueError(f"scenario must be a mapping of a scenario's fields with its name (Scenario.to_dict()), "
+                         f"got {shown(scenario)}")
     sc = scenario_from_mapping(scenario["name"], scenario)
     seeds, record_hz = check_seeds(seeds), check_record_hz(record_hz)
     t0 = time.perf_counter()
-    spec = parse_agent(agent_name)
-    try:
+    try:  # an agent that cannot be built, whatever the reason, is a CellError
+        spec = parse_agent(agent_name)
         action_type = agent_action_type(spec)
     except ValueError as exc:
         raise CellError(str(exc)) from exc
-    env = HoverBatchEnv(num_envs=len(seeds), **sc.env_options(), action_type=action_type)
+    try:
+        env = HoverBatchEnv(num_envs=len(seeds), **sc.env_options(), action_type=action_type)
+    except ValueError as exc:  # named as the scenario's
+        raise ValueError(f"scenario {shown(sc.name)}: {exc}") from None
     try:
         try:
             agent = make_agent(spec, env)
@@ -301,8 +307,16 @@ def run_cells(out: Path, agents: Sequence[str], scenarios: Sequence[Scenario], s
     """
     if backend not in ("local", "ray"):
         raise ValueError(f"backend must be 'local' or 'ray', got {shown(backend)}")
-    if not (isinstance(workers, int) and workers >= 1):
-        raise ValueError(f"workers must be a positive integer, got {shown(workers)}")
+    workers = check_int(workers, "workers", 1, 4096)
+    if isinstance(agents, str) or not all(isinstance(a, str) for a in agents):
+        raise ValueError(f"agents must be a list of agent names, got {shown(agents)}")
+    if isinstance(scenarios, str) or not all(isinstance(sc, Scenario) for sc in scenarios):
+        raise ValueError(f"scenarios must be a list of Scenario objects (fawtgym.eval.scenarios.resolve_scenarios "
+                         f"makes them from names and files), got {shown(scenarios)}")
+    from fawtgym.agents.spec import parse_agent
+
+    for agent in agents:  # a bad name is refused before any cell flies, at every worker count
+        parse_agent(agent)
     out = Path(out)
     seeds, record_hz = check_seeds(seeds), check_record_hz(record_hz)
     jobs, skipped = [], []
@@ -337,7 +351,7 @@ def run_cells(out: Path, agents: Sequence[str], scenarios: Sequence[Scenario], s
             for job in jobs:
                 try:
                     res: Any = _job(job)
-                except CellError as exc:
+                except Exception as exc:  # as a worker process's future reports it: the same summary at every count
                     res = exc
                 finished(job, res)
                 bar.update(1)

@@ -167,7 +167,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     for (agent, sc), msg in summary["errors"].items():
         print(f"fawtgym eval: cell {agent} on {sc} failed to run: {msg}", file=sys.stderr)
     try:
-        board = lb.leaderboard(ns.out, ns.rank_on or scenarios[0].name, ns.baseline)
+        board = lb.leaderboard(ns.out, ns.rank_on or scenarios[0].name,  # the default px4 may not have flown
+                               None if ns.baseline == DEFAULT_BASELINE else ns.baseline)
     except ValueError as exc:
         print(f"fawtgym eval: no leaderboard: {exc}", file=sys.stderr)
         return 1

@@ -192,6 +192,8 @@ def scenario_from_mapping(name: str, fields: Mapping[str, Any]) -> Scenario:
                              f"({type(value).__name__})")
     if "setpoint" in kw and kw["setpoint"] is not None:
         sp = kw["setpoint"]
+        if isinstance(sp, np.ndarray) and sp.ndim == 1:  # the env takes arrays: so does a scenario
+            sp = sp.tolist()
         if not (isinstance(sp, Sequence) and not isinstance(sp, str) and len(sp) == 3):
             raise ValueError(f"scenario {shown(name)}: setpoint must be 3 NED coordinates [m], got {shown(sp)}")
         kw["setpoint"] = tuple(check_number(v, f"scenario {shown(name)}: setpoint coordinate", minimum=-MAX_SETPOINT,

@@ -331,7 +331,7 @@ def test_bad_names_give_one_line_errors():
         (dict(obs="state+eso", observer_kwargs={"gain": 1.0}),
          "unknown option(s) ['gain'] for observer 'ffts_eso'; valid options: "),
         (dict(action="residual", residual_base="lqr"), "unknown agent 'lqr'"),
-        (dict(action="residual", residual_bound=3.0), "residual bound must be a number in (0, 2]"),
+        (dict(action="residual", residual_bound=3.0), "residual bound (--residual-bound) must be a finite real number"),
         (dict(randomize={"wind_speed": 1.0}), "unknown randomize key(s) ['wind_speed']; valid: duty, mass"),
         (dict(scenario=["calm", "dryden-light"]), "one scenario per call"),
     ]

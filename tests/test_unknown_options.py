@@ -75,3 +75,11 @@ def test_unknown_env_option_is_one_line_at_every_entry_point(build, owner, value
     assert text.startswith(f"unknown option(s) ['bogus'] for {owner}; valid options: "), text
     assert "vehicle, wind, action_type" in text, text
     assert "\n" not in text and "control_rate" in text and ("physics_threads" in text) == (owner == "HoverBatchEnv")
+
+
+def test_a_wind_mapping_without_a_name_says_so():
+    """It said "unknown wind None"."""
+    with pytest.raises(ValueError, match=r"^a wind mapping needs its 'name' \(one of \['calm', .*\{'on_time': 1\}$"):
+        make_wind({"on_time": 1})
+    with pytest.raises(ValueError, match=r"^a wind mapping needs its 'name'"):
+        HoverBatchEnv(3, wind={"on_time": 1})

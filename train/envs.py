@@ -32,6 +32,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from fawtgym.agents.policy_io import policy_actions
 from fawtgym.core.checks import shown
 
 #: the action modes: normalized collective thrust + body rates, normalized motors, a residual on a PX4 agent
@@ -140,7 +141,7 @@ def make_train_env(scenario: Any = "table4-50", num_envs: int = 16, action: str 
     venv = SB3VecEnv(make_vector_env(scenario, num_envs, action, obs, observer, observer_kwargs, residual_base,
                                      residual_bound, randomize, episode_seconds))
     if seed is not None:
-        venv.seed(int(seed))
+        venv.seed(seed)  # checked there
     return venv
 
 
@@ -199,7 +200,8 @@ class OneRowEnv(gym.Env):
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         self._next = None
-        obs, reward, terminated, truncated, info = self.env.step(np.asarray(action)[None])
+        u, _ = policy_actions(action, tuple(self.action_space.shape or ()))  # the single env's shape in its message
+        obs, reward, terminated, truncated, info = self.env.step(u[None])
         if terminated[0] or truncated[0]:
             self._next = (obs, info)
             obs, info = np.asarray([info["final_obs"][0]]), info["final_info"]

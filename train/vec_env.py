@@ -39,7 +39,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from numpy.typing import NDArray
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
-from fawtgym.core.checks import shown
+from fawtgym.core.checks import check_int, shown
 
 
 def _layers(env: Any) -> Iterator[Any]:
@@ -68,6 +68,13 @@ class SB3VecEnv(VecEnv):
         self._actions: NDArray[Any] | None = None
 
     # ---- stepping ------------------------------------------------------------------------------------------
+    def seed(self, seed: int | None = None) -> Sequence[int | None]:
+        """SB3's seeding (row ``i`` gets ``seed + i`` at the next reset), the seed checked first: an int in
+        [0, 2**32 - N] or None (a random one)."""
+        if seed is not None:
+            check_int(seed, "seed", 0, 2**32 - self.num_envs)
+        return super().seed(None if seed is None else int(seed))
+
     def reset(self) -> VecEnvObs:
         seeds = self._seeds
         seed: Any = None if all(s is None for s in seeds) else list(seeds)
@@ -83,7 +90,10 @@ class SB3VecEnv(VecEnv):
         self._actions = actions
 
     def step_wait(self) -> VecEnvStepReturn:
-        obs, reward, terminated, truncated, info = self.env.step(self._actions)
+        if self._actions is None:
+            raise RuntimeError("step_wait() called without step_async(actions) before it")
+        actions, self._actions = self._actions, None
+        obs, reward, terminated, truncated, info = self.env.step(actions)
         self.last_info = info
         dones = terminated | truncated
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]

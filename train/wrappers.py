@@ -58,6 +58,7 @@ from fawtgym.agents.policy_io import (
     ActionScale,
     EstimateFeatures,
     ResidualScale,
+    policy_actions,
 )
 from fawtgym.core.checks import shown
 
@@ -69,6 +70,20 @@ def _autoreset_mode(env: VectorEnv) -> AutoresetMode:
         raise ValueError(f"{type(env).__name__}: autoreset mode {mode} is not supported; use next_step or same_step "
                          "(HoverBatchEnv(..., autoreset_mode='same_step'))")
     return mode
+
+
+def _shape(space: spaces.Space[Any]) -> tuple[int, ...]:
+    """The shape of a Box action space (the wrappers' own [-1, 1] spaces)."""
+    return _as_box(space, "the action space").shape
+
+
+def _flag_clipped(info: Mapping[str, Any], clipped: Any) -> dict[str, Any]:
+    """``info`` with ``action_clipped`` also set where the policy's action left [-1, 1] (the env sees it clipped)."""
+    out = dict(info)
+    out["action_clipped"] = np.logical_or(info["action_clipped"], clipped)
+    if np.ndim(out["action_clipped"]) == 0:
+        out["action_clipped"] = bool(out["action_clipped"])
+    return out
 
 
 def _hover_env(env: Any) -> Any:
@@ -145,7 +160,9 @@ class NormalizedAction(VectorWrapper):
         self.action_space = batch_space(self.single_action_space, env.num_envs)
 
     def step(self, actions: ArrayLike) -> tuple[Any, Any, Any, Any, dict[str, Any]]:
-        return self.env.step(self.scale(actions))
+        u, clipped = policy_actions(actions, _shape(self.action_space))
+        obs, reward, terminated, truncated, info = self.env.step(self.scale(u))
+        return obs, reward, terminated, truncated, _flag_clipped(info, clipped)
 
 
 class ObserverFeatures(VectorWrapper):
@@ -223,7 +240,9 @@ class ResidualAction(VectorWrapper):
     def step(self, actions: ArrayLike) -> tuple[Any, Any, Any, Any, dict[str, Any]]:
         if self.base_action is None:
             raise RuntimeError("call reset() before step()")
-        obs, reward, terminated, truncated, info = self.env.step(self.scale(self.base_action, actions))
+        u, clipped = policy_actions(actions, _shape(self.action_space))
+        obs, reward, terminated, truncated, info = self.env.step(self.scale(self.base_action, u))
+        info = _flag_clipped(info, clipped)
         new = self._starts.step(terminated, truncated)
         if new.any():
             if self.features is not None and self._starts.same_step:
@@ -267,7 +286,12 @@ class SingleNormalizedAction(gym.ActionWrapper):
         self.action_space = spaces.Box(-1.0, 1.0, shape=space.shape, dtype=np.float32)
 
     def action(self, action: ArrayLike) -> NDArray[np.float64]:
-        return self.scale(np.asarray(action, dtype=float)[None])[0]
+        return self.scale(policy_actions(action, _shape(self.action_space))[0][None])[0]
+
+    def step(self, action: ArrayLike) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        u, clipped = policy_actions(action, _shape(self.action_space))
+        obs, reward, terminated, truncated, info = self.env.step(self.scale(u[None])[0])
+        return obs, reward, terminated, truncated, _flag_clipped(info, clipped)
 
 
 class SingleObserverFeatures(gym.Wrapper):
@@ -320,6 +344,7 @@ class SingleResidualAction(gym.Wrapper):
     def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
         if self.base_action is None:
             raise RuntimeError("call reset() before step()")
-        u = np.asarray(action, dtype=float)[None]
-        obs, reward, terminated, truncated, info = self.env.step(self.scale(self.base_action[None], u)[0])
+        u, clipped = policy_actions(action, _shape(self.action_space))
+        obs, reward, terminated, truncated, info = self.env.step(self.scale(self.base_action[None], u[None])[0])
+        info = _flag_clipped(info, clipped)
         return self._observe(obs, info), reward, terminated, truncated, info

@@ -134,7 +134,9 @@ def make_wind(spec: str | WindModel | Mapping[str, Any] | None) -> WindModel:
         return spec
     if isinstance(spec, Mapping):
         options = dict(spec)
-        name = options.pop("name", None)
+        if "name" not in options:
+            raise ValueError(f"a wind mapping needs its 'name' (one of {wind_names()}), got {shown(spec)}")
+        name = options.pop("name")
         if not isinstance(name, str) or name not in _WIND_REGISTRY:
             raise ValueError(f"unknown wind {shown(name)}; valid names: {wind_names()}")
         odd = [k for k in options if not isinstance(k, str)]
