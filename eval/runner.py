@@ -318,6 +318,8 @@ def run_cells(out: Path, agents: Sequence[str], scenarios: Sequence[Scenario], s
     for agent in agents:  # a bad name is refused before any cell flies, at every worker count
         parse_agent(agent)
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"out {shown(str(out))} is a file, not a results folder")
     seeds, record_hz = check_seeds(seeds), check_record_hz(record_hz)
     jobs, skipped = [], []
     for sc in scenarios:

@@ -25,6 +25,9 @@ def test_run_cells_refuses_bad_names_before_flying_at_every_worker_count(tmp_pat
         run_cells(tmp_path, ["px4"], ["calm"], [1], workers=workers, progress=False)  # type: ignore[list-item]
     with pytest.raises(ValueError, match=r"^workers must be an int in \[1, 4096\], got True \(bool\)$"):
         run_cells(tmp_path, ["px4"], [CALM], [1], workers=True, progress=False)
+    (tmp_path / "a_file").write_text("not a folder\n")
+    with pytest.raises(ValueError, match=r"^out '.*a_file' is a file, not a results folder$"):  # NotADirectoryError
+        run_cells(tmp_path / "a_file", ["px4"], [CALM], [1], workers=workers, progress=False)
     assert not (tmp_path / "cells").exists()
 
 
