@@ -72,6 +72,7 @@ CASES = [
     ["train", "--seed", "-1"],
     ["train", "--scenario", "nosuch"],
     ["train", "--episode-seconds", "-1"],
+    ["train", "--episode-seconds", "1e-300"],  # trained on one-step episodes
     ["train", "--out", "a_file/run"],
     # reproductions
     ["reproduce", "seed000-sim", "--seconds", "-1"],

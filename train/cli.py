@@ -29,8 +29,9 @@ from pathlib import Path
 from typing import Any
 
 from fawtgym.cli_parser import ArgumentParser, check_output_dir
-from fawtgym.core.checks import check_int, check_known, shown
+from fawtgym.core.checks import check_int, check_known, check_number, shown
 from fawtgym.core.files import load_data
+from fawtgym.envs.options import MAX_EPISODE_SECONDS
 
 from .config import ACTION_MODES, ALGOS, OBS_MODES, TrainConfig, freeze, load_hyperparams, parse_literal
 
@@ -101,6 +102,10 @@ def make_config(*, hyperparams: Mapping[str, Any] | None = None, **fields: Any) 
         raise ValueError(f"unknown --observer {fields.get('observer')!r}; valid: {', '.join(observer_names())}")
     for sc in [fields.get("scenario", "table4-50"), *fields.get("eval_scenarios", ())]:
         get_scenario(sc)
+    if fields.get("episode_seconds") is not None:  # at least one control step (the env would round it up to one)
+        step = 1.0 / get_scenario(fields.get("scenario", "table4-50")).control_rate
+        check_number(fields["episode_seconds"], "--episode-seconds", minimum=step, inclusive_minimum=True,
+                     maximum=MAX_EPISODE_SECONDS, note=f"s (at least one control step of the scenario, {step:g} s)")
     for key in ("observer_kwargs", "randomize"):
         fields[key] = freeze(fields.get(key) or {})
     fields["eval_scenarios"] = tuple(fields.get("eval_scenarios", ("table4-50",)))
