@@ -222,6 +222,11 @@ def test_wrong_topics_directory_and_rates_are_named(tmp_path: Path) -> None:
             observe(SITL, ["leso"], JMAVSIM, rate=rate)  # type: ignore[arg-type]
         with pytest.raises(FlightLogError, match=r"^observer rate"):
             make_grid(0.0, 1.0, rate)  # type: ignore[arg-type]
+    for bad in (None, 5):
+        with pytest.raises(FlightLogError, match=r"^log file must be a path \(a str or os.PathLike\), got "):
+            read_log(bad)  # type: ignore[arg-type]
+    with pytest.raises(FlightLogError, match=r"^the log's usable time span: t_start must be a finite real number"):
+        make_grid("0", 1.0, 50.0)  # type: ignore[arg-type]
     for scale in ("1e400", 10**5000, "-1", True):
         with pytest.raises(FlightLogError, match=r"^--thrust-scale must be one of \['auto'"):
             observe(SITL, ["leso"], JMAVSIM, thrust_scale=scale)  # type: ignore[arg-type]

@@ -8,6 +8,7 @@ Times are seconds since the log's first sample (float64), strictly non-decreasin
 from __future__ import annotations
 
 import dataclasses
+import os
 from pathlib import Path
 
 import numpy as np
@@ -74,6 +75,8 @@ def read_log(path: str | Path, topics: tuple[str, ...] | None = None) -> FlightL
     ``topics``: PX4 topic names to load (None: every topic the estimation uses, :data:`.topics.USED_TOPICS`);
     loading only these keeps memory proportional to what is used.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise FlightLogError(f"log file must be a path (a str or os.PathLike), got {shown(path)}")
     p = Path(path)
     if p.is_dir():
         raise FlightLogError(f"log file {shown(str(p))} is a directory (give a .ulg or .tlog file)")

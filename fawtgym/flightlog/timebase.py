@@ -36,7 +36,11 @@ def check_rate(rate: object) -> float:
 def make_grid(t_start: float, t_end: float, rate: float) -> NDArray[np.float64]:
     """Grid times [s] from ``t_start`` to ``t_end`` (inclusive when on the grid) at ``rate`` Hz."""
     rate = check_rate(rate)
-    if not (np.isfinite(t_start) and np.isfinite(t_end)) or t_end <= t_start:
+    try:
+        t_start, t_end = check_number(t_start, "t_start"), check_number(t_end, "t_end")
+    except ValueError as exc:
+        raise FlightLogError(f"the log's usable time span: {exc}") from None
+    if t_end <= t_start:
         raise FlightLogError(f"the log's usable time span [{t_start:.3f}, {t_end:.3f}] s is empty")
     n = int(np.floor((t_end - t_start) * rate + 1e-9)) + 1
     return t_start + np.arange(n) / rate
