@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +22,14 @@ def _one_line(err: pytest.ExceptionInfo[BaseException]) -> str:
     text = str(err.value)
     assert "\n" not in text and len(text) < 600, text
     return text
+
+
+def _refused(load: Callable[[Path], object], path: Path, content: str, match: str) -> None:
+    """``load`` of a file holding ``content`` raises one ValueError line matching ``match``."""
+    path.write_text(content)
+    with pytest.raises(ValueError, match=match) as err:
+        load(path)
+    _one_line(err)
 
 
 @pytest.mark.parametrize("name, content, match", [
@@ -64,11 +73,7 @@ def test_valid_files_read_as_before() -> None:
     (f"wind: calm\nseconds: {BIG}\n", r"holds an integer of more than 4300 digits"),
 ])
 def test_scenario_file_fields_are_checked_when_loaded(tmp_path: Path, content: str, match: str) -> None:
-    path = tmp_path / "s.yaml"
-    path.write_text(content)
-    with pytest.raises(ValueError, match=match) as err:
-        load_scenarios(path)
-    _one_line(err)
+    _refused(load_scenarios, tmp_path / "s.yaml", content, match)
 
 
 def test_vehicle_file_errors(tmp_path: Path) -> None:
@@ -95,11 +100,7 @@ def test_vehicle_file_errors(tmp_path: Path) -> None:
     ("hp: {n_steps: 0}\n", r"ppo hyperparameter n_steps must be an int in \[1, 10000000\], got 0"),
 ])
 def test_sweep_file_shape_is_checked(tmp_path: Path, content: str, match: str) -> None:
-    path = tmp_path / "sw.yaml"
-    path.write_text(content)
-    with pytest.raises(ValueError, match=match) as err:
-        sweep_configs(path)
-    _one_line(err)
+    _refused(sweep_configs, tmp_path / "sw.yaml", content, match)
 
 
 def test_sweep_point_hyperparameters_reach_every_seed(tmp_path: Path) -> None:
@@ -122,10 +123,7 @@ def test_sweep_point_hyperparameters_reach_every_seed(tmp_path: Path) -> None:
     ('{"agents": ["px4"], "scenarios": [], "seeds": [' + BIG + "]}", r"holds an integer of more than 4300 digits"),
 ])
 def test_run_file_shape_is_checked(tmp_path: Path, content: str, match: str) -> None:
-    (tmp_path / "run.json").write_text(content)
-    with pytest.raises(ValueError, match=match) as err:
-        read_run(tmp_path / "run.json")
-    _one_line(err)
+    _refused(read_run, tmp_path / "run.json", content, match)
 
 
 @pytest.mark.parametrize("content", [b"", b"PK\x03\x04" + bytes(200), bytes(range(256))],
