@@ -73,6 +73,20 @@ def _rank_key(s: Mapping[str, Any]) -> tuple:
     return (s["failures"] > 0, s["failures"], value, high, s["agent"])
 
 
+def asked_baseline(baseline: str, agents: Sequence[str]) -> str:
+    """An asked-for baseline (``--baseline``) as the run names it: its canonical name in any spelling the agent
+    grammar reads; ValueError unless it is one of ``agents``."""
+    from fawtgym.agents.spec import parse_agent
+
+    try:
+        baseline = parse_agent(baseline).name
+    except ValueError:
+        pass  # not an agent name at all: refused just below
+    if baseline not in agents:
+        raise ValueError(f"--baseline {shown(baseline)} is not an agent of this run; agents: {', '.join(agents)}")
+    return baseline
+
+
 def build(run: Mapping[str, Any], cells: Mapping[tuple[str, str], Mapping[str, Any]], scenario: str | None = None,
           baseline: str | None = None) -> dict[str, Any]:
     """The leaderboard as data: ranking on ``scenario`` and every scenario's summaries."""
@@ -83,15 +97,8 @@ def build(run: Mapping[str, Any], cells: Mapping[tuple[str, str], Mapping[str, A
     scenario = scenario or scenarios[0]
     if scenario not in scenarios:
         raise ValueError(f"scenario {shown(scenario)} is not in this run; its scenarios: {', '.join(scenarios)}")
-    if baseline is not None:  # asked for: an agent of the run, in any spelling the grammar reads
-        from fawtgym.agents.spec import parse_agent
-
-        try:
-            baseline = parse_agent(baseline).name
-        except ValueError:
-            pass  # not an agent name at all: refused just below
-        if baseline not in agents:
-            raise ValueError(f"--baseline {shown(baseline)} is not an agent of this run; agents: {', '.join(agents)}")
+    if baseline is not None:
+        baseline = asked_baseline(baseline, agents)
     else:  # the run's (or the default, px4): none if it did not fly
         baseline = run.get("baseline", DEFAULT_BASELINE)
         if baseline not in agents:

@@ -118,7 +118,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     ns = parser.parse_args(argv)
     import fawtgym  # noqa: F401  (registers envs and observers)
-    from fawtgym.agents.spec import parse_agent, parse_agents
+    from fawtgym.agents.spec import parse_agents
 
     from . import leaderboard as lb
     from .runner import read_run, run_cells, update_run_file
@@ -141,11 +141,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             check_scenario(sc)
         check_agents(agents, scenarios[0])
         if ns.baseline != DEFAULT_BASELINE:  # the default may be absent: no paired column then
-            ns.baseline = parse_agent(ns.baseline).name  # its canonical spelling, as the agents'
             run_file = Path(ns.out) / "run.json"
             known = list(dict.fromkeys([*(read_run(run_file)["agents"] if run_file.is_file() else []), *agents]))
-            if ns.baseline not in known:
-                raise ValueError(f"--baseline {shown(ns.baseline)} is not one of the run's agents: {', '.join(known)}")
+            ns.baseline = lb.asked_baseline(ns.baseline, known)
         if ns.rank_on is not None and ns.rank_on not in [s.name for s in scenarios]:
             raise ValueError(f"--rank-on {shown(ns.rank_on)} is not one of the scenarios: "
                              f"{', '.join(s.name for s in scenarios)}")

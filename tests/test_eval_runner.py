@@ -282,4 +282,5 @@ def test_eval_baseline_may_be_an_agent_of_the_run_flown_earlier(tmp_path: Path, 
     with pytest.raises(SystemExit) as exc:
         main(["eval", "--agents", "px4", "--baseline", "px4+leso", *common])
     assert exc.value.code == 2
-    assert "--baseline 'px4+leso' is not one of the run's agents: px4+geso(order=3), px4" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "--baseline 'px4+leso' is not an agent of this run; agents: px4+geso(order=3), px4" in err
