@@ -48,6 +48,7 @@ def test_a_bad_file_is_one_line_naming_it(tmp_path: Path, name: str, content: by
     with pytest.raises(ValueError, match=match) as err:
         load_data(path, "scenario file")
     assert _one_line(err).startswith("scenario file ")
+    assert str(err.value).count("scenario file") == 1  # a YAML syntax error was named twice ("...: f is not valid")
 
 
 def test_missing_file_and_directory_are_told_apart(tmp_path: Path) -> None:

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from fawtgym.core.checks import check_flag, check_int, check_number, listed, shown
-from fawtgym.core.files import load_data, parse_data
+from fawtgym.core.files import ParseError, load_data, parse_data
 from fawtgym.eval.runner import MAX_SEEDS
 
 ALGOS = ("ppo", "sac", "td3")
@@ -39,11 +39,10 @@ def load_hyperparams(algo: str, overrides: Sequence[str] | Mapping[str, Any] = (
     items = overrides.items() if isinstance(overrides, Mapping) else [_split(o) for o in overrides]
     for key, value in items:
         if isinstance(value, str):
-            try:
+            try:  # a key given twice or a huge int is refused
                 value = parse_data(value, f"--hp {key}")
-            except ValueError as exc:  # text that is no YAML stays a str (a policy name); these are mistakes:
-                if "digits" in str(exc) or "appears twice" in str(exc):  # a huge int, a key given twice
-                    raise
+            except ParseError:  # text that is no YAML stays a str (a policy name)
+                pass
             if isinstance(value, str):  # YAML 1.1 reads 1e-4 (no dot) as a string
                 try:
                     value = float(value)

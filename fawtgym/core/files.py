@@ -19,6 +19,11 @@ from fawtgym.core.checks import shown
 DATA_SUFFIXES = {".yaml": "yaml", ".yml": "yaml", ".json": "json"}
 
 
+class ParseError(ValueError):
+    """Text that is not valid YAML/JSON at all (a syntax error, a tag PyYAML cannot construct), as opposed to a
+    mapping that holds a key twice or an integer beyond Python's int-to-str limit (plain ValueError)."""
+
+
 class _DuplicateKey(ValueError):
     """A mapping holds ``key`` twice (``line``: where, 1-based, if known)."""
 
@@ -57,16 +62,18 @@ def parse_data(text: str, where: str, kind: str = "yaml") -> Any:
     except _DuplicateKey as exc:
         at = f" (line {exc.line})" if exc.line else ""
         raise ValueError(f"{where}: key {shown(exc.key)} appears twice{at}; give each key once") from None
+    except ParseError:  # _load_yaml's, already named
+        raise
     except json.JSONDecodeError as exc:
-        raise ValueError(f"{where} is not valid JSON: {exc}") from None
+        raise ParseError(f"{where} is not valid JSON: {exc}") from None
     except ValueError as exc:
         if "integer string conversion" in str(exc):  # Python's int-to-str limit, raised while parsing
             raise ValueError(f"{where} holds an integer of more than {sys.get_int_max_str_digits()} digits (no "
                              "option takes one)") from None
         # a tag PyYAML could not construct ("!!int abc"): Python's own text, named as the file's
-        raise ValueError(f"{where} is not valid {kind.upper()}: {' '.join(str(exc).split())}") from None
+        raise ParseError(f"{where} is not valid {kind.upper()}: {' '.join(str(exc).split())}") from None
     except RecursionError:
-        raise ValueError(f"{where} is nested too deeply to read") from None
+        raise ParseError(f"{where} is nested too deeply to read") from None
 
 
 def _unique_pairs(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
@@ -109,4 +116,4 @@ def _load_yaml(text: str, where: str) -> Any:
         problem, mark = getattr(exc, "problem", None), getattr(exc, "problem_mark", None)
         detail = (f"{problem} at line {mark.line + 1}, column {mark.column + 1}" if problem and mark
                   else " ".join(str(exc).split()))
-        raise ValueError(f"{where} is not valid YAML: {detail}") from None
+        raise ParseError(f"{where} is not valid YAML: {detail}") from None
