@@ -118,7 +118,6 @@ Not implemented: rendering (render a single ``fawtgym/Hover-v0``).
 from __future__ import annotations
 
 import copy
-import inspect
 import os
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -136,7 +135,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core import measurement as M
 from fawtgym.core.arrays import REAL_KINDS, ReadOnlyState, as_array, as_f64, read_only
-from fawtgym.core.checks import check_flag, check_known, listed, shown
+from fawtgym.core.checks import check_flag, check_known, keyword_names, listed, shown
 from fawtgym.core.frames import SIGN_MJ_NED, rot_ned_to_quat_mj
 from fawtgym.core.so3 import exp_so3
 
@@ -295,7 +294,7 @@ class HoverBatchEnv(VectorEnv):
                  physics_threads: int | None = None, mujoco_timers: bool = False,
                  max_episode_steps: int | None = None, **unknown: Any) -> None:
         if unknown:  # a one-line ValueError, as for every option (Python's TypeError is re-worded by gym.make)
-            check_known(unknown, list(inspect.signature(HoverBatchEnv.__init__).parameters)[1:-1], "HoverBatchEnv")
+            check_known(unknown, keyword_names(HoverBatchEnv), "HoverBatchEnv")
         if (isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer))
                 or not 1 <= num_envs <= MAX_NUM_ENVS):
             raise ValueError(f"num_envs must be an int in [1, {MAX_NUM_ENVS}], got {shown(num_envs)}")

@@ -151,7 +151,6 @@ biases, as the VICON-fed PX4 of Wang et al. (2024), Sec. 7 (:mod:`fawtgym.envs.s
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Mapping
 from typing import Any
 
@@ -160,7 +159,7 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.checks import check_known, shown
+from fawtgym.core.checks import check_known, keyword_names, shown
 from fawtgym.core.frames import rot_ned_to_quat_mj, vec_ned_to_mj
 
 from .aero import AeroModel
@@ -237,7 +236,7 @@ class HoverEnv(gym.Env):
                  render_height: int = 480, mujoco_timers: bool = False, **unknown: Any) -> None:
         super().__init__()
         if unknown:  # a one-line ValueError, as for every option (Python's TypeError is re-worded by gym.make)
-            check_known(unknown, list(inspect.signature(HoverEnv.__init__).parameters)[1:-1], "HoverEnv")
+            check_known(unknown, keyword_names(HoverEnv), "HoverEnv")
         kwargs = dict(vehicle=vehicle, wind=wind, action_type=action_type, sensors=sensors,
                       control_rate=control_rate, physics_rate=physics_rate, episode_seconds=episode_seconds,
                       setpoint=setpoint, init_noise=init_noise, reward_weights=reward_weights,

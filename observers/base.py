@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.arrays import REAL_KINDS, as_array
-from fawtgym.core.checks import check_known, check_number, listed, shown
+from fawtgym.core.checks import check_known, check_number, keyword_names, listed, shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.kernel_types import TYPED_DISPATCH, compile_only
 from fawtgym.core.measurement import ATTITUDE, TRAILING_SHAPES, batch_measurement
@@ -772,8 +772,7 @@ def make_observer(name: str, mass: float, inertia: ArrayLike, **kwargs: Any) -> 
 def observer_options(name: str) -> tuple[str, ...] | None:
     """The keyword options of registered observer ``name`` (its constructor's parameters after mass and inertia), or
     None if it takes arbitrary keywords."""
-    params = list(inspect.signature(observer_class(name)).parameters.values())[2:]
-    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params):
+    cls = observer_class(name)
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in inspect.signature(cls).parameters.values()):
         return None
-    return tuple(p.name for p in params if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD,
-                                                       inspect.Parameter.KEYWORD_ONLY))
+    return tuple(keyword_names(cls)[2:])

@@ -20,7 +20,6 @@ Finished runs of a sweep are skipped and unfinished ones resumed, so a sweep can
 from __future__ import annotations
 
 import concurrent.futures as cf
-import inspect
 import itertools
 import multiprocessing
 import sys
@@ -29,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from fawtgym.cli_parser import ArgumentParser, check_output_dir
-from fawtgym.core.checks import check_int, check_known, check_number, shown
+from fawtgym.core.checks import check_int, check_known, check_number, keyword_names, shown
 from fawtgym.core.files import load_data
 from fawtgym.envs.options import MAX_EPISODE_SECONDS
 
@@ -148,7 +147,7 @@ def sweep_configs(path: Path) -> tuple[Path, list[tuple[TrainConfig, Path]]]:
     for key, value in (("base", base), ("grid", grid), ("hp", hp_all)):
         if not isinstance(value, Mapping):
             raise ValueError(f"sweep file {path}: {key} must be a mapping, got {shown(value)}")
-    fields = set(inspect.signature(TrainConfig).parameters) - {"hyperparams"} | {"hp"}
+    fields = set(keyword_names(TrainConfig)) - {"hyperparams"} | {"hp"}
     check_known({**base, **grid}, sorted(fields), f"sweep file {path} (base, grid)")
     seeds = spec.get("seeds", [0])
     seeds = [seeds] if isinstance(seeds, int) and not isinstance(seeds, bool) else seeds

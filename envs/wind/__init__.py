@@ -15,11 +15,10 @@ Registered names (``make_wind(name)`` or ``make_wind({"name": ..., **options})``
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Callable
 from typing import Any
 
-from fawtgym.core.checks import check_known, shown
+from fawtgym.core.checks import check_known, keyword_names, shown
 
 from .base import CalmWind, WindModel, make_wind, register_wind, wind_names
 from .dryden import DrydenParams, dryden_psd
@@ -31,7 +30,7 @@ from .schedule import FanSchedule
 
 def _checked(name: str, cls: Callable[..., WindModel], *fixed: Any) -> Callable[..., WindModel]:
     """Factory for ``name``: unknown option names raise ValueError listing the valid ones."""
-    params = list(inspect.signature(cls).parameters)[len(fixed):]
+    params = keyword_names(cls)[len(fixed):]
 
     def factory(**options: Any) -> WindModel:
         hint = " (its duty is fixed; use the 'fawt' wind with duty=...)" if "duty" in options and fixed else ""

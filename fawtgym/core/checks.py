@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import math
 import numbers
 import sys
@@ -63,6 +64,13 @@ def listed(values: Any) -> str:
     """Names for an error message: ``values`` sorted by their text, in a list's brackets, each worded by :func:`shown`
     (the repr of a list of strings; mixed types and ints beyond Python's int-to-str limit too)."""
     return "[" + ", ".join(shown(v) for v in sorted(values, key=shown)) + "]"
+
+
+def keyword_names(func: Any) -> list[str]:
+    """The names ``func`` (a function, method or class) takes by keyword, in order: ``self``, ``*args`` and
+    ``**kwargs`` left out (what :func:`check_known` lists as a constructor's valid options)."""
+    kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+    return [p.name for p in inspect.signature(func).parameters.values() if p.kind in kinds and p.name != "self"]
 
 
 def check_known(options: Any, valid: Any, owner: str, hint: str = "") -> None:
