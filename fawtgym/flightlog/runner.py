@@ -21,10 +21,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fawtgym.core.checks import check_number, shown
+from fawtgym.core.checks import shown
 from fawtgym.envs.vehicles import VehiclePreset, make_vehicle
 
-from .errors import FlightLogError
+from .errors import FlightLogError, log_number
 from .inputs import choose_scale, contradictions, make_thrust_model, rotor_commands, thrust_scales
 from .logdata import FlightLog, read_log
 from .phases import PHASES, Phases, detect_phases, segments
@@ -69,10 +69,7 @@ def observe(log: FlightLog | str | Path, observers: Sequence[str], vehicle: str 
     if unknown:
         raise FlightLogError(f"unknown observer(s) {unknown}; valid names: {observer_names()}")
     rate = check_rate(rate)  # before the log is read (a bad value is told at once, not after parsing)
-    try:
-        settle = check_number(settle, "--settle", minimum=0.0, inclusive_minimum=True, maximum=1e6, note="s")
-    except ValueError as exc:
-        raise FlightLogError(str(exc)) from None
+    settle = log_number(settle, "--settle", minimum=0.0, inclusive_minimum=True, maximum=1e6, note="s")
     choose_scale({}, thrust_scale, check_only=True)
     try:
         preset = make_vehicle(vehicle)

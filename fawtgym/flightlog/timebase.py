@@ -15,9 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from fawtgym.core.checks import check_number
-
-from .errors import FlightLogError
+from .errors import FlightLogError, log_number
 
 #: the observers' rate on a log [Hz]: at least one estimate a second, at most 10 kHz (PX4 logs its fastest topics at
 #: a few hundred Hz; a rate of 1e300 Hz asked numpy for a grid beyond any memory)
@@ -26,20 +24,15 @@ RATE_RANGE = (1.0, 1e4)
 
 def check_rate(rate: object) -> float:
     """The observer rate [Hz] as a float in :data:`RATE_RANGE`; FlightLogError naming it otherwise."""
-    try:
-        return check_number(rate, "observer rate (--rate)", minimum=RATE_RANGE[0], inclusive_minimum=True,
-                            maximum=RATE_RANGE[1], note="Hz")
-    except ValueError as exc:
-        raise FlightLogError(str(exc)) from None
+    return log_number(rate, "observer rate (--rate)", minimum=RATE_RANGE[0], inclusive_minimum=True,
+                      maximum=RATE_RANGE[1], note="Hz")
 
 
 def make_grid(t_start: float, t_end: float, rate: float) -> NDArray[np.float64]:
     """Grid times [s] from ``t_start`` to ``t_end`` (inclusive when on the grid) at ``rate`` Hz."""
     rate = check_rate(rate)
-    try:
-        t_start, t_end = check_number(t_start, "t_start"), check_number(t_end, "t_end")
-    except ValueError as exc:
-        raise FlightLogError(f"the log's usable time span: {exc}") from None
+    span = "the log's usable time span: "
+    t_start, t_end = log_number(t_start, span + "t_start"), log_number(t_end, span + "t_end")
     if t_end <= t_start:
         raise FlightLogError(f"the log's usable time span [{t_start:.3f}, {t_end:.3f}] s is empty")
     n = int(np.floor((t_end - t_start) * rate + 1e-9)) + 1
