@@ -99,10 +99,11 @@ def make_config(*, hyperparams: Mapping[str, Any] | None = None, **fields: Any) 
     hp = dict(hyperparams) if hyperparams is not None else load_hyperparams(algo)
     if fields.get("obs", "state+eso") == "state+eso" and fields.get("observer", "ffts_eso") not in observer_names():
         raise ValueError(f"unknown --observer {fields.get('observer')!r}; valid: {', '.join(observer_names())}")
-    for sc in [fields.get("scenario", "table4-50"), *fields.get("eval_scenarios", ())]:
+    training = get_scenario(fields.get("scenario", "table4-50"))
+    for sc in fields.get("eval_scenarios", ()):
         get_scenario(sc)
     if fields.get("episode_seconds") is not None:  # at least one control step (the env would round it up to one)
-        step = 1.0 / get_scenario(fields.get("scenario", "table4-50")).control_rate
+        step = 1.0 / training.control_rate
         check_number(fields["episode_seconds"], "--episode-seconds", minimum=step, inclusive_minimum=True,
                      maximum=MAX_EPISODE_SECONDS, note=f"s (at least one control step of the scenario, {step:g} s)")
     for key in ("observer_kwargs", "randomize"):
