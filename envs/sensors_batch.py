@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from fawtgym.core import measurement as M
 from fawtgym.core.arrays import ReadOnlyState, as_f64, read_only
 from fawtgym.core.checks import shown
+from fawtgym.core.normals import standard_normals
 from fawtgym.core.so3_kernels import exp_so3_row, mat_mul_row
 
 from .sensors import SensorSpec, make_sensor_spec, pose_rate_error
@@ -161,7 +162,6 @@ class BatchSensorModel:
         self._count = np.zeros(self.n, dtype=np.int64)
         #: exact sensors: the kernel reads zero normals (never written)
         self._no_noise = np.zeros((self.n, 21))
-        self._z = np.empty((self.n, 21))  # the noisy sensors' normals, drawn into in place (never handed out)
         self.rng = np.random.default_rng(0)
 
     @property
@@ -273,10 +273,10 @@ class BatchSensorModel:
 
     def noise(self) -> NDArray[np.float64]:
         """One step's normals of every row, (N, 21) (module docstring's columns) from the noise generator (the
-        numbers of ``rng.standard_normal((N, 21))``, drawn into one array that the next call overwrites); the zeros
-        :attr:`no_noise` (nothing drawn) for exact sensors.  What :meth:`measure` draws: the env draws it and runs the
-        kernel in its own step kernel (:func:`fawtgym.envs.step_kernels.observe_rows`)."""
-        return self.rng.standard_normal(out=self._z) if self.noisy else self._no_noise
+        numbers of ``rng.standard_normal((N, 21))``, a fresh array: :func:`fawtgym.core.normals.standard_normals`);
+        the zeros :attr:`no_noise` (nothing drawn) for exact sensors.  What :meth:`measure` draws: the env draws it
+        and runs the kernel in its own step kernel (:func:`fawtgym.envs.step_kernels.observe_rows`)."""
+        return standard_normals(self.rng, (self.n, 21)) if self.noisy else self._no_noise
 
     def measure_rows(self, rows: NDArray[np.intp], rngs: list[np.random.Generator], t: NDArray[np.float64],
                      position: NDArray[np.float64], velocity: NDArray[np.float64], rotation: NDArray[np.float64],

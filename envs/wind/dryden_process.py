@@ -13,9 +13,9 @@ Random streams: field ``i`` has its own generator (a ``numpy.random.SeedSequence
 the ``i``-th of a list of seeds), so field ``i`` is the same whatever ``N`` is.  A field's stream is read in
 one order only: its stationary initial state (``n_states`` normals), then one ``n_states``-vector per step.
 The step normals are drawn per field in blocks of ``block`` steps into ``noise`` (N, block, n_states), one
-generator call per field per block, written in place; ``cursor[i]`` is field ``i``'s next row of its block,
-so fields restarted at different steps (:meth:`DrydenProcess.restart_rows`) each read their own stream from
-its start, and a field of an N-field run is the field alone whatever the other fields do.
+generator call per field per block (:func:`fawtgym.core.normals.standard_normals`); ``cursor[i]`` is field ``i``'s
+next row of its block, so fields restarted at different steps (:meth:`DrydenProcess.restart_rows`) each read their
+own stream from its start, and a field of an N-field run is the field alone whatever the other fields do.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core.checks import shown
+from fawtgym.core.normals import standard_normals
 
 from .base import WindModel, check_dt, check_n
 from .dryden import V_FLOOR, DrydenParams, spatial_state_space
@@ -191,9 +192,8 @@ class DrydenProcess:
         """Fields ``rows`` draw their stationary initial state and their first block of step normals: one generator
         call each, in the stream's order (``n_states`` normals for the state, then the block)."""
         chol, block = self._chol, self.block
-        draw = np.empty((block + 1, self.n_states))
         for row in rows:  # reset path: one generator per field (its own stream)
-            self._rngs[row].standard_normal(out=draw)
+            draw = standard_normals(self._rngs[row], (block + 1, self.n_states))
             self._x[row] = chol @ draw[0]
             self.noise[row] = draw[1:]
             self.cursor[row] = 0
@@ -205,7 +205,7 @@ class DrydenProcess:
             return
         block = self.block
         for row in np.flatnonzero(self.cursor >= block).tolist():  # each field from its own generator
-            self._rngs[row].standard_normal(out=self.noise[row])
+            self.noise[row] = standard_normals(self._rngs[row], (block, self.n_states))
             self.cursor[row] = 0
         self.refill_in = block - int(self.cursor.max())
 
