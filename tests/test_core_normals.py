@@ -45,3 +45,21 @@ def test_fresh_arrays() -> None:
     rng = np.random.default_rng(0)
     a, b = standard_normals(rng, (COMPILED_MIN,)), standard_normals(rng, (COMPILED_MIN,))
     assert not np.shares_memory(a, b) and not np.array_equal(a, b)
+
+
+def test_the_gust_block_only_chunks_each_fields_stream() -> None:
+    """A Dryden field reads the same normals whatever its block (the block is chosen by N: noise_block)."""
+    from fawtgym.envs.wind.dryden import DrydenParams
+    from fawtgym.envs.wind.dryden_process import BLOCK_MAX, BLOCK_MIN, DrydenProcess, noise_block
+
+    assert noise_block(1, 5) == BLOCK_MAX and noise_block(10**6, 5) == BLOCK_MIN
+    assert BLOCK_MIN < noise_block(512, 5) < BLOCK_MAX
+    params = DrydenParams(sigma=(1.0, 1.0, 1.0), length=(0.02, 0.02, 0.02), form="8785c", span=0.5)
+    runs = []
+    for block in (None, 3, 256):
+        proc = DrydenProcess(params, block=block)
+        proc.reset(4, seed=7)
+        runs.append(np.stack([proc.step(0.005, np.array([8.0, 7.0, 9.0, 8.5])) for _ in range(20)]))
+    assert proc.block == 256
+    np.testing.assert_array_equal(runs[0], runs[1])
+    np.testing.assert_array_equal(runs[0], runs[2])

@@ -130,6 +130,19 @@ def field_seeds(n: int, seed: Seed) -> list[np.random.SeedSequence]:
                      f"field), got {shown(seed)}")
 
 
+#: the step normals drawn ahead per process: ``noise_block`` steps per field, as many as fit in this many bytes
+NOISE_BYTES = 32 * 2**20
+BLOCK_MIN, BLOCK_MAX = 256, 4096  #: the bounds of ``noise_block``
+
+
+def noise_block(n: int, n_states: int) -> int:
+    """Steps of normals drawn ahead per field for ``n`` fields (the block: :data:`NOISE_BYTES` of them, within
+    [:data:`BLOCK_MIN`, :data:`BLOCK_MAX`]).  Each field's block is one generator call, which costs ~5 us besides its
+    numbers (:func:`fawtgym.core.normals.standard_normals`): longer blocks spread that over more steps.  The block
+    only chunks each field's stream: the numbers a field reads are the same whatever it is."""
+    return int(min(BLOCK_MAX, max(BLOCK_MIN, NOISE_BYTES // (8 * n * n_states))))
+
+
 class DrydenProcess:
     """N independent Dryden gust processes (the unit-free core of every turbulent wind model).
 
@@ -140,12 +153,14 @@ class DrydenProcess:
     """
 
     def __init__(self, params: DrydenParams, rates: bool = False, discretization: str = "exact",
-                 block: int = 256) -> None:
-        if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1:
-            raise ValueError(f"block must be a positive int, got {shown(block)}")
+                 block: int | None = None) -> None:
+        if block is not None and (isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1):
+            raise ValueError(f"block must be None (chosen by the number of fields: noise_block) or a positive int, "
+                             f"got {shown(block)}")
         self.params = params
         self.rates = rates
-        self.block = int(block)
+        self._block = None if block is None else int(block)
+        self.block = self._block or BLOCK_MIN
         self.a, self.b, self.c = spatial_state_space(params, rates)
         self.n_states = self.a.shape[0]
         self.n_out = self.c.shape[0]
@@ -172,6 +187,7 @@ class DrydenProcess:
         n = int(n)
         seeds = field_seeds(n, seed)
         self.n = n
+        self.block = self._block or noise_block(n, self.n_states)
         self._x = np.empty((n, self.n_states))
         self._rngs = [np.random.Generator(np.random.PCG64(s)) for s in seeds]
         self.noise = np.empty((n, self.block, self.n_states))
