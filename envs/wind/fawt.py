@@ -144,24 +144,21 @@ def _goertler(eta: float) -> float:
     return 0.5 + 0.5 * math.erf(eta)
 
 
-@njit(cache=True)
-def profile_point(xf: float, yf: float, zf: float, f_ref: float, core_ref: float) -> tuple[float, float]:
-    """Mean-speed factor ``F / F_ref`` and shear-layer variance weight at one FAWT-frame point (module docstring).
-
-    ``eta = sigma_G (h - |q|) / x`` per edge, ``f = (1 + erf(eta)) / 2`` (Goertler profile), ``g = exp(-eta^2)``;
-    factor ``f_y f_z U_c(x) / (U_c(x_ref) F_ref)``, weight ``max(g_y f_z, g_z f_y) (U_c(x) / U_c(x_ref))^2``:
-    each edge's Gaussian shear-layer shape restricted to the other direction's extent of the jet.  Both are 0
-    behind the array (x <= 0).
-    """
-    if not xf > 0.0:
-        return 0.0, 0.0
+@njit(cache=True, inline="always")
+def _profile_args(xf: float, yf: float, zf: float, core_ref: float) -> tuple[float, float, float]:
+    """``(eta_y, eta_z, U_c(x) / U_c(x_ref))`` at a FAWT-frame point (:func:`profile_point`)."""
     xs = xf if xf > 1e-3 else 1e-3
     s = GOERTLER_SIGMA / xs
-    eta_y = (HALF_SPAN - abs(yf)) * s
-    eta_z = (HALF_HEIGHT - abs(zf)) * s
-    f_y = _goertler(eta_y)
-    f_z = _goertler(eta_z)
-    core = core_ref / (1.0 + DECAY_KAPPA * xs)  # U_c(x) / U_c(x_ref): slow stream-wise decay of the core
+    return (HALF_SPAN - abs(yf)) * s, (HALF_HEIGHT - abs(zf)) * s, core_ref / (1.0 + DECAY_KAPPA * xs)
+
+
+@njit(cache=True, inline="always")
+def _profile_values(xf: float, eta_y: float, eta_z: float, f_y: float, f_z: float, core: float,
+                    f_ref: float) -> tuple[float, float]:
+    """``(F / F_ref, shear weight)`` from :func:`_profile_args` and the Goertler profiles ``f_y``, ``f_z``
+    (:func:`profile_point`)."""
+    if not xf > 0.0:
+        return 0.0, 0.0
     # max(exp(-eta_y^2) f_z, exp(-eta_z^2) f_y): where 0 <= eta_a <= eta_b, term a is the larger in both factors
     if 0.0 <= eta_y <= eta_z:
         g = math.exp(-eta_y * eta_y) * f_z
@@ -174,11 +171,33 @@ def profile_point(xf: float, yf: float, zf: float, f_ref: float, core_ref: float
 
 
 @njit(cache=True)
+def profile_point(xf: float, yf: float, zf: float, f_ref: float, core_ref: float) -> tuple[float, float]:
+    """Mean-speed factor ``F / F_ref`` and shear-layer variance weight at one FAWT-frame point (module docstring).
+
+    ``eta = sigma_G (h - |q|) / x`` per edge, ``f = (1 + erf(eta)) / 2`` (Goertler profile), ``g = exp(-eta^2)``;
+    factor ``f_y f_z U_c(x) / (U_c(x_ref) F_ref)``, weight ``max(g_y f_z, g_z f_y) (U_c(x) / U_c(x_ref))^2``:
+    each edge's Gaussian shear-layer shape restricted to the other direction's extent of the jet.  Both are 0
+    behind the array (x <= 0).  (:func:`profile_rows` evaluates it over many points in stages.)
+    """
+    eta_y, eta_z, core = _profile_args(xf, yf, zf, core_ref)
+    return _profile_values(xf, eta_y, eta_z, _goertler(eta_y), _goertler(eta_z), core, f_ref)
+
+
+@njit(cache=True)
 def profile_rows(p: NDArray[np.float64], f_ref: float, core_ref: float, factor: NDArray[np.float64],
                  weight: NDArray[np.float64]) -> None:
-    """:func:`profile_point` at each row of ``p`` (M, 3) (FAWT frame) into ``factor``, ``weight`` (M,)."""
-    for i in range(p.shape[0]):
-        factor[i], weight[i] = profile_point(p[i, 0], p[i, 1], p[i, 2], f_ref, core_ref)
+    """:func:`profile_point` at each row of ``p`` (M, 3) (FAWT frame) into ``factor``, ``weight`` (M,), the same
+    numbers, in three loops over the points (the arithmetic, the ``erf`` calls, the ``exp`` calls and the products):
+    a loop of library calls alone runs them back to back (~15 % less time than point by point)."""
+    m = p.shape[0]
+    work = np.empty((m, 5))  # eta_y, eta_z, core, f_y, f_z
+    for i in range(m):
+        work[i, 0], work[i, 1], work[i, 2] = _profile_args(p[i, 0], p[i, 1], p[i, 2], core_ref)
+    for i in range(m):
+        work[i, 3], work[i, 4] = _goertler(work[i, 0]), _goertler(work[i, 1])
+    for i in range(m):
+        factor[i], weight[i] = _profile_values(p[i, 0], work[i, 0], work[i, 1], work[i, 3], work[i, 4], work[i, 2],
+                                               f_ref)
 
 
 def fawt_profile(p_fawt: NDArray[np.float64], x_ref: float = HOTWIRE_X) -> tuple[NDArray, NDArray]:
@@ -204,18 +223,22 @@ def fawt_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], s
     """
     n, n_pts = points.shape[0], points.shape[1]
     ns = x.shape[1]
-    # (F / F_ref, shear weight) at every point: pass 1 computes them (the CoM's sets the Dryden step), pass 2 uses
-    # them (a loop of profile evaluations alone, whose erf/exp calls run back to back)
-    prof = np.empty((n, n_pts, 2))
-    bins = np.empty(n, dtype=np.int64)
-    for i in range(n):  # pass 1: inputs finite, the profile at each point, each row's Dryden bin filled
+    # (F / F_ref, shear weight) at every point, computed over all points at once (profile_rows: its erf/exp calls
+    # run back to back); the CoM's sets each row's Dryden step, the last pass uses them all
+    fawt_points = np.empty((n * n_pts, 3))
+    for i in range(n):  # pass 1: inputs finite, the points in the FAWT frame
         if not row_inputs_finite(points, velocity, i):
             return -2
         for p in range(n_pts):
-            prof[i, p, 0], prof[i, p, 1] = profile_point(points[i, p, 0] - _OX, _OY - points[i, p, 1],
-                                                         _OZ - points[i, p, 2], _F_REF, _CORE_REF)
+            k = i * n_pts + p
+            fawt_points[k, 0], fawt_points[k, 1] = points[i, p, 0] - _OX, _OY - points[i, p, 1]
+            fawt_points[k, 2] = _OZ - points[i, p, 2]
+    factors, weights = np.empty(n * n_pts), np.empty(n * n_pts)
+    profile_rows(fawt_points, _F_REF, _CORE_REF, factors, weights)  # pass 2: the profile at every point
+    bins = np.empty(n, dtype=np.int64)
+    for i in range(n):  # pass 3: each row's Dryden bin filled
         if turbulent:
-            rel_x = scale * prof[i, 0, 0] - velocity[i, 0]  # air velocity relative to the vehicle at the CoM
+            rel_x = scale * factors[i * n_pts] - velocity[i, 0]  # air velocity relative to the vehicle at the CoM
             speed = math.sqrt(rel_x * rel_x + velocity[i, 1] * velocity[i, 1] + velocity[i, 2] * velocity[i, 2])
             b = step_bin((speed if speed > V_FLOOR else V_FLOOR) * dt, k0)
             if not bin_filled(table, b):
@@ -230,7 +253,7 @@ def fawt_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], s
         x0, y0 = points[i, 0, 0] - _OX, _OY - points[i, 0, 1]  # CoM, FAWT frame
         for p in range(n_pts):
             xf, yf = points[i, p, 0] - _OX, _OY - points[i, p, 1]
-            factor, shear = prof[i, p, 0], prof[i, p, 1]
+            factor, shear = factors[i * n_pts + p], weights[i * n_pts + p]
             u_mean = scale * factor  # stream-wise mean, FAWT x = NED north
             if not turbulent:
                 out[i, p, 0], out[i, p, 1], out[i, p, 2] = u_mean, 0.0, 0.0
