@@ -52,8 +52,8 @@ def test_the_gust_block_only_chunks_each_fields_stream() -> None:
     from fawtgym.envs.wind.dryden import DrydenParams
     from fawtgym.envs.wind.dryden_process import BLOCK_MAX, BLOCK_MIN, DrydenProcess, noise_block
 
-    assert noise_block(1, 5) == BLOCK_MAX and noise_block(10**6, 5) == BLOCK_MIN
-    assert BLOCK_MIN < noise_block(512, 5) < BLOCK_MAX
+    assert noise_block(1, 5) == noise_block(64, 5) == noise_block(10**6, 5) == BLOCK_MIN  # a few fields, or many
+    assert BLOCK_MIN < noise_block(512, 5) < BLOCK_MAX and 512 * noise_block(512, 5) * 5 * 8 <= 32 * 2**20
     params = DrydenParams(sigma=(1.0, 1.0, 1.0), length=(0.02, 0.02, 0.02), form="8785c", span=0.5)
     runs = []
     for block in (None, 3, 256):

@@ -130,17 +130,20 @@ def field_seeds(n: int, seed: Seed) -> list[np.random.SeedSequence]:
                      f"field), got {shown(seed)}")
 
 
-#: the step normals drawn ahead per process: ``noise_block`` steps per field, as many as fit in this many bytes
+#: the step normals drawn ahead per process: at most this many bytes (:func:`noise_block`)
 NOISE_BYTES = 32 * 2**20
-BLOCK_MIN, BLOCK_MAX = 256, 4096  #: the bounds of ``noise_block``
+BLOCK_MIN, BLOCK_MAX = 256, 4096  #: the bounds of :func:`noise_block`
+STEPS_PER_FIELD = 4  #: :func:`noise_block` gives ``n`` fields a block of up to this many steps per field
 
 
 def noise_block(n: int, n_states: int) -> int:
-    """Steps of normals drawn ahead per field for ``n`` fields (the block: :data:`NOISE_BYTES` of them, within
-    [:data:`BLOCK_MIN`, :data:`BLOCK_MAX`]).  Each field's block is one generator call, which costs ~5 us besides its
-    numbers (:func:`fawtgym.core.normals.standard_normals`): longer blocks spread that over more steps.  The block
-    only chunks each field's stream: the numbers a field reads are the same whatever it is."""
-    return int(min(BLOCK_MAX, max(BLOCK_MIN, NOISE_BYTES // (8 * n * n_states))))
+    """Steps of normals drawn ahead per field for ``n`` fields: ``STEPS_PER_FIELD n`` steps, at most
+    :data:`NOISE_BYTES` of numbers, within [:data:`BLOCK_MIN`, :data:`BLOCK_MAX`].  Each field's block is one
+    generator call, which costs ~5 us besides its numbers (:func:`fawtgym.core.normals.standard_normals`): ``n``
+    fields pay ``n`` of them per block, ~1.25 us a step in blocks of ``4 n`` steps (512 fields: 1638 steps, 32 MiB,
+    ~1.6 us a step, where blocks of 256 cost ~10 us), while a few fields (a single env, a cohort of one row) keep
+    short blocks.  The block only chunks each field's stream: a field reads the same numbers whatever it is."""
+    return int(min(BLOCK_MAX, max(BLOCK_MIN, min(STEPS_PER_FIELD * n, NOISE_BYTES // (8 * n * n_states)))))
 
 
 class DrydenProcess:
