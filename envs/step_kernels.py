@@ -44,7 +44,7 @@ DIVERGED, GROUND_CONTACT, OUT_OF_BOUNDS = 1, 2, 3
 REWARD_TERMS = ("pos", "vel", "att", "rate", "action", "failure")
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rot_ned_row(states: NDArray[np.float64], i: int, rot: NDArray[np.float64]) -> None:  # pragma: no cover - jitted
     """Row ``i`` of FULLPHYSICS states (k, 14): its MuJoCo unit quaternion (w, x, y, z) (columns 4-7) -> R (3, 3) body
     FRD -> world NED into ``rot[i]``.

@@ -160,7 +160,7 @@ def rot_to_euler_row(r: np.ndarray, out: np.ndarray) -> None:
     out[2] = math.atan2(r[1, 0], r[0, 0])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def quat_to_rot_entries(qw: float, qx: float, qy: float, qz: float) -> tuple[float, float, float, float, float,
                                                                              float, float, float, float]:
     """The rotation matrix of the quaternion (w, x, y, z), normalized first (the caller refuses a zero one), as its
