@@ -36,8 +36,11 @@ def free_udp_port() -> int:
 
 
 def make_replay(port: int, tlog=None, **kw) -> Replay:
+    # telemetry_timeout 2 s instead of the 0.5 s default: the peer is a thread of this process, and on a loaded
+    # 2-core CI one stall of 1.36 s (scheduling or a GC pass, not the link) once aborted a healthy replay
     opts = dict(hover_point=[1.5, 0.0, -0.25], origin=ORIGIN, rate=100.0, duration=1.0, prestream=1.1,
-                climb_speed=1.0, settle=0.2, connect_timeout=3.0, command_timeout=3.0, land_timeout=5.0, tlog=tlog)
+                climb_speed=1.0, settle=0.2, connect_timeout=3.0, command_timeout=3.0, land_timeout=5.0, tlog=tlog,
+                telemetry_timeout=2.0)
     opts.update(kw)
     return Replay(f"udp:127.0.0.1:{port}", "px4+leso", **opts)
 

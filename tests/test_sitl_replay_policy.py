@@ -51,9 +51,11 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 def fly(agent: str, port: int, **kw) -> tuple[dict, AutopilotPeer]:
+    # telemetry_timeout 2 s (the default 0.5 s): the peer is a thread of this process; on a loaded 2-core CI a
+    # scheduling or GC stall of over a second, not the link, can starve it (tests/test_sitl_replay.py)
     replay = Replay(f"udp:127.0.0.1:{port}", agent, vehicle="s500", hover_point=HOVER_POINT, origin=ORIGIN,
                     rate=100.0, duration=0.8, prestream=1.1, climb_speed=1.0, settle=0.1, connect_timeout=3.0,
-                    command_timeout=3.0, land_timeout=5.0, log=LOG.append, **kw)
+                    command_timeout=3.0, land_timeout=5.0, log=LOG.append, **{"telemetry_timeout": 2.0, **kw})
     with running_peer(port) as peer:
         summary = replay.run()
     return summary, peer
