@@ -125,7 +125,7 @@ assert np.array_equal(R_FAWT_TO_NED, np.diag([1.0, -1.0, -1.0]))  # the kernels 
 
 
 def _reference(x_ref: float) -> tuple[float, float]:
-    """The normalizers of :func:`profile_point` for the reference station ``x_ref``: ``F(x_ref, 0, 0)`` and
+    """The normalizers of :func:`profile_rows` for the reference station ``x_ref``: ``F(x_ref, 0, 0)`` and
     ``1 + kappa x_ref`` (so that ``U_c(x) / U_c(x_ref) = (1 + kappa x_ref) / (1 + kappa x)``)."""
     s = GOERTLER_SIGMA / x_ref
     return 0.25 * (1 + math.erf(HALF_SPAN * s)) * (1 + math.erf(HALF_HEIGHT * s)), 1.0 + DECAY_KAPPA * x_ref
@@ -146,7 +146,7 @@ def _goertler(eta: float) -> float:
 
 @njit(cache=True, inline="always")
 def _profile_args(xf: float, yf: float, zf: float, core_ref: float) -> tuple[float, float, float]:
-    """``(eta_y, eta_z, U_c(x) / U_c(x_ref))`` at a FAWT-frame point (:func:`profile_point`)."""
+    """``(eta_y, eta_z, U_c(x) / U_c(x_ref))`` at a FAWT-frame point (:func:`profile_rows`)."""
     xs = xf if xf > 1e-3 else 1e-3
     s = GOERTLER_SIGMA / xs
     return (HALF_SPAN - abs(yf)) * s, (HALF_HEIGHT - abs(zf)) * s, core_ref / (1.0 + DECAY_KAPPA * xs)
@@ -156,7 +156,7 @@ def _profile_args(xf: float, yf: float, zf: float, core_ref: float) -> tuple[flo
 def _profile_values(xf: float, eta_y: float, eta_z: float, f_y: float, f_z: float, core: float,
                     f_ref: float) -> tuple[float, float]:
     """``(F / F_ref, shear weight)`` from :func:`_profile_args` and the Goertler profiles ``f_y``, ``f_z``
-    (:func:`profile_point`)."""
+    (:func:`profile_rows`)."""
     if not xf > 0.0:
         return 0.0, 0.0
     # max(exp(-eta_y^2) f_z, exp(-eta_z^2) f_y): where 0 <= eta_a <= eta_b, term a is the larger in both factors
@@ -171,24 +171,17 @@ def _profile_values(xf: float, eta_y: float, eta_z: float, f_y: float, f_z: floa
 
 
 @njit(cache=True)
-def profile_point(xf: float, yf: float, zf: float, f_ref: float, core_ref: float) -> tuple[float, float]:
-    """Mean-speed factor ``F / F_ref`` and shear-layer variance weight at one FAWT-frame point (module docstring).
+def profile_rows(p: NDArray[np.float64], f_ref: float, core_ref: float, factor: NDArray[np.float64],
+                 weight: NDArray[np.float64]) -> None:
+    """Mean-speed factor ``F / F_ref`` and shear-layer variance weight at each FAWT-frame point of ``p`` (M, 3) into
+    ``factor``, ``weight`` (M,) (module docstring).
 
     ``eta = sigma_G (h - |q|) / x`` per edge, ``f = (1 + erf(eta)) / 2`` (Goertler profile), ``g = exp(-eta^2)``;
     factor ``f_y f_z U_c(x) / (U_c(x_ref) F_ref)``, weight ``max(g_y f_z, g_z f_y) (U_c(x) / U_c(x_ref))^2``:
     each edge's Gaussian shear-layer shape restricted to the other direction's extent of the jet.  Both are 0
-    behind the array (x <= 0).  (:func:`profile_rows` evaluates it over many points in stages.)
-    """
-    eta_y, eta_z, core = _profile_args(xf, yf, zf, core_ref)
-    return _profile_values(xf, eta_y, eta_z, _goertler(eta_y), _goertler(eta_z), core, f_ref)
-
-
-@njit(cache=True)
-def profile_rows(p: NDArray[np.float64], f_ref: float, core_ref: float, factor: NDArray[np.float64],
-                 weight: NDArray[np.float64]) -> None:
-    """:func:`profile_point` at each row of ``p`` (M, 3) (FAWT frame) into ``factor``, ``weight`` (M,), the same
-    numbers, in three loops over the points (the arithmetic, the ``erf`` calls, the ``exp`` calls and the products):
-    a loop of library calls alone runs them back to back (~15 % less time than point by point)."""
+    behind the array (x <= 0).  Computed in three loops over the points (the arithmetic, the ``erf`` calls, the
+    ``exp`` calls and the products): a loop of library calls alone runs them back to back (~15 % less time than
+    point by point)."""
     m = p.shape[0]
     work = np.empty((m, 5))  # eta_y, eta_z, core, f_y, f_z
     for i in range(m):
@@ -201,7 +194,7 @@ def profile_rows(p: NDArray[np.float64], f_ref: float, core_ref: float, factor: 
 
 
 def fawt_profile(p_fawt: NDArray[np.float64], x_ref: float = HOTWIRE_X) -> tuple[NDArray, NDArray]:
-    """Mean-speed factor ``F / F_ref`` and shear-layer variance weight (:func:`profile_point`) at FAWT points
+    """Mean-speed factor ``F / F_ref`` and shear-layer variance weight (:func:`profile_rows`) at FAWT points
     (..., 3); ``F / F_ref`` is 1 at ``(x_ref, 0, 0)``."""
     p = np.ascontiguousarray(p_fawt, dtype=float)
     flat = p.reshape(-1, 3)
