@@ -18,6 +18,8 @@ on another thread at the same time (the env's sensor and gust generators are eac
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
@@ -34,9 +36,7 @@ def _compiled_standard_normals(rng: np.random.Generator, size: int) -> NDArray[n
 
 def standard_normals(rng: np.random.Generator, shape: tuple[int, ...]) -> NDArray[np.float64]:
     """A fresh float64 array of ``shape`` holding the numbers of ``rng.standard_normal(shape)`` (module docstring)."""
-    size = 1
-    for d in shape:
-        size *= d
+    size = math.prod(shape)
     if size < COMPILED_MIN:
         return rng.standard_normal(shape)
     return _compiled_standard_normals(rng, size).reshape(shape)

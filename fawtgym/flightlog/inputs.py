@@ -194,26 +194,31 @@ SCALE_CHOICES: tuple[str, ...] = ("auto", "estimate", "hover", "param", "preset"
 MAX_THRUST_SCALE = 1e3
 
 
-def choose_scale(scales: dict[str, object], choice: str, check_only: bool = False) -> tuple[float, str]:
+def given_scale(choice: object) -> float | None:
+    """``--thrust-scale`` checked without the log: None for a named choice (:data:`SCALE_CHOICES`), else the number
+    it gives, in (0, :data:`MAX_THRUST_SCALE`]; FlightLogError for anything else."""
+    if isinstance(choice, str) and choice in SCALE_CHOICES:
+        return None
+    try:
+        value = float(choice) if isinstance(choice, (str, float, int)) and not isinstance(choice, bool) else math.nan
+    except (ValueError, OverflowError):  # not a number; an int beyond float range
+        raise FlightLogError(f"--thrust-scale must be one of {list(SCALE_CHOICES)} or a positive number, "
+                             f"got {shown(choice)}") from None
+    if not (math.isfinite(value) and 0 < value <= MAX_THRUST_SCALE):
+        raise FlightLogError(f"--thrust-scale must be one of {list(SCALE_CHOICES)} or a finite number in (0, "
+                             f"{MAX_THRUST_SCALE:g}], got {shown(choice)}")
+    return value
+
+
+def choose_scale(scales: dict[str, object], choice: str) -> tuple[float, str]:
     """The scale for ``--thrust-scale`` (auto | estimate | hover | param | preset | number) and its origin.
 
     ``auto`` takes the first candidate the log pins in the order estimate, hover, param, preset; a named
-    candidate the log does not pin raises FlightLogError naming what it needs.  ``check_only``: only refuse a
-    choice that is none of these (before the log is read); returns ``(nan, "")`` for a named one.
+    candidate the log does not pin raises FlightLogError naming what it needs (a number: :func:`given_scale`).
     """
-    if not (isinstance(choice, str) and choice in SCALE_CHOICES):
-        try:
-            value = float(choice) if isinstance(choice, (str, float, int)) and not isinstance(choice, bool) \
-                else math.nan
-        except (ValueError, OverflowError):  # not a number; an int beyond float range
-            raise FlightLogError(f"--thrust-scale must be one of {list(SCALE_CHOICES)} or a positive number, "
-                                 f"got {shown(choice)}") from None
-        if not (math.isfinite(value) and 0 < value <= MAX_THRUST_SCALE):
-            raise FlightLogError(f"--thrust-scale must be one of {list(SCALE_CHOICES)} or a finite number in (0, "
-                                 f"{MAX_THRUST_SCALE:g}], got {shown(choice)}")
+    value = given_scale(choice)
+    if value is not None:
         return value, "given"
-    if check_only:
-        return math.nan, ""
     if choice == "auto":
         for key in ("estimate", "hover", "param", "preset"):
             if scales.get(key) is not None:

@@ -25,7 +25,7 @@ from fawtgym.core.checks import shown
 from fawtgym.envs.vehicles import VehiclePreset, make_vehicle
 
 from .errors import FlightLogError, log_number
-from .inputs import choose_scale, contradictions, make_thrust_model, rotor_commands, thrust_scales
+from .inputs import choose_scale, contradictions, given_scale, make_thrust_model, rotor_commands, thrust_scales
 from .logdata import FlightLog, read_log
 from .phases import PHASES, Phases, detect_phases, segments
 from .timebase import check_rate, hold, make_grid
@@ -70,7 +70,7 @@ def observe(log: FlightLog | str | Path, observers: Sequence[str], vehicle: str 
         raise FlightLogError(f"unknown observer(s) {unknown}; valid names: {observer_names()}")
     rate = check_rate(rate)  # before the log is read (a bad value is told at once, not after parsing)
     settle = log_number(settle, "--settle", minimum=0.0, inclusive_minimum=True, maximum=1e6, note="s")
-    choose_scale({}, thrust_scale, check_only=True)
+    given_scale(thrust_scale)
     try:
         preset = make_vehicle(vehicle)
     except (ValueError, TypeError, OSError) as exc:
