@@ -305,6 +305,7 @@ class PX4Agent(Agent):
             self._setpoint = new_sp.copy()
             self._setpoint_override = False
             self._action = np.empty((n, 4))
+            self._work = np.empty(C.N_WORK)  # the cascade kernel's scratch
             self._no_estimate = np.zeros((n, 3))
             self.last_estimate: tuple[NDArray[np.float64] | None, NDArray[np.float64] | None] = (None, None)
             return
@@ -397,7 +398,7 @@ class PX4Agent(Agent):
                 pos, vel, att, gyro, sf, sf is not self._no_estimate,
                 setpoint, self.yaw_setpoint, force, force_hat is not None, torque, torque_hat is not None, self.dt,
                 self._constants, self._state, self.position_control.state, self.hover_thrust_estimator.state,
-                self.rate_control.state, self._att_sp, self._action)
+                self.rate_control.state, self._att_sp, self._action, self._work)
         except BaseException:
             if self._pose_delay.steps:  # refused after the push (the observer's inputs): the line as it was
                 self._pose_delay.undo(meas)

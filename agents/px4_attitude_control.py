@@ -66,7 +66,9 @@ def attitude_control_row(r: np.ndarray, r_sp: np.ndarray, yawspeed_sp: float, pr
     cz = r[0, 2] * r_sp[1, 2] - r[1, 2] * r_sp[0, 2]
     d = r[0, 2] * r_sp[0, 2] + r[1, 2] * r_sp[1, 2] + r[2, 2] * r_sp[2, 2]
     if d < -1.0 + 1e-9:  # thrust axes opposite: PX4 takes the full attitude setpoint
-        qd[:, :] = r_sp
+        for j in range(3):
+            for m in range(3):
+                qd[j, m] = r_sp[j, m]
     else:
         cc = cx * cx + cy * cy + cz * cz
         # red = I + [c]^x + (c c^T - |c|^2 I) / (1 + d)

@@ -109,6 +109,13 @@ TORQUE = 36  # (3,) normalized torque setpoint
 ROTOR = 39  # (4,) rotor normalized thrusts sent to the motors
 N_STATE = 43
 
+#: work buffer layout of :func:`cascade_step` (one buffer of ``N_WORK`` floats, the caller's): the allocation's
+#: (2, 4, 4) matrices, five (3, 3) scratch matrices, then one row of every array the row loop works on
+W_ALLOC = 0
+W_MATS = W_ALLOC + 32
+W_ROW = W_MATS + 45
+N_WORK = W_ROW + 7 * 3 + 2 * 4 + N_STATE + N_POS_STATE + N_HTE_STATE + N_RATE_STATE + 4 * 3 + 4
+
 
 def configuration(gyro_coef: NDArray[np.float64], dgyro_coef: NDArray[np.float64], veld_cutoff: float,
                   periods: tuple[float, float, float], use_hte: bool, thrust_scale: float,
@@ -198,12 +205,12 @@ def first_bad_input(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.
     return OK, -1
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.ndarray, specific_force: np.ndarray,
                  has_specific_force: bool, setpoint: np.ndarray, yaw: float, force_hat: np.ndarray, use_force: bool,
                  torque_hat: np.ndarray, use_torque: bool, dt: float, constants: np.ndarray, state: np.ndarray,
                  pos_state: np.ndarray, hte_state: np.ndarray, rate_state: np.ndarray, att_sp: np.ndarray,
-                 action: np.ndarray) -> tuple[int, int]:
+                 action: np.ndarray, work: np.ndarray) -> tuple[int, int]:
     """One ``act`` of the cascade for every row (module docstring); writes ``action`` (N, 4) motor commands.
 
     Inputs (N, 3) / (N, 3, 3) are the measurement (pose possibly delayed; checked finite, the attitude a rotation:
@@ -217,10 +224,9 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
     hte_prm = constants[K_HTE:K_ATT]
     att_prm = constants[K_ATT:K_RATE]
     rate_prm = constants[K_RATE:K_MIX_T]
-    # the (4, 4) matrices copied out of the constants vector into a (2, 4, 4) array and the (3, 3) scratch matrices
-    # taken from a (5, 3, 3) one: a view made by reshape gets a reference count of its own that numba cannot pair
-    # up, so every call of an inlined law with it as an argument would cost an atomic increment and decrement
-    alloc_mats = np.empty((2, 4, 4))
+    # the (4, 4) matrices copied out of the constants vector into a (2, 4, 4) part of the work buffer (a copy the
+    # row loop reads directly, like the (3, 3) scratch matrices below)
+    alloc_mats = work[W_ALLOC:W_MATS].reshape((2, 4, 4))
     for j in range(4):
         for m in range(4):
             alloc_mats[0, j, m] = constants[K_MIX_T + 4 * j + m]
@@ -239,16 +245,15 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
                 return BAD_ESTIMATE, i
     gyro_coef = cfg[GYRO_COEF:GYRO_COEF + N_BIQUAD]
     dgyro_coef = cfg[DGYRO_COEF:DGYRO_COEF + N_BIQUAD]
-    # One row of every array, in scratch made once per call: the row loop copies a row in, runs the laws on the
-    # scratch views made here and copies the row out.  A view made inside the loop (``state[i]``, a slice) costs
-    # numba an atomic reference-count increment and decrement per row (as does every array argument of a call).
-    scratch = np.empty(7 * 3 + 2 * 4 + N_STATE + N_POS_STATE + N_HTE_STATE + N_RATE_STATE + 4 * 3 + 4)
+    # One row of every array, in the work buffer: the row loop copies a row in, runs the laws on the views made
+    # here and copies the row out (no view is made inside the loop).
+    scratch = work[W_ROW:N_WORK]
     zeros = scratch[0:3]
     zeros[:] = 0.0
     rate, ang_acc, raw, vel_dot = scratch[3:6], scratch[6:9], scratch[9:12], scratch[12:15]
     thr, torque = scratch[15:18], scratch[18:21]
     unallocated, q = scratch[21:25], scratch[25:29]
-    mats = np.empty((5, 3, 3))
+    mats = work[W_MATS:W_ROW].reshape((5, 3, 3))
     qd, r_e, red, att_i, att_sp_i = mats[0], mats[1], mats[2], mats[3], mats[4]
     k = 29
     s = scratch[k:k + N_STATE]  # the row of the agent state
@@ -281,7 +286,8 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
         if s[FRESH] != 0.0:
             butterworth_reset_row(gyro_i, gyro_z, gyro_coef)
             dgyro_z[:] = 0.0
-            rate[:] = gyro_i
+            for j in range(3):
+                rate[j] = gyro_i[j]
             ang_acc[:] = 0.0
             s[FRESH] = 0.0
         else:

@@ -55,28 +55,31 @@ def bin_filled(table: NDArray[np.float64], b: int) -> bool:
 
 
 @njit(cache=True)
-def gust_row_step(x: NDArray[np.float64], z: NDArray[np.float64], m: NDArray[np.float64], i: int,
-                  scratch: NDArray[np.float64]) -> None:
-    """Row ``i``: ``[x_i, z] @ M = [x+, y+]`` (exact step, module docstring) into ``scratch`` (ns + n_out,); ``x[i]``
-    is overwritten with ``x+``, the outputs ``y+`` are ``scratch[ns:]``."""
+def gust_row_step(x: NDArray[np.float64], noise: NDArray[np.float64], step: int, table: NDArray[np.float64], b: int,
+                  i: int, scratch: NDArray[np.float64]) -> None:
+    """Row ``i``: ``[x_i, z] @ M = [x+, y+]`` (exact step, module docstring) with the row's normals
+    ``z = noise[i, step]`` and the step matrix ``M = table[b]``, into ``scratch`` (ns + n_out,); ``x[i]`` is
+    overwritten with ``x+``, the outputs ``y+`` are ``scratch[ns:]``.  Indexed in place: a view per row
+    (``noise[i, step]``, ``table[b]``) would cost numba an atomic reference-count increment and decrement each."""
     ns = x.shape[1]
-    n_col = m.shape[1]
+    n_col = table.shape[2]
     # output j is the sum 0 + x_0 m_0j + ... + x_(ns-1) m_(ns-1)j + z_0 m_(ns)j + ... + z_(ns-1) m_(2ns-1)j, in this
     # order; four outputs are summed side by side (independent sums the CPU overlaps), the rest one by one
     j = 0
     while j + 4 <= n_col:
         s0, s1, s2, s3 = 0.0, 0.0, 0.0, 0.0
         for col in range(2 * ns):  # [x, z] @ M: Ad x, then S z
-            v = x[i, col] if col < ns else z[col - ns]
-            s0, s1, s2, s3 = s0 + v * m[col, j], s1 + v * m[col, j + 1], s2 + v * m[col, j + 2], s3 + v * m[col, j + 3]
+            v = x[i, col] if col < ns else noise[i, step, col - ns]
+            s0, s1 = s0 + v * table[b, col, j], s1 + v * table[b, col, j + 1]
+            s2, s3 = s2 + v * table[b, col, j + 2], s3 + v * table[b, col, j + 3]
         scratch[j], scratch[j + 1], scratch[j + 2], scratch[j + 3] = s0, s1, s2, s3
         j += 4
     while j < n_col:
         acc = 0.0
         for col in range(ns):
-            acc += x[i, col] * m[col, j]
+            acc += x[i, col] * table[b, col, j]
         for col in range(ns):
-            acc += z[col] * m[ns + col, j]
+            acc += noise[i, step, col] * table[b, ns + col, j]
         scratch[j] = acc
         j += 1
     for j in range(ns):
@@ -103,7 +106,7 @@ def dryden_step_rows(x: NDArray[np.float64], noise: NDArray[np.float64], cursor:
         bins[i] = b
     scratch = np.empty(table.shape[2])
     for i in range(n):
-        gust_row_step(x, noise[i, cursor[i]], table[bins[i]], i, scratch)
+        gust_row_step(x, noise, cursor[i], table, bins[i], i, scratch)
         cursor[i] += 1
         for j in range(y.shape[1]):
             y[i, j] = scratch[ns + j]

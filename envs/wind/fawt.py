@@ -241,7 +241,7 @@ def fawt_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], s
     shear_scale2 = (SHEAR_TI * scale) ** 2  # peak mixing-layer variance (TI_sl U_c)^2
     for i in range(n):
         if turbulent:
-            gust_row_step(x, noise[i, cursor[i]], table[bins[i]], i, scratch)  # one gust per row
+            gust_row_step(x, noise, cursor[i], table, bins[i], i, scratch)  # one gust per row
             cursor[i] += 1
         x0, y0 = points[i, 0, 0] - _OX, _OY - points[i, 0, 1]  # CoM, FAWT frame
         for p in range(n_pts):

@@ -113,7 +113,7 @@ def dryden_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64],
         bins[i] = b
     scratch = np.empty(table.shape[2])  # [x+, y+]: the row's gust y+ = [u, v, w](, p, q, r) is scratch[ns:]
     for i in range(n):
-        gust_row_step(x, noise[i, cursor[i]], table[bins[i]], i, scratch)
+        gust_row_step(x, noise, cursor[i], table, bins[i], i, scratch)
         cursor[i] += 1
         for p in range(n_pts):
             g_u, g_v, g_w = scratch[ns], scratch[ns + 1], scratch[ns + 2]
