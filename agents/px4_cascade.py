@@ -40,6 +40,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from fawtgym.core.constants import GRAVITY
+from fawtgym.core.kernel_types import NO_REFCOUNT
 from fawtgym.core.so3_kernels import ROTATION_TOL, first_non_rotation
 from fawtgym.envs.options import MAX_SETPOINT
 
@@ -205,7 +206,7 @@ def first_bad_input(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.
     return OK, -1
 
 
-@njit(cache=True, nogil=True, _nrt=False)
+@njit(cache=True, nogil=True, **NO_REFCOUNT)
 def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.ndarray, specific_force: np.ndarray,
                  has_specific_force: bool, setpoint: np.ndarray, yaw: float, force_hat: np.ndarray, use_force: bool,
                  torque_hat: np.ndarray, use_torque: bool, dt: float, constants: np.ndarray, state: np.ndarray,
@@ -218,6 +219,8 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
     and the disturbance estimates
     (zeros without an observer; C-contiguous or strided, e.g. the columns of an observer's estimate buffer; both
     checked finite, fed forward if ``use_force`` / ``use_torque``); the state arrays are updated in place.
+    ``work`` (:data:`N_WORK`,) is the caller's scratch: the kernel allocates nothing, so it is compiled without
+    numba's reference counting (:data:`~fawtgym.core.kernel_types.NO_REFCOUNT`).
     """
     cfg = constants[K_CONFIG:K_POS]
     pos_prm = constants[K_POS:K_HTE]

@@ -210,7 +210,7 @@ def fawt_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64], s
     """The FAWT wind (N, K, 3) NED at ``points`` (N, K, 3) into ``out``, every row (module docstring).
 
     ``scale = U_ref s(t)`` (mean speed at the hot wire times the fan level); with ``turbulent`` each row's Dryden
-    field (state ``x``, its next normals ``noise[i, cursor[i]]``, step matrices ``table``) is advanced by ``dt`` at
+    field (state ``x``, its next normals ``noise[cursor[i], i]``, step matrices ``table``) is advanced by ``dt`` at
     its frozen-turbulence speed ``V = |U(CoM) e_x - v|``.  Returns -1; or, before changing anything, -2 if a point
     or velocity is not finite, or the index of a table bin that must be filled first.
     """

@@ -93,7 +93,7 @@ def dryden_wind_rows(points: NDArray[np.float64], velocity: NDArray[np.float64],
                      table: NDArray[np.float64], k0: int, out: NDArray[np.float64]) -> int:
     """The outdoor Dryden wind (N, K, 3) NED at ``points`` into ``out`` (module docstring), every row.
 
-    Each row's gust field (state ``x``, its next normals ``noise[i, cursor[i]]``) steps at ``V = |W_adv - v|``; the
+    Each row's gust field (state ``x``, its next normals ``noise[cursor[i], i]``) steps at ``V = |W_adv - v|``; the
     gust ``[u, v, w]`` along ``axes`` (rows: u, v, w in NED), plus with ``rates`` the gradients across the vehicle.
     Returns -1; or, before changing anything, -2 if a point or velocity is not finite, or a table bin to fill.
     """

@@ -21,6 +21,13 @@ TYPED_DISPATCH: bool = not getattr(config, "DISABLE_JIT", False)
 VALUES, ROWS, ROTATIONS = float64[::1], float64[:, ::1], float64[:, :, ::1]
 
 
+#: ``njit`` options of a kernel that allocates nothing (its scratch is an argument): compiled without numba's
+#: reference counting (``_nrt=False``, an option numba uses for its own allocation-free helpers).  Every array
+#: argument of a law inlined into a row loop otherwise costs an atomic increment and decrement per row (found with
+#: ``perf``: ~15 % of the PX4 cascade kernel); without NRT a kernel cannot allocate (numba refuses to compile it).
+NO_REFCOUNT: dict[str, Any] = {"_nrt": False}
+
+
 _LOCK = threading.Lock()
 _COMPILED: set[int] = set()  # id() of the dispatchers compile_only has compiled (dispatchers live as long as modules)
 
