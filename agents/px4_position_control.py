@@ -68,10 +68,15 @@ _E3 = np.array([0.0, 0.0, 1.0])  # world down: the tilt limit's reference axis
 def limit_tilt_row(b: np.ndarray, w: np.ndarray, max_angle: float, out: np.ndarray) -> None:
     """PX4 ControlMath::limitTilt: rotate the unit vector ``b`` towards ``w`` so their angle is <= max_angle.
 
-    Keeps the direction of the rejection ``b - (b.w) w`` (x if it vanishes) and clamps the angle.
-    ``out`` may alias ``b``.
+    Keeps the direction of the rejection ``b - (b.w) w`` (x if it vanishes) and clamps the angle.  Within the
+    limit (``b.w >= cos(max_angle)``) PX4's formula ``cos(acos(b.w)) w + sin(acos(b.w)) r / |r|`` is ``b`` itself
+    (``|r| = sin(angle)`` for unit vectors), which is returned as it is: the same result without its four library
+    calls and their rounding.  ``out`` may alias ``b``.
     """
     dot = min(max(b[0] * w[0] + b[1] * w[1] + b[2] * w[2], -1.0), 1.0)
+    if dot >= math.cos(max_angle):
+        out[0], out[1], out[2] = b[0], b[1], b[2]
+        return
     angle = min(math.acos(dot), max_angle)
     rx, ry, rz = b[0] - dot * w[0], b[1] - dot * w[1], b[2] - dot * w[2]
     if rx * rx + ry * ry + rz * rz < _EPS:

@@ -58,6 +58,35 @@ def test_tilt_limit_45_deg() -> None:
     np.testing.assert_allclose(b, [[math.sin(math.radians(10)), 0.0, math.cos(math.radians(10))]], atol=1e-12)
 
 
+def _px4_limit_tilt(b: np.ndarray, w: np.ndarray, max_angle: float) -> np.ndarray:
+    """PX4's ControlMath::limitTilt written out (acos, clamp, cos/sin of the angle along the rejection)."""
+    dot = float(np.clip(b @ w, -1.0, 1.0))
+    angle = min(math.acos(dot), max_angle)
+    rej = b - dot * w
+    if rej @ rej < 1.1920929e-07:
+        rej = np.array([1.0, 0.0, 0.0])
+    return math.cos(angle) * w + math.sin(angle) * rej / np.linalg.norm(rej)
+
+
+def test_limit_tilt_is_px4s_formula_inside_and_outside_the_limit() -> None:
+    """Within the limit the kernel returns b as it is (PX4's formula is b there, up to its rounding); beyond it, the
+    vector at the limit angle in the plane of b and w.  Both agree with PX4's formula to 1e-14."""
+    rng = np.random.default_rng(3)
+    w = np.array([0.0, 0.0, 1.0])
+    max_angle = math.radians(45.0)
+    b = rng.normal(size=(400, 3))
+    b[:, 2] = np.abs(b[:, 2]) + 0.3 * rng.random(400)
+    b /= np.linalg.norm(b, axis=1, keepdims=True)
+    out = limit_tilt(b, w, max_angle)
+    inside = b @ w >= math.cos(max_angle)
+    assert 50 < inside.sum() < 350  # both branches exercised
+    np.testing.assert_array_equal(out[inside], b[inside])
+    expected = np.array([_px4_limit_tilt(bi, w, max_angle) for bi in b])
+    np.testing.assert_allclose(out, expected, rtol=0, atol=1e-14)
+    tilt = np.degrees(np.arccos(np.clip(out[~inside] @ w, -1, 1)))
+    np.testing.assert_allclose(tilt, 45.0, atol=1e-9)
+
+
 def test_vertical_antiwindup_freezes_integrator_at_thrust_limit() -> None:
     pc = PositionControl(PX4Params(), hover_thrust=0.5)
     # climb at 3 m/s demanded: acc_z = -12 -> collective -1.11 < -THR_MAX => saturated, error <= 0 => frozen
