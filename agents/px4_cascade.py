@@ -275,6 +275,7 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
     torque_sp, rotor = s[TORQUE:TORQUE + 3], s[ROTOR:ROTOR + 4]
     last_sp = setpoint.shape[0] - 1
     sin_yaw, cos_yaw = math.sin(yaw), math.cos(yaw)  # the heading setpoint, the same for every row
+    cos_tilt = math.cos(pos_prm[TILT_MAX])  # the tilt limit's cosine, the same for every row
     for i in range(n):
         for j in range(N_STATE):
             s[j] = state[i, j]
@@ -320,14 +321,14 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
                 if hte_s[VALID] != 0.0:  # PX4 applies only valid estimates
                     update_hover_thrust_row(hte_s[HTE_HOVER], pos_prm, pos_s)
             filtered_derivative_row(vel_i, vel_deriv, cfg[VELD_CUTOFF], pos_dt, vel_dot)
-            position_control_row(pos_i, vel_i, vel_dot, sp_i, zeros, zeros, pos_dt, pos_prm, pos_s, True, thr)
+            position_control_row(pos_i, vel_i, vel_dot, sp_i, zeros, zeros, pos_dt, pos_prm, cos_tilt, pos_s, True, thr)
             for j in range(3):
                 s[THR0 + j] = thr[j]
             s[HAS_THR0] = 1.0
             if use_force:  # F = F0 - phi_hat, limited as PX4's own
                 for j in range(3):
                     raw[j] = force_hat[i, j]
-                force_feedforward_row(thr, raw, cfg[THRUST_SCALE], pos_prm[TILT_MAX], pos_prm[THR_MIN],
+                force_feedforward_row(thr, raw, cfg[THRUST_SCALE], pos_prm[TILT_MAX], cos_tilt, pos_prm[THR_MIN],
                                       pos_prm[THR_MAX], thr)
             for j in range(3):
                 s[THR_SP + j] = thr[j]

@@ -65,16 +65,17 @@ _E3 = np.array([0.0, 0.0, 1.0])  # world down: the tilt limit's reference axis
 
 # ---- row laws (one vehicle) --------------------------------------------------------------------------
 @njit(cache=True, inline="always")
-def limit_tilt_row(b: np.ndarray, w: np.ndarray, max_angle: float, out: np.ndarray) -> None:
+def limit_tilt_row(b: np.ndarray, w: np.ndarray, max_angle: float, cos_max: float, out: np.ndarray) -> None:
     """PX4 ControlMath::limitTilt: rotate the unit vector ``b`` towards ``w`` so their angle is <= max_angle.
 
     Keeps the direction of the rejection ``b - (b.w) w`` (x if it vanishes) and clamps the angle.  Within the
     limit (``b.w >= cos(max_angle)``) PX4's formula ``cos(acos(b.w)) w + sin(acos(b.w)) r / |r|`` is ``b`` itself
     (``|r| = sin(angle)`` for unit vectors), which is returned as it is: the same result without its four library
-    calls and their rounding.  ``out`` may alias ``b``.
+    calls and their rounding.  ``cos_max`` is ``cos(max_angle)`` (taken once by the caller for all rows); ``out``
+    may alias ``b``.
     """
     dot = min(max(b[0] * w[0] + b[1] * w[1] + b[2] * w[2], -1.0), 1.0)
-    if dot >= math.cos(max_angle):
+    if dot >= cos_max:
         out[0], out[1], out[2] = b[0], b[1], b[2]
         return
     angle = min(math.acos(dot), max_angle)
@@ -136,16 +137,16 @@ def bodyz_to_attitude_row(zx: float, zy: float, zz: float, sin_yaw: float, cos_y
 
 
 @njit(cache=True, inline="always")
-def acceleration_control_row(ax: float, ay: float, az: float, hover: float, prm: np.ndarray,
+def acceleration_control_row(ax: float, ay: float, az: float, hover: float, prm: np.ndarray, cos_tilt: float,
                              thr: np.ndarray) -> None:
     """PositionControl::_accelerationControl: acceleration setpoint -> normalized thrust vector ``thr`` (3,).
 
-    ``body_z = normalize(-a_x, -a_y, g)`` tilt-limited; collective ``(a_z Th / g - Th) / body_z_z`` capped at
-    ``-MPC_THR_MIN``; ``thr = body_z collective``.
+    ``body_z = normalize(-a_x, -a_y, g)`` tilt-limited (``cos_tilt = cos(prm[TILT_MAX])``); collective
+    ``(a_z Th / g - Th) / body_z_z`` capped at ``-MPC_THR_MIN``; ``thr = body_z collective``.
     """
     bn = math.sqrt(ax * ax + ay * ay + GRAVITY * GRAVITY)
     thr[0], thr[1], thr[2] = -ax / bn, -ay / bn, GRAVITY / bn
-    limit_tilt_row(thr, _E3, prm[TILT_MAX], thr)
+    limit_tilt_row(thr, _E3, prm[TILT_MAX], cos_tilt, thr)
     collective = (az * (hover / GRAVITY) - hover) / thr[2]
     collective = min(collective, -prm[THR_MIN])
     thr[0] *= collective
@@ -155,11 +156,12 @@ def acceleration_control_row(ax: float, ay: float, az: float, hover: float, prm:
 
 @njit(cache=True, inline="always")
 def position_control_row(p: np.ndarray, v: np.ndarray, v_dot: np.ndarray, p_sp: np.ndarray, v_ff: np.ndarray,
-                         a_ff: np.ndarray, dt: float, prm: np.ndarray, s: np.ndarray, advance: bool,
-                         thr: np.ndarray) -> None:
+                         a_ff: np.ndarray, dt: float, prm: np.ndarray, cos_tilt: float, s: np.ndarray,
+                         advance: bool, thr: np.ndarray) -> None:
     """One position/velocity step of one vehicle (steps 1-5 of the module docstring) into ``thr`` (3,).
 
-    ``s`` is the vehicle's state row (``VEL_INT`` ... ``HOVER``); it advances only if ``advance``.
+    ``s`` is the vehicle's state row (``VEL_INT`` ... ``HOVER``); it advances only if ``advance``; ``cos_tilt`` is
+    ``cos(prm[TILT_MAX])``, taken once by the caller for all rows.
     """
     # 1. position P with the horizontal limit (priority to the position part) and the vertical limits
     vpx, vpy, vpz = (p_sp[0] - p[0]) * prm[KP], (p_sp[1] - p[1]) * prm[KP + 1], (p_sp[2] - p[2]) * prm[KP + 2]
@@ -176,7 +178,7 @@ def position_control_row(p: np.ndarray, v: np.ndarray, v_dot: np.ndarray, p_sp: 
     accz = a_ff[2] + ez * prm[KV + 2] + iz - v_dot[2] * prm[KD + 2]
     hover = s[HOVER]
     # 3. acceleration -> thrust
-    acceleration_control_row(accx, accy, accz, hover, prm, thr)
+    acceleration_control_row(accx, accy, accz, hover, prm, cos_tilt, thr)
     # 5a. vertical anti-windup: freeze when saturated in the error's direction
     if (thr[2] >= -prm[THR_MIN] and ez >= 0.0) or (thr[2] <= -prm[THR_MAX] and ez <= 0.0):
         ez = 0.0
@@ -227,11 +229,11 @@ def update_hover_thrust_row(hover_new: float, prm: np.ndarray, s: np.ndarray) ->
 
 @njit(cache=True, inline="always")
 def force_feedforward_row(thr: np.ndarray, force_hat: np.ndarray, thrust_scale: float, max_tilt: float,
-                          thr_min: float, thr_max: float, out: np.ndarray) -> None:
+                          cos_tilt: float, thr_min: float, thr_max: float, out: np.ndarray) -> None:
     """F = F0 - phi_hat (Wang et al. (2024) Sec. 7.2) on one normalized thrust vector, then PX4's limits again.
 
-    ``out = -body_z |F|`` with ``body_z`` tilt-limited to ``max_tilt`` and ``|F|`` kept in ``[thr_min, thr_max]``;
-    ``out`` may alias ``thr``.
+    ``out = -body_z |F|`` with ``body_z`` tilt-limited to ``max_tilt`` (``cos_tilt = cos(max_tilt)``) and ``|F|``
+    kept in ``[thr_min, thr_max]``; ``out`` may alias ``thr``.
     """
     fx = thr[0] - force_hat[0] / thrust_scale
     fy = thr[1] - force_hat[1] / thrust_scale
@@ -241,7 +243,7 @@ def force_feedforward_row(thr: np.ndarray, force_hat: np.ndarray, thrust_scale: 
         out[0], out[1], out[2] = -fx / n, -fy / n, -fz / n
     else:
         out[0], out[1], out[2] = 0.0, 0.0, 1.0
-    limit_tilt_row(out, _E3, max_tilt, out)
+    limit_tilt_row(out, _E3, max_tilt, cos_tilt, out)
     mag = min(max(n, thr_min), thr_max)
     out[0], out[1], out[2] = -out[0] * mag, -out[1] * mag, -out[2] * mag
 
@@ -252,9 +254,10 @@ def force_feedforward_row(thr: np.ndarray, force_hat: np.ndarray, thrust_scale: 
 def _position_kernel(p: np.ndarray, v: np.ndarray, v_dot: np.ndarray, p_sp: np.ndarray, v_ff: np.ndarray,
                      a_ff: np.ndarray, dt: np.ndarray, prm: np.ndarray, state: np.ndarray, advance: np.ndarray,
                      thr: np.ndarray) -> None:
+    cos_tilt = math.cos(prm[TILT_MAX])
     for i in range(p.shape[0]):
-        position_control_row(p[i], v[i], v_dot[i], p_sp[i], v_ff[i], a_ff[i], dt[i], prm, state[i], advance[i],
-                             thr[i])
+        position_control_row(p[i], v[i], v_dot[i], p_sp[i], v_ff[i], a_ff[i], dt[i], prm, cos_tilt, state[i],
+                             advance[i], thr[i])
 
 
 @njit(cache=True)
@@ -266,8 +269,9 @@ def _hover_thrust_kernel(hover_new: np.ndarray, prm: np.ndarray, state: np.ndarr
 
 @njit(cache=True)
 def _limit_tilt_kernel(b: np.ndarray, w: np.ndarray, max_angle: float, out: np.ndarray) -> None:
+    cos_max = math.cos(max_angle)
     for i in range(b.shape[0]):
-        limit_tilt_row(b[i], w[i], max_angle, out[i])
+        limit_tilt_row(b[i], w[i], max_angle, cos_max, out[i])
 
 
 @njit(cache=True)
@@ -285,8 +289,9 @@ def _bodyz_kernel(z: np.ndarray, yaw: np.ndarray, r: np.ndarray) -> None:
 @njit(cache=True)
 def _feedforward_kernel(thr: np.ndarray, force_hat: np.ndarray, thrust_scale: float, max_tilt: float,
                         thr_min: float, thr_max: float, out: np.ndarray) -> None:
+    cos_tilt = math.cos(max_tilt)
     for i in range(thr.shape[0]):
-        force_feedforward_row(thr[i], force_hat[i], thrust_scale, max_tilt, thr_min, thr_max, out[i])
+        force_feedforward_row(thr[i], force_hat[i], thrust_scale, max_tilt, cos_tilt, thr_min, thr_max, out[i])
 
 
 def _rows3(x: ArrayLike, n: int | None = None) -> NDArray[np.float64]:
