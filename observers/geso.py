@@ -49,6 +49,7 @@ from fawtgym.core import measurement as M
 from fawtgym.core.arrays import REAL_KINDS, as_array
 from fawtgym.core.checks import check_positive, shown
 from fawtgym.core.constants import GRAVITY
+from fawtgym.core.kernel_types import NO_REFCOUNT
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import cross_row
 
@@ -259,7 +260,7 @@ class GesoFilter:
         return out.reshape(shape + (m,))
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def geso_filter_row(x: NDArray[np.float64], u: float, y: float, dy: float, mats: NDArray[np.float64],
                     out: NDArray[np.float64]) -> None:
     """One exact sampled-data step of eq. 22 on one axis, m = len(x) = n + 1 states::
@@ -282,7 +283,7 @@ def _geso_filter_rows(x: NDArray[np.float64], u: NDArray[np.float64], y: NDArray
         geso_filter_row(x[i], u[i], y[i], dy[i], mats, out[i])
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def geso_signals_row(is_force: bool, mass: float, inertia: NDArray[np.float64], rate: NDArray[np.float64],
                      att: NDArray[np.float64], y: NDArray[np.float64], aux: NDArray[np.float64]) -> None:
     """The channel's measured momentum y and the state-dependent part of u* (Sec. IV-A):
@@ -313,11 +314,11 @@ def geso_signals(is_force: bool, mass: float, inertia: NDArray[np.float64], rate
 PARAM_NAMES = ("mass", "gravity", "J (9, row-major)", "J^-1 (9, row-major)")
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def geso_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.float64],
               rate: NDArray[np.float64], thrust: NDArray[np.float64], torque: NDArray[np.float64],
               slots: NDArray[np.int64], foh: bool, params: NDArray[np.float64], mats: NDArray[np.float64],
-              x_new: NDArray[np.float64], est: NDArray[np.float64]) -> None:
+              x_new: NDArray[np.float64], est: NDArray[np.float64], work: NDArray[np.float64]) -> None:
     """One GESO step of every row and channel slot.
 
     ``x`` (N, K, 3, M + 2): per slot k (``slots[k]`` = (kind, n_k + 1), kind 0 = force, 1 = torque channel) and
@@ -328,13 +329,15 @@ def geso_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.
     (N, K, M, 3): per slot the disturbance (x_hat[1] of each axis), the rate (v = x0 / m or Omega = J^-1 x0),
     then the derivatives d', ..., d^(n-1) (rows beyond n_k + 1 are padding).  u* is held over the step: the
     applied input with its state-dependent part at the previous signals (zoh) or at the mean of the previous
-    and the new (foh).
+    and the new (foh).  ``work`` (2, 3) is scratch: the kernel allocates nothing, and it and its row laws are
+    compiled without numba's reference counting (:data:`~fawtgym.core.kernel_types.NO_REFCOUNT`: the row views
+    made in its loops cost an atomic increment and decrement each otherwise, most of the update at N = 1024).
     """
     mass, gravity = params[0], params[1]
     inertia = params[2:11].reshape((3, 3))
     inertia_inv = params[11:20].reshape((3, 3))
     mm = x.shape[3] - 2
-    y_new, aux_new = np.empty(3), np.empty(3)
+    y_new, aux_new = work[0], work[1]
     for i in range(x.shape[0]):
         for k in range(x.shape[1]):
             is_force = slots[k, 0] == 0
@@ -356,7 +359,7 @@ def geso_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.
             slot_estimate_row(x_new[i, k], is_force, mass, inertia_inv, est[i, k])
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def slot_estimate_row(x: NDArray[np.float64], is_force: bool, mass: float, inertia_inv: NDArray[np.float64],
                       est: NDArray[np.float64]) -> None:
     """The estimate (M, 3) of one row's channel slot from its state ``x`` (3, M + 2) (:func:`geso_step`): the
@@ -517,7 +520,7 @@ class GESO(Observer):
         x_new = np.empty(x.shape)
         est = np.empty((n, x.shape[1], self._m, 3))
         geso_step(x, vel, meas.get(M.ATTITUDE, _EYE3), rate, f, tau, self._slots, self.hold == "foh", self._params,
-                  mats, x_new, est)
+                  mats, x_new, est, np.empty((2, 3)))
         return self._estimate_of(est), x_new
 
     def _estimate_of(self, est: NDArray[np.float64]) -> ObserverEstimate:
