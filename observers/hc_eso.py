@@ -41,6 +41,7 @@ from numpy.typing import ArrayLike, NDArray
 from fawtgym.core import measurement as M
 from fawtgym.core.checks import check_number, check_positive, shown
 from fawtgym.core.constants import GRAVITY
+from fawtgym.core.kernel_types import NO_REFCOUNT
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import exp_so3_row, known_angular_acceleration_entries, mat_mul_row
 
@@ -94,7 +95,7 @@ class HcEsoGains:
 # --------------------------------------------------------------------------------------------------
 # row functions
 # --------------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def hc_eso_rates_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, p, q, psi, s):
     """P and Q of eq. 30 for one row into ``p``, ``q`` (3,), with Psi (eq. 29) and s_L (eq. 22) into ``psi``, ``s``.
 
@@ -143,7 +144,7 @@ def hc_eso_rates_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, p, q, psi, s):
     s[0], s[1], s[2] = s0, s1, s2
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def hc_eso_step_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, h, scratch):
     """One Lie-Euler step of eq. 30 of size h of one row, in place: R_hat <- R_hat exp(h Omega_hat^x),
     Omega_hat <- Omega_hat + h P, sigma_hat <- sigma_hat + h Q (P, Q at the start of the step).
@@ -154,14 +155,17 @@ def hc_eso_step_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, h, scratch):
     for k in range(3):
         h_w[k] = h * w[k]
     exp_so3_row(h_w, scratch[2])
-    scratch[3] = r_hat
-    mat_mul_row(scratch[3], scratch[2], r_hat)
+    r_old = scratch[3]
+    for j in range(3):
+        for k in range(3):
+            r_old[j, k] = r_hat[j, k]
+    mat_mul_row(r_old, scratch[2], r_hat)
     for k in range(3):
         w[k] += h * p[k]
         sigma_hat[k] += h * q[k]
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def gain_matrix_row(use_attitude, sf, mag, att, E, EW, U, L):
     """L = (E W) (U^m)^T (Lemma 2) of one row into ``L``, U^m into ``U`` (3, 3): from the measured attitude
     (U^m = (R^m)^T E) or from the IMU (:func:`vector_attitude.imu_body_vectors_row`).  Returns that function's
@@ -194,9 +198,9 @@ def _step_rows(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, h):
         hc_eso_step_row(r_hat[i], w[i], sigma_hat[i], l[i], o[i], tau[i], J, J_inv, c, h, scratch)
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _update_rows(r_hat, w, sigma_hat, l, o, tau, use_attitude, sf, mag, att, rate, J, J_inv, E, EW, c, h, steps,
-                 out, l_new, o_new):
+                 out, l_new, o_new, scratch):
     """One observer update of every row from the state (``r_hat``, ``w``, ``sigma_hat``) and the held L, Omega^m
     (``l``, ``o``), none of them written: ``steps`` Lie-Euler substeps of size h, the held L propagated by
     exp(h (Omega^m)^x) between them, into ``out`` (N, 21): force (0) | torque J sigma_hat | R_hat (9) | Omega_hat |
@@ -205,33 +209,45 @@ def _update_rows(r_hat, w, sigma_hat, l, o, tau, use_attitude, sf, mag, att, rat
 
     Returns (status, row): (0, -1) done, or (k, i): the IMU vectors of row i are unusable
     (:func:`vector_attitude.imu_body_vectors_row` code k).  The inputs are checked finite by
-    :meth:`Observer.update`; a non-finite new state is caught there from the estimate."""
+    :meth:`Observer.update`; a non-finite new state is caught there from the estimate.
+
+    ``scratch`` (7, 3, 3) is work space: the kernel allocates nothing, and it and its row laws are compiled without
+    numba's reference counting (:data:`~fawtgym.core.kernel_types.NO_REFCOUNT`: the row views made in its loop cost
+    an atomic increment and decrement each otherwise, most of the update at N = 1024)."""
     n = r_hat.shape[0]
-    scratch = np.empty((6, 3, 3))
+    li, o_i, h_o = scratch[4], scratch[6, 0], scratch[6, 1]
     for i in range(n):
         row = out[i]
         r_new, w_new, sigma_new, tau_hat = row[6:15].reshape(3, 3), row[15:18], row[18:21], row[3:6]
-        r_new[:, :] = r_hat[i]
-        w_new[:] = w[i]
-        sigma_new[:] = sigma_hat[i]
-        li = scratch[4]
-        li[:, :] = l[i]
+        for j in range(3):
+            w_new[j] = w[i, j]
+            sigma_new[j] = sigma_hat[i, j]
+            o_i[j] = o[i, j]
+            for k in range(3):
+                r_new[j, k] = r_hat[i, j, k]
+                li[j, k] = l[i, j, k]
         if steps > 1:
-            exp_so3_row(h * o[i], scratch[5])
+            for j in range(3):
+                h_o[j] = h * o_i[j]
+            exp_so3_row(h_o, scratch[5])
         for k in range(steps):  # time substeps
-            hc_eso_step_row(r_new, w_new, sigma_new, li, o[i], tau[i], J, J_inv, c, h, scratch)
+            hc_eso_step_row(r_new, w_new, sigma_new, li, o_i, tau[i], J, J_inv, c, h, scratch)
             if k + 1 < steps:  # the held vectors for the next substep (after the last one, new ones come)
-                scratch[3] = li
-                mat_mul_row(scratch[3], scratch[5], li)
+                held = scratch[3]
+                for j in range(3):
+                    for m in range(3):
+                        held[j, m] = li[j, m]
+                mat_mul_row(held, scratch[5], li)
         code = gain_matrix_row(use_attitude, sf[i], mag[i], att[i], E, EW, scratch[3], l_new[i])
         if code:
             return code, i
-        o_new[i] = rate[i]
+        for j in range(3):
+            o_new[i, j] = rate[i, j]
         _wrench_row(sigma_new, J, row[0:3], tau_hat)
     return 0, -1
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _wrench_row(sigma_hat, J, force, torque):
     """The estimated wrench of one row: force 0 (HC-ESO estimates the torque only), torque J sigma_hat."""
     for k in range(3):
@@ -381,7 +397,7 @@ class HcEsoSO3(Observer):
         l_new, z3, z33 = np.empty((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3, 3))
         code, row = _update_rows(z33, z3, z3, z33, z3, z3, self.vectors == "attitude", sf, mag, att, rate, self._J,
                                  self._J_inv, self._e, self._ew, self._c, 0.0, 0, np.empty((n, 21)), l_new,
-                                 np.empty((n, 3)))
+                                 np.empty((n, 3)), np.empty((7, 3, 3)))
         self._raise(code, row)
         return l_new
 
@@ -418,7 +434,8 @@ class HcEsoSO3(Observer):
         out, l_new, o_new = np.empty((n, 21)), np.empty((n, 3, 3)), np.empty((n, 3))
         code, row = _update_rows(self._r_hat, self._w_hat, self._sigma, self._l, self._o,
                                  np.ascontiguousarray(torque), self.vectors == "attitude", sf, mag, att, rate, self._J,
-                                 self._J_inv, self._e, self._ew, self._c, dt / steps, steps, out, l_new, o_new)
+                                 self._J_inv, self._e, self._ew, self._c, dt / steps, steps, out, l_new, o_new,
+                                 np.empty((7, 3, 3)))
         self._raise(code, row)
         # the estimate: views of one buffer, which are also the new state (no update writes into a stored state)
         r_hat, w_hat, sigma = out[:, 6:15].reshape(n, 3, 3), out[:, 15:18], out[:, 18:21]
