@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from fawtgym.core.kernel_types import NO_REFCOUNT
 from fawtgym.core.so3 import cross, hat
 from fawtgym.core.so3_kernels import cross_entries
 
@@ -30,7 +31,7 @@ _EYE = np.eye(3)
 # --------------------------------------------------------------------------------------------------
 # row functions (used inside the observer kernels)
 # --------------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def gibbs_to_rot_row(g0, g1, g2, R):
     """R = D(g)^T = ((1 - g.g) I + 2 g g^T + 2 [g x]) / (1 + g.g) (eq. 45, transposed) into R (3, 3)."""
     gg = g0 * g0 + g1 * g1 + g2 * g2
@@ -40,7 +41,7 @@ def gibbs_to_rot_row(g0, g1, g2, R):
     R[2, 0], R[2, 1], R[2, 2] = 2.0 * (g2 * g0 - g1) / m, 2.0 * (g2 * g1 + g0) / m, (d + 2.0 * g2 * g2) / m
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def omega_row(g0, g1, g2, d0, d1, d2):
     """omega = 2 Gamma(g)^-1 g' = 2 (g' - g x g') / (1 + g.g) (eq. 80) of one row."""
     m = 1.0 + (g0 * g0 + g1 * g1 + g2 * g2)
@@ -48,7 +49,7 @@ def omega_row(g0, g1, g2, d0, d1, d2):
     return 2.0 * (d0 - x0) / m, 2.0 * (d1 - x1) / m, 2.0 * (d2 - x2) / m
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def rot_to_gibbs_row(R, den_floor, max_norm):
     """g of D = R^T: 2 vee(R) / (1 + tr R) = tan(theta/2) axis, with 1 + tr R floored at ``den_floor`` and the
     result clipped to norm ``max_norm`` (a half turn has no Gibbs vector)."""

@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.checks import check_number, check_positive, shown
 from fawtgym.core.constants import GRAVITY
+from fawtgym.core.kernel_types import NO_REFCOUNT
 from fawtgym.core.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FORCE, batch_measurement
 from fawtgym.core.rows import write_rows
 from fawtgym.core.so3_kernels import cross_row, mat_mul_row, quat_to_rot_row
@@ -39,9 +40,12 @@ from .stsmo import GibbsSTSMO, stsmo_row
 
 #: a measured Gibbs vector relative to the anchor is clipped to this norm (a half turn has none)
 _Y_MAX = 1e3
+#: the scratch floats of :func:`_pdt_sta_rows`: QUEST's body vectors (2, 3), quaternion and Gibbs scratch, the
+#: relative and Gibbs rotations (3, 3) each, y and omega
+N_WORK = 37
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def measured_attitude_row(sf, mag, ref, weights, gravity, min_field, body, q, g, R):
     """QUEST attitude (eqs. 56-66) of one row from the accelerometer ``sf`` and the magnetometer ``mag`` against
     the unit references ``ref`` (2, 3) into ``R`` (3, 3) (scratch ``body`` (2, 3), ``q`` (4,), ``g`` (3,)).
@@ -63,7 +67,7 @@ def measured_attitude_row(sf, mag, ref, weights, gravity, min_field, body, q, g,
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _mat_t_mul_row(A, B, out):
     """out = A^T B (3 x 3; core.so3_kernels has A B only)."""
     for i in range(3):
@@ -78,8 +82,8 @@ def _measured_attitude_rows(sf, mag, ref, weights, gravity, min_field, R, valid)
         valid[i] = measured_attitude_row(sf[i], mag[i], ref, weights, gravity, min_field, body, q, g, R[i])
 
 
-@njit(cache=True)
-def _pdt_sta_rows(sf, mag, tau, dt, k, anchor, x1, x2, t, state, est, valid):
+@njit(cache=True, **NO_REFCOUNT)
+def _pdt_sta_rows(sf, mag, tau, dt, k, anchor, x1, x2, t, state, est, valid, work):
     """One update of every row into ``state`` (N, 16): anchor R_a (9) | g_hat | g_hat' | t, and ``est`` (N, 30):
     force (0) | torque (0) | R_hat (9) | omega_hat | R_q (9) | g_hat, and ``valid`` (N,) (the inputs are not
     written).
@@ -90,13 +94,16 @@ def _pdt_sta_rows(sf, mag, tau, dt, k, anchor, x1, x2, t, state, est, valid):
     step (eqs. 75-77 / 81-82) with omega_hat of eq. 80; the re-anchoring R_a := R_a D(g_hat)^T, g_hat := 0,
     g_hat' := 1/2 Gamma(0) omega_hat (eq. 47) where ||g_hat|| > ``reanchor``; the outputs R_hat = R_a D(g_hat)^T
     (eq. 45) and omega_hat (eq. 80).  ``k``: the constants in one array (see ``PdtStaAttitudeObserver._k``):
-    gravity, min_field, reanchor, the unit references (2, 3), the QUEST weights (2), J, J^-1 and the STSMO's ``p``."""
+    gravity, min_field, reanchor, the unit references (2, 3), the QUEST weights (2), J, J^-1 and the STSMO's ``p``.
+    ``work`` (:data:`N_WORK`,) is scratch: the kernel allocates nothing, and it and its row laws are compiled without
+    numba's reference counting (:data:`~fawtgym.core.kernel_types.NO_REFCOUNT`: the row views made in its loop cost
+    an atomic increment and decrement each otherwise, most of the update at N = 1024)."""
     gravity, min_field, reanchor = k[0], k[1], k[2]
     ref, weights = k[3:9].reshape(2, 3), k[9:11]
     J, J_inv, p = k[11:20].reshape(3, 3), k[20:29].reshape(3, 3), k[29:]
-    body, q, g = np.empty((2, 3)), np.empty(4), np.empty(3)
-    rel, D = np.empty((3, 3)), np.empty((3, 3))
-    y, w = np.empty(3), np.empty(3)
+    body, q, g = work[0:6].reshape(2, 3), work[6:10], work[10:13]
+    rel, D = work[13:22].reshape(3, 3), work[22:31].reshape(3, 3)
+    y, w = work[31:34], work[34:37]
     for i in range(x1.shape[0]):
         A = anchor[i]
         s, e = state[i], est[i]
@@ -121,7 +128,9 @@ def _pdt_sta_rows(sf, mag, tau, dt, k, anchor, x1, x2, t, state, est, valid):
             g_new[0] = g_new[1] = g_new[2] = 0.0
             gd_new[0], gd_new[1], gd_new[2] = 0.5 * w0, 0.5 * w1, 0.5 * w2  # g' = 1/2 Gamma(0) omega (eq. 47)
         else:
-            A_new[:, :] = A
+            for j in range(3):
+                for m in range(3):
+                    A_new[j, m] = A[j, m]
         gibbs_to_rot_row(g_new[0], g_new[1], g_new[2], D)
         mat_mul_row(A_new, D, R_hat)  # eq. 45
         omega_hat[0], omega_hat[1], omega_hat[2] = omega_row(g_new[0], g_new[1], g_new[2], gd_new[0], gd_new[1],
@@ -242,7 +251,7 @@ class PdtStaAttitudeObserver(Observer):
         sf, mag = self._vectors(meas)
         state, out, valid = np.empty((n, 16)), np.empty((n, 30)), np.empty(n, bool)
         _pdt_sta_rows(sf, mag, np.ascontiguousarray(torque), dt, self._k, self.anchor, core.x1, core.x2, core.t,
-                      state, out, valid)
+                      state, out, valid, np.empty(N_WORK))
         # views of two buffers: the new state (no update writes into a stored state) and the estimate
         anchor, x1, x2, t = state[:, 0:9].reshape(n, 3, 3), state[:, 9:12], state[:, 12:15], state[:, 15]
         est = ObserverEstimate(force=out[:, 0:3], torque=out[:, 3:6], states=BufferStates(out, _STATES))

@@ -30,6 +30,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.checks import shown
+from fawtgym.core.kernel_types import NO_REFCOUNT, REFCOUNTED
 from fawtgym.core.so3 import cross
 from fawtgym.core.so3_kernels import cross_entries, quat_to_rot_row
 
@@ -146,7 +147,7 @@ def _gibbs_solve(b, r, a, f0, f1, f2):
     return g0, g1, g2, lam, ok
 
 
-@njit(cache=True)
+@njit(cache=True, **REFCOUNTED)
 def _eigh_quaternion(b, r, a):
     """The last resort, eq. 64: the eigenvector of K for its largest eigenvalue, (w, x, y, z) with w >= 0, and
     that eigenvalue."""
@@ -168,7 +169,7 @@ def _eigh_quaternion(b, r, a):
 _FLIPS = ((1.0, -1.0, -1.0), (-1.0, 1.0, -1.0), (-1.0, -1.0, 1.0))
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def quest_row(b, r, a, q, g):
     """QUEST (eqs. 57-66) of one attitude: unit vectors ``b``, ``r`` (n, 3), weights ``a`` (n,) > 0 -> writes the
     (w, x, y, z) quaternion of R into ``q`` (4,) and the Gibbs vector of D = R^T into ``g`` (3,); returns

@@ -28,6 +28,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.checks import shown
+from fawtgym.core.kernel_types import NO_REFCOUNT
 from fawtgym.core.rows import check_row_mask, write_rows
 from fawtgym.core.so3_kernels import cross_entries, gyroscopic_entries, mat_vec_entries
 
@@ -35,7 +36,7 @@ from .gibbs import omega_row
 from .predefined_sta import check_params, switch_and_gain_times
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def stsmo_row(x1, x2, t, y, u, w, J, J_inv, p, dt, x1_out, x2_out):
     """One step of eqs. 75-77 (or 81-82) of one row: state g_hat = ``x1`` (3,), g_hat' = ``x2`` (3,) at time ``t``,
     the Gibbs measurement ``y`` (eq. 79) and torque ``u`` held over ``dt``, the angular velocity ``w`` of eq. 76

@@ -26,6 +26,9 @@ VALUES, ROWS, ROTATIONS = float64[::1], float64[:, ::1], float64[:, :, ::1]
 #: argument of a law inlined into a row loop otherwise costs an atomic increment and decrement per row (found with
 #: ``perf``: ~15 % of the PX4 cascade kernel); without NRT a kernel cannot allocate (numba refuses to compile it).
 NO_REFCOUNT: dict[str, Any] = {"_nrt": False}
+#: ``njit`` options of a kernel that allocates and is also called from a :data:`NO_REFCOUNT` one (on a rare path):
+#: a callee inherits its caller's setting unless it states its own, so it states reference counting on.
+REFCOUNTED: dict[str, Any] = {"_nrt": True}
 
 
 _LOCK = threading.Lock()
