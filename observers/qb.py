@@ -54,6 +54,7 @@ from scipy.linalg import expm
 from fawtgym.core import measurement as M
 from fawtgym.core.checks import shown
 from fawtgym.core.constants import GRAVITY
+from fawtgym.core.kernel_types import NO_REFCOUNT
 from fawtgym.core.rows import write_rows
 
 from ._checks import first_bad_wrench
@@ -168,7 +169,7 @@ def discretize(gain: QBGain, dt: float) -> tuple[NDArray[np.float64], ...]:
     return e[:n, :n], e[:n, n:n + m], e[:n, n + m:n + m + p], e[:n, n + m + p:]
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _estimate_row(x, R, mass, J_inv, force, torque, velocity, omega, derivs):
     """The estimate of one row from its state x = (p_lin, p_ang, d_f, d_tau, d', ...) (eqs. 35, 42) and attitude R:
     force d_f (world NED), torque R^T d_tau (body FRD), velocity p_lin / m, Omega = J^-1 R^T p_ang."""
@@ -185,7 +186,7 @@ def _estimate_row(x, R, mass, J_inv, force, torque, velocity, omega, derivs):
         derivs[k] = x[12 + k]
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _estimate_rows(x, R, mass, J_inv, out):
     """:func:`_estimate_row` of every row into ``out`` (N, 12 + n_d): force | torque | velocity | Omega | d', ..."""
     for i in range(x.shape[0]):
@@ -202,31 +203,39 @@ def _estimate_views(out: NDArray[np.float64]) -> ObserverEstimate:
 _STATES = {"velocity": (6, 9, (3,)), "angular_velocity": (9, 12, (3,)), "disturbance_derivatives": (12, None, (-1,))}
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def _qb_rows(x, y_prev, R_prev, R, velocity, rate, specific_force, thrust, torque, mass, gravity, J, J_inv,
-             stacked, x_out, y_out, out):
+             stacked, x_out, y_out, out, work):
     """One update of every row: u_k (eq. 52) with Rbar = (R_prev + R) / 2, y_{k+1} (eq. 54), then
     x_{k+1} = Phi x_k + Gu u_k + Gy0 y_k + Gy1 (y_{k+1} - y_k) as the product z @ ``stacked`` of the row
     z = [x, u, y_prev, y] (:func:`discretize`), and the estimate into ``out`` (:func:`_estimate_rows`).
 
     The product is a loop of its own per row, summed in one fixed order, so a row's result does not depend on the
     other rows (a BLAS product of the whole batch, z (N, k) @ stacked, picks its kernel and blocking by N: row i
-    of an N = 5 batch then differed from the same vehicle at N = 1 at rounding level)."""
+    of an N = 5 batch then differed from the same vehicle at N = 1 at rounding level).
+
+    ``work`` (nz + 9,) is scratch: the kernel allocates nothing, and it and its row laws are compiled without
+    numba's reference counting (:data:`~fawtgym.core.kernel_types.NO_REFCOUNT`: the row views made in its loop cost
+    an atomic increment and decrement each otherwise)."""
     n, nx = x.shape
     nz = stacked.shape[0]
-    z = np.empty(nz)
-    Rbar = np.empty((3, 3))
+    z = work[:nz]
+    Rbar = work[nz:nz + 9].reshape(3, 3)
     for i in range(n):
-        z[:nx] = x[i]
+        for j in range(nx):
+            z[j] = x[i, j]
         for j in range(3):
             for k in range(3):
                 Rbar[j, k] = 0.5 * (R_prev[i, j, k] + R[i, j, k])
         momentum_input_row(mass, gravity, Rbar, thrust[i], torque[i], z[nx:nx + 6])
-        z[nx + 6:nx + 15] = y_prev[i]
+        for j in range(9):
+            z[nx + 6 + j] = y_prev[i, j]
         momentum_output_row(mass, J, R[i], velocity[i], rate[i], specific_force[i], thrust[i], y_out[i])
-        z[nx + 15:] = y_out[i]
+        for j in range(nz - nx - 15):
+            z[nx + 15 + j] = y_out[i, j]
         xi = x_out[i]
-        xi[:] = 0.0
+        for j in range(nx):
+            xi[j] = 0.0
         for k in range(nz):          # x_{k+1} = sum_k z_k stacked[k, :], k in order (eq. 3 discretized)
             zk = z[k]
             for j in range(nx):
@@ -344,7 +353,7 @@ class QBObserver(Observer):
         x, y, out = np.empty((n, nx)), np.empty((n, 9)), np.empty((n, nx))
         _qb_rows(self._x, self._y, self._R, R, c(meas[M.VELOCITY]), c(meas[M.ANGULAR_VELOCITY]),
                  c(meas[M.SPECIFIC_FORCE]), c(thrust), c(torque), self.mass, self.gravity, self._J, self._J_inv,
-                 stacked, x, y, out)
+                 stacked, x, y, out, np.empty(stacked.shape[0] + 9))
         return _estimate_views(out), (x, y, R.copy())
 
     def _commit(self, state: Any) -> None:

@@ -29,6 +29,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from fawtgym.core.checks import shown
+from fawtgym.core.kernel_types import NO_REFCOUNT
 
 from .qb_design import QBProblem
 
@@ -121,7 +122,7 @@ def uav_model(r: int = PAPER_ORDER, q1_scale: float = Q1_SCALE, q2: ArrayLike | 
 
 
 # ------------------------------------------------- mapping to the env's signals (batch-first) ----
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def momentum_input_row(mass, gravity, R, thrust, torque, u):
     """u = m g' + R' w_a (eq. 52) of one row into ``u`` (6,): world force m g e3 - f R e3, world torque R tau_a."""
     for k in range(3):
@@ -130,7 +131,7 @@ def momentum_input_row(mass, gravity, R, thrust, torque, u):
     u[2] += mass * gravity
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_REFCOUNT)
 def momentum_output_row(mass, J, R, velocity, omega, specific_force, thrust, y):
     """y of eq. 54 (typos corrected) of one row into ``y`` (9,): (m v, R J Omega, f_ext = R (m a_sf + f e3)).
 
