@@ -110,10 +110,9 @@ TORQUE = 36  # (3,) normalized torque setpoint
 ROTOR = 39  # (4,) rotor normalized thrusts sent to the motors
 N_STATE = 43
 
-#: work buffer layout of :func:`cascade_step` (one buffer of ``N_WORK`` floats, the caller's): the allocation's
-#: (2, 4, 4) matrices, five (3, 3) scratch matrices, then one row of every array the row loop works on
-W_ALLOC = 0
-W_MATS = W_ALLOC + 32
+#: work buffer layout of :func:`cascade_step` (one buffer of ``N_WORK`` floats, the caller's): five (3, 3) scratch
+#: matrices, then one row of every array the row loop works on
+W_MATS = 0
 W_ROW = W_MATS + 45
 N_WORK = W_ROW + 7 * 3 + 2 * 4 + N_STATE + N_POS_STATE + N_HTE_STATE + N_RATE_STATE + 4 * 3 + 4
 
@@ -227,14 +226,8 @@ def cascade_step(pos: np.ndarray, vel: np.ndarray, att: np.ndarray, gyro: np.nda
     hte_prm = constants[K_HTE:K_ATT]
     att_prm = constants[K_ATT:K_RATE]
     rate_prm = constants[K_RATE:K_MIX_T]
-    # the (4, 4) matrices copied out of the constants vector into a (2, 4, 4) part of the work buffer (a copy the
-    # row loop reads directly, like the (3, 3) scratch matrices below)
-    alloc_mats = work[W_ALLOC:W_MATS].reshape((2, 4, 4))
-    for j in range(4):
-        for m in range(4):
-            alloc_mats[0, j, m] = constants[K_MIX_T + 4 * j + m]
-            alloc_mats[1, j, m] = constants[K_EFFECTIVENESS + 4 * j + m]
-    mix_t, effectiveness = alloc_mats[0], alloc_mats[1]
+    mix_t = constants[K_MIX_T:K_EFFECTIVENESS].reshape((4, 4))
+    effectiveness = constants[K_EFFECTIVENESS:K_ALLOC_SCALE].reshape((4, 4))
     alloc_scale = constants[K_ALLOC_SCALE:K_ROTOR_MAP]
     rotor_map = constants[K_ROTOR_MAP:N_CONSTANTS]
     n = pos.shape[0]
