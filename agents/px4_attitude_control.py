@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from fawtgym.core.so3_kernels import mat_mul_row, rot_to_quat_row
+from fawtgym.core.so3_kernels import mat_copy_row, mat_mul_row, rot_to_quat_row
 
 from .px4_params import PX4Params
 from .shared_params import InPlaceArray
@@ -66,9 +66,7 @@ def attitude_control_row(r: np.ndarray, r_sp: np.ndarray, yawspeed_sp: float, pr
     cz = r[0, 2] * r_sp[1, 2] - r[1, 2] * r_sp[0, 2]
     d = r[0, 2] * r_sp[0, 2] + r[1, 2] * r_sp[1, 2] + r[2, 2] * r_sp[2, 2]
     if d < -1.0 + 1e-9:  # thrust axes opposite: PX4 takes the full attitude setpoint
-        for j in range(3):
-            for m in range(3):
-                qd[j, m] = r_sp[j, m]
+        mat_copy_row(r_sp, qd)
     else:
         cc = cx * cx + cy * cy + cz * cz
         # red = I + [c]^x + (c c^T - |c|^2 I) / (1 + d)

@@ -329,9 +329,8 @@ def geso_step(x: NDArray[np.float64], vel: NDArray[np.float64], att: NDArray[np.
     (N, K, M, 3): per slot the disturbance (x_hat[1] of each axis), the rate (v = x0 / m or Omega = J^-1 x0),
     then the derivatives d', ..., d^(n-1) (rows beyond n_k + 1 are padding).  u* is held over the step: the
     applied input with its state-dependent part at the previous signals (zoh) or at the mean of the previous
-    and the new (foh).  ``work`` (2, 3) is scratch: the kernel allocates nothing, and it and its row laws are
-    compiled without numba's reference counting (:data:`~fawtgym.core.kernel_types.NO_REFCOUNT`: the row views
-    made in its loops cost an atomic increment and decrement each otherwise, most of the update at N = 1024).
+    and the new (foh).  ``work`` (2, 3) is scratch: the kernel allocates nothing (it and its row laws are
+    :data:`~fawtgym.core.kernel_types.NO_REFCOUNT`).
     """
     mass, gravity = params[0], params[1]
     inertia = params[2:11].reshape((3, 3))

@@ -43,7 +43,7 @@ from fawtgym.core.checks import check_number, check_positive, shown
 from fawtgym.core.constants import GRAVITY
 from fawtgym.core.kernel_types import NO_REFCOUNT
 from fawtgym.core.rows import write_rows
-from fawtgym.core.so3_kernels import exp_so3_row, known_angular_acceleration_entries, mat_mul_row
+from fawtgym.core.so3_kernels import exp_so3_row, known_angular_acceleration_entries, mat_copy_row, mat_mul_row
 
 from . import vector_attitude as va
 from ._obs_common import MAX_RATE_GAIN, real_vector
@@ -155,11 +155,8 @@ def hc_eso_step_row(r_hat, w, sigma_hat, l, o, tau, J, J_inv, c, h, scratch):
     for k in range(3):
         h_w[k] = h * w[k]
     exp_so3_row(h_w, scratch[2])
-    r_old = scratch[3]
-    for j in range(3):
-        for k in range(3):
-            r_old[j, k] = r_hat[j, k]
-    mat_mul_row(r_old, scratch[2], r_hat)
+    mat_copy_row(r_hat, scratch[3])
+    mat_mul_row(scratch[3], scratch[2], r_hat)
     for k in range(3):
         w[k] += h * p[k]
         sigma_hat[k] += h * q[k]
@@ -211,9 +208,8 @@ def _update_rows(r_hat, w, sigma_hat, l, o, tau, use_attitude, sf, mag, att, rat
     (:func:`vector_attitude.imu_body_vectors_row` code k).  The inputs are checked finite by
     :meth:`Observer.update`; a non-finite new state is caught there from the estimate.
 
-    ``scratch`` (7, 3, 3) is work space: the kernel allocates nothing, and it and its row laws are compiled without
-    numba's reference counting (:data:`~fawtgym.core.kernel_types.NO_REFCOUNT`: the row views made in its loop cost
-    an atomic increment and decrement each otherwise, most of the update at N = 1024)."""
+    ``scratch`` (7, 3, 3) is work space: the kernel allocates nothing (it and its row laws are
+    :data:`~fawtgym.core.kernel_types.NO_REFCOUNT`)."""
     n = r_hat.shape[0]
     li, o_i, h_o = scratch[4], scratch[6, 0], scratch[6, 1]
     for i in range(n):
@@ -233,11 +229,8 @@ def _update_rows(r_hat, w, sigma_hat, l, o, tau, use_attitude, sf, mag, att, rat
         for k in range(steps):  # time substeps
             hc_eso_step_row(r_new, w_new, sigma_new, li, o_i, tau[i], J, J_inv, c, h, scratch)
             if k + 1 < steps:  # the held vectors for the next substep (after the last one, new ones come)
-                held = scratch[3]
-                for j in range(3):
-                    for m in range(3):
-                        held[j, m] = li[j, m]
-                mat_mul_row(held, scratch[5], li)
+                mat_copy_row(li, scratch[3])
+                mat_mul_row(scratch[3], scratch[5], li)
         code = gain_matrix_row(use_attitude, sf[i], mag[i], att[i], E, EW, scratch[3], l_new[i])
         if code:
             return code, i

@@ -29,7 +29,7 @@ from fawtgym.core.constants import GRAVITY
 from fawtgym.core.kernel_types import NO_REFCOUNT
 from fawtgym.core.measurement import EARTH_FIELD_NED, MAGNETOMETER, SPECIFIC_FORCE, batch_measurement
 from fawtgym.core.rows import write_rows
-from fawtgym.core.so3_kernels import cross_row, mat_mul_row, quat_to_rot_row
+from fawtgym.core.so3_kernels import cross_row, mat_copy_row, mat_mul_row, quat_to_rot_row
 
 from ._obs_common import real_vector
 from .base import BufferStates, Observer, ObserverEstimate, register_observer
@@ -95,9 +95,8 @@ def _pdt_sta_rows(sf, mag, tau, dt, k, anchor, x1, x2, t, state, est, valid, wor
     g_hat' := 1/2 Gamma(0) omega_hat (eq. 47) where ||g_hat|| > ``reanchor``; the outputs R_hat = R_a D(g_hat)^T
     (eq. 45) and omega_hat (eq. 80).  ``k``: the constants in one array (see ``PdtStaAttitudeObserver._k``):
     gravity, min_field, reanchor, the unit references (2, 3), the QUEST weights (2), J, J^-1 and the STSMO's ``p``.
-    ``work`` (:data:`N_WORK`,) is scratch: the kernel allocates nothing, and it and its row laws are compiled without
-    numba's reference counting (:data:`~fawtgym.core.kernel_types.NO_REFCOUNT`: the row views made in its loop cost
-    an atomic increment and decrement each otherwise, most of the update at N = 1024)."""
+    ``work`` (:data:`N_WORK`,) is scratch: the kernel allocates nothing (it and its row laws are
+    :data:`~fawtgym.core.kernel_types.NO_REFCOUNT`)."""
     gravity, min_field, reanchor = k[0], k[1], k[2]
     ref, weights = k[3:9].reshape(2, 3), k[9:11]
     J, J_inv, p = k[11:20].reshape(3, 3), k[20:29].reshape(3, 3), k[29:]
@@ -128,9 +127,7 @@ def _pdt_sta_rows(sf, mag, tau, dt, k, anchor, x1, x2, t, state, est, valid, wor
             g_new[0] = g_new[1] = g_new[2] = 0.0
             gd_new[0], gd_new[1], gd_new[2] = 0.5 * w0, 0.5 * w1, 0.5 * w2  # g' = 1/2 Gamma(0) omega (eq. 47)
         else:
-            for j in range(3):
-                for m in range(3):
-                    A_new[j, m] = A[j, m]
+            mat_copy_row(A, A_new)
         gibbs_to_rot_row(g_new[0], g_new[1], g_new[2], D)
         mat_mul_row(A_new, D, R_hat)  # eq. 45
         omega_hat[0], omega_hat[1], omega_hat[2] = omega_row(g_new[0], g_new[1], g_new[2], gd_new[0], gd_new[1],

@@ -214,9 +214,8 @@ def _qb_rows(x, y_prev, R_prev, R, velocity, rate, specific_force, thrust, torqu
     other rows (a BLAS product of the whole batch, z (N, k) @ stacked, picks its kernel and blocking by N: row i
     of an N = 5 batch then differed from the same vehicle at N = 1 at rounding level).
 
-    ``work`` (nz + 9,) is scratch: the kernel allocates nothing, and it and its row laws are compiled without
-    numba's reference counting (:data:`~fawtgym.core.kernel_types.NO_REFCOUNT`: the row views made in its loop cost
-    an atomic increment and decrement each otherwise)."""
+    ``work`` (nz + 9,) is scratch: the kernel allocates nothing (it and its row laws are
+    :data:`~fawtgym.core.kernel_types.NO_REFCOUNT`)."""
     n, nx = x.shape
     nz = stacked.shape[0]
     z = work[:nz]

@@ -22,9 +22,11 @@ VALUES, ROWS, ROTATIONS = float64[::1], float64[:, ::1], float64[:, :, ::1]
 
 
 #: ``njit`` options of a kernel that allocates nothing (its scratch is an argument): compiled without numba's
-#: reference counting (``_nrt=False``, an option numba uses for its own allocation-free helpers).  Every array
-#: argument of a law inlined into a row loop otherwise costs an atomic increment and decrement per row (found with
-#: ``perf``: ~15 % of the PX4 cascade kernel); without NRT a kernel cannot allocate (numba refuses to compile it).
+#: reference counting (``_nrt=False``, an option numba uses for its own allocation-free helpers).  Every row view a
+#: kernel's loop makes, and every array argument of a law inlined into it, otherwise costs an atomic increment and
+#: decrement per row (found with ``perf`` and ``gdb``: ~15 % of the PX4 cascade kernel, most of the GESO, HC-ESO,
+#: pdt_sta and QB updates at N = 1024).  Without NRT a kernel cannot allocate (numba refuses to compile it), nor
+#: assign one array to another (``a[:] = b`` may go through a temporary: copy entry by entry).
 NO_REFCOUNT: dict[str, Any] = {"_nrt": False}
 #: ``njit`` options of a kernel that allocates and is also called from a :data:`NO_REFCOUNT` one (on a rare path):
 #: a callee inherits its caller's setting unless it states its own, so it states reference counting on.

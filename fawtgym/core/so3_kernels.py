@@ -102,6 +102,15 @@ def mat_t_vec_row(r: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
 
 
 @njit(cache=True, inline="always")
+def mat_copy_row(a: np.ndarray, out: np.ndarray) -> None:
+    """out = A (3 x 3), entry by entry: an array assignment (``out[:, :] = a``) may go through a temporary, which a
+    kernel compiled without numba's reference counting (``NO_REFCOUNT``) cannot allocate."""
+    for j in range(3):
+        for k in range(3):
+            out[j, k] = a[j, k]
+
+
+@njit(cache=True, inline="always")
 def mat_mul_row(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     """out = A B (3 x 3); ``out`` must not alias ``a`` or ``b``."""
     for j in range(3):
